@@ -32,6 +32,16 @@ pub fn rad_to_deg(radians: f64) -> f64 {
 #[inline]
 pub fn wrap_pi(angle: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
+    // Fast paths for the common cases (no `fmod`).
+    if angle > -PI && angle <= PI {
+        return angle;
+    }
+    if angle > PI && angle <= 3.0 * PI {
+        return angle - TAU;
+    }
+    if angle <= -PI && angle > -3.0 * PI {
+        return angle + TAU;
+    }
     let mut a = angle % TAU; // (-2π, 2π)
     if a > PI {
         a -= TAU;
@@ -61,5 +71,15 @@ mod tests {
         assert!((wrap_pi(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-15);
         assert!((wrap_pi(-7.0) - (-7.0 + 2.0 * PI)).abs() < 1e-15);
         assert_eq!(wrap_pi(0.25), 0.25);
+        assert!((wrap_pi(3.0 * PI) - PI).abs() < 1e-15);
+        assert!((wrap_pi(-3.0 * PI) - PI).abs() < 1e-15);
+        assert!((wrap_pi(100.0) - (100.0 - 32.0 * PI)).abs() < 1e-13);
+        assert!(wrap_pi(f64::NAN).is_nan());
+        for k in -200..200 {
+            let a = k as f64 * 0.1;
+            let w = wrap_pi(a);
+            assert!(w > -PI && w <= PI, "{a} -> {w}");
+            assert!(((a - w) / (2.0 * PI) - ((a - w) / (2.0 * PI)).round()).abs() < 1e-12);
+        }
     }
 }

@@ -64,6 +64,10 @@ impl JointLimits {
         } else {
             0.0
         };
+        if (q - mid).abs() <= std::f64::consts::PI && q >= lo && q <= hi {
+            // Every other variant is at least π from the middle.
+            return Some(q);
+        }
         self.nearest_variant(j, q, mid, 0.0)
     }
 

@@ -374,7 +374,6 @@ pub fn solve_with(
     } else {
         rho
     };
-    let psi = p5[1].atan2(p5[0]);
     let reach_max = g.a2.abs() + g.a3.abs();
     let reach_min = (g.a2.abs() - g.a3.abs()).abs();
     // The smallest reach violation seen, to report when nothing is reachable.
@@ -384,8 +383,18 @@ pub fn solve_with(
     let shoulders: &[f64] = if rho == 0.0 { &[0.0] } else { &[1.0, -1.0] };
     for &sign in shoulders {
         let rho_s = sign * rho;
-        let q1 = wrap_pi(psi + g.d4.atan2(rho_s));
-        let (s1, c1) = q1.sin_cos();
+        // q1 = ψ + atan2(d4, ρ) with ψ = atan2(p5y, p5x), so (cos q1, sin q1) ∝
+        // (p5x ρ − p5y d4, p5y ρ + p5x d4): no trigonometry needed.
+        let (mut c1, mut s1) = (p5[0] * rho_s - p5[1] * g.d4, p5[1] * rho_s + p5[0] * g.d4);
+        let n1 = (c1 * c1 + s1 * s1).sqrt();
+        if n1 > 0.0 {
+            c1 /= n1;
+            s1 /= n1;
+        } else {
+            // Only with calibration slack: the wrist point on the base axis, any q1 will do.
+            (c1, s1) = (1.0, 0.0);
+        }
+        let q1 = s1.atan2(c1);
         // Frame-1 components: x1 = (c1, s1, 0), y1 = (0, 0, 1), z1 = (s1, −c1, 0).
         let to1 = |v: &[f64; 3]| [v[0] * c1 + v[1] * s1, v[2], v[0] * s1 - v[1] * c1];
         let x16 = to1(&x6);
@@ -398,10 +407,10 @@ pub fn solve_with(
         let a = x16[2]; // sin q5 cos q6
         let b = y16[2]; // −sin q5 sin q6
         let c5 = z16[2];
-        let s5abs = a.hypot(b);
+        let s5abs = (a * a + b * b).sqrt();
 
-        // (q5, q6, cos q234, sin q234, wrist sign) for each wrist solution.
-        let mut wrists = [(0.0, 0.0, 0.0, 0.0, 0.0); 2];
+        // (q5, q6, q234, cos q234, sin q234, wrist sign) for each wrist solution.
+        let mut wrists = [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0); 2];
         let tilt = s5abs;
         let n_wrists;
         if s5abs < WRIST_SINGULAR_EPS {
@@ -417,27 +426,27 @@ pub fn solve_with(
             let q234 = nearest_reachable_q234(g, px, py, wanted, reach_min, reach_max);
             let q6 = wrap_pi(s6dir * (q234 - phi));
             let (s234, c234) = q234.sin_cos();
-            wrists[0] = (q5, q6, c234, s234, 1.0);
+            wrists[0] = (q5, q6, q234, c234, s234, 1.0);
             n_wrists = 1;
         } else {
-            for (k, sign5) in [1.0, -1.0].into_iter().enumerate() {
-                let s5 = sign5 * s5abs;
-                let q5 = s5.atan2(c5);
-                let c6 = a / s5;
-                let s6 = -b / s5;
-                let q6 = s6.atan2(c6);
-                // First column of Rz(q234) = R16 · (c5 c6, −c5 s6, −s5).
-                let (u, v, w) = (c5 * c6, -c5 * s6, -s5);
-                let c234 = x16[0] * u + y16[0] * v + z16[0] * w;
-                let s234 = x16[1] * u + y16[1] * v + z16[1] * w;
-                let n = c234.hypot(s234);
-                wrists[k] = (q5, q6, c234 / n, s234 / n, sign5);
-            }
+            // Wrist noflip (sin q5 > 0); the flip is q5 → −q5, q6 → q6 + π, q234 → q234 + π.
+            let q5 = s5abs.atan2(c5);
+            let (c6, s6) = (a / s5abs, -b / s5abs);
+            let q6 = (-b).atan2(a);
+            // First column of Rz(q234) = R16 · (c5 c6, −c5 s6, −s5).
+            let (u, v, w) = (c5 * c6, -c5 * s6, -s5abs);
+            let mut c234 = x16[0] * u + y16[0] * v + z16[0] * w;
+            let mut s234 = x16[1] * u + y16[1] * v + z16[1] * w;
+            let n = (c234 * c234 + s234 * s234).sqrt();
+            c234 /= n;
+            s234 /= n;
+            let q234 = s234.atan2(c234);
+            wrists[0] = (q5, q6, q234, c234, s234, 1.0);
+            wrists[1] = (-q5, flip_pi(q6), flip_pi(q234), -c234, -s234, -1.0);
             n_wrists = 2;
         }
 
-        for &(q5, mut q6, mut c234, mut s234, sign5) in &wrists[..n_wrists] {
-            let mut q234 = s234.atan2(c234);
+        for &(q5, mut q6, mut q234, mut c234, mut s234, sign5) in &wrists[..n_wrists] {
             let planar_cos = |s234: f64, c234: f64| {
                 let p4x = px - g.d5 * s234;
                 let p4y = py + g.d5 * c234;
@@ -494,22 +503,23 @@ pub fn solve_with(
                 s3abs = slack.split_sin3;
                 c3 = c3.signum() * (1.0 - s3abs * s3abs).sqrt();
             }
-            let elbows: &[f64] = if s3abs < ELBOW_MERGE_SIN {
+            let merged = s3abs < ELBOW_MERGE_SIN;
+            if merged {
                 out.singular.elbow = true;
                 s3abs = 0.0;
                 c3 = c3.signum();
-                &[0.0]
-            } else {
-                &[1.0, -1.0]
-            };
+            }
+            // The elbow pair: q3 = ±atan2(s3, c3), q2 = base ∓ atan2(a3 s3, a2 + a3 c3).
             let base = p4y.atan2(p4x);
+            let q3p = s3abs.atan2(c3);
+            let off = (g.a3 * s3abs).atan2(g.a2 + g.a3 * c3);
+            let elbows: &[f64] = if merged { &[1.0] } else { &[1.0, -1.0] };
             for &sign3 in elbows {
-                let s3 = sign3 * s3abs;
-                let q3 = s3.atan2(c3);
-                let q2 = wrap_pi(base - (g.a3 * s3).atan2(g.a2 + g.a3 * c3));
+                let q3 = sign3 * q3p;
+                let q2 = wrap_pi(base - sign3 * off);
                 let q4 = wrap_pi(q234 - q2 - q3);
                 let joints = [q1, q2, q3, q4, q5, q6];
-                let branch = label(rho_s, s3, sign5 * q5.sin().abs());
+                let branch = label(rho_s, sign3 * s3abs, sign5);
                 push_distinct(&mut out, IkSolution { joints, branch });
             }
         }
@@ -522,6 +532,12 @@ pub fn solve_with(
         }));
     }
     Ok(out)
+}
+
+/// `a + π` wrapped into `(−π, π]`, for `a` in `(−π, π]`.
+#[inline]
+fn flip_pi(a: f64) -> f64 {
+    if a > 0.0 { a - PI } else { a + PI }
 }
 
 /// Angle difference wrapped into `(−π, π]`.

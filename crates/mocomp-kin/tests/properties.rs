@@ -3,6 +3,7 @@
 //! distinct; no reachable pose reported unreachable; the generating joints recovered; the branch
 //! choice against brute force.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 use mocomp_geom::nalgebra::{Isometry3, Translation3, Vector3};
 use mocomp_geom::units::wrap_pi;
 use mocomp_geom::{quat_from_rotvec, rotation_error, translation_error};

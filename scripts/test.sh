@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# The one test command (README.md, .ci/run): installs what the tests need, then runs the format
+# check, clippy with -D warnings, and every test, interop tests included.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+say() { printf '\n==> %s\n' "$*"; }
+
+# 1. The Python interop peers, pinned, in a git-ignored venv.
+PYTHON=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  say "creating .venv with $($PYTHON --version)"
+  "$PYTHON" -m venv .venv
+fi
+say "installing interop peers (requirements-interop.txt)"
+.venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-interop.txt
+export MOCOMP_PYTHON="$PWD/.venv/bin/python"
+
+# 2. Rust gates. The toolchain comes from rust-toolchain.toml.
+say "cargo fmt --check"
+cargo fmt --all -- --check
+say "cargo clippy (all targets, -D warnings)"
+cargo clippy --workspace --all-targets --locked -- -D warnings
+say "cargo test (workspace)"
+cargo test --workspace --locked
+say "all checks passed"
