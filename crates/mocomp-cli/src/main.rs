@@ -5,7 +5,7 @@
 mod args;
 mod kin_cmd;
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use mocomp_kin::{KinError, Model};
 use std::io::Write;
 use std::path::PathBuf;
@@ -23,27 +23,19 @@ struct Cli {
 enum Command {
     /// Forward kinematics: base_from_flange of a joint configuration (metres, radians).
     Fk {
-        /// Robot model (ur3, ur5, ur10, ur3e, ur5e, ur10e, ur16e, ur20, ur30).
-        #[arg(long, value_parser = args::model)]
-        robot: Model,
+        #[command(flatten)]
+        arm: ArmArgs,
         /// Joint angles, radians, base to wrist 3.
         #[arg(long, value_name = "Q1,...,Q6", value_parser = args::six, allow_hyphen_values = true)]
         joints: [f64; 6],
-        /// Tool offset flange_from_tool as a UR pose vector (m, rotation vector).
-        #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
-        tool: Option<[f64; 6]>,
-        /// The robot's own calibrated DH values (TOML; see mocomp-kin's DhCalibration).
-        #[arg(long, value_name = "FILE")]
-        calibration: Option<PathBuf>,
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
     },
     /// Inverse kinematics: every solution of a pose with its branch, and the one chosen.
     Ik {
-        /// Robot model (ur3, ur5, ur10, ur3e, ur5e, ur10e, ur16e, ur20, ur30).
-        #[arg(long, value_parser = args::model)]
-        robot: Model,
+        #[command(flatten)]
+        arm: ArmArgs,
         /// Target pose as a UR pose vector: metres and rotation vector (of the tool if --tool).
         #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
         pose: [f64; 6],
@@ -65,12 +57,6 @@ enum Command {
         /// Rank by the seed paper's minimal sum of |Δq| instead of time to reach.
         #[arg(long)]
         angle_sum: bool,
-        /// Tool offset flange_from_tool as a UR pose vector (m, rotation vector).
-        #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
-        tool: Option<[f64; 6]>,
-        /// The robot's own calibrated DH values (TOML).
-        #[arg(long, value_name = "FILE")]
-        calibration: Option<PathBuf>,
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
@@ -83,6 +69,26 @@ enum Command {
     },
 }
 
+/// The robot whose kinematics a command uses.
+#[derive(Debug, Args)]
+struct ArmArgs {
+    /// Robot model (ur3, ur5, ur10, ur3e, ur5e, ur10e, ur16e, ur20, ur30).
+    #[arg(long, value_parser = args::model)]
+    robot: Model,
+    /// Tool offset flange_from_tool as a UR pose vector (m, rotation vector).
+    #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
+    tool: Option<[f64; 6]>,
+    /// The robot's own calibrated DH values (TOML; see README.md).
+    #[arg(long, value_name = "FILE")]
+    calibration: Option<PathBuf>,
+}
+
+impl ArmArgs {
+    fn build(&self) -> anyhow::Result<mocomp_kin::Arm> {
+        kin_cmd::arm(self.robot, self.calibration.as_deref(), self.tool)
+    }
+}
+
 /// Exit code for bad input (arguments, files).
 const EXIT_USAGE: u8 = 2;
 /// Exit code for a well-formed request that cannot be met (an unreachable pose).
@@ -92,25 +98,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match cli.command {
-        Command::Fk {
-            robot,
-            joints,
-            tool,
-            calibration,
-            json,
-        } => {
-            let arm = kin_cmd::arm(robot, calibration.as_deref(), tool)?;
-            kin_cmd::fk(&mut out, &arm, &joints, tool.is_some(), json)?;
+        Command::Fk { arm, joints, json } => {
+            let has_tool = arm.tool.is_some();
+            kin_cmd::fk(&mut out, &arm.build()?, &joints, has_tool, json)?;
         }
         Command::Ik {
-            robot,
+            arm,
             pose,
             current,
             keep_branch,
             margin,
             angle_sum,
-            tool,
-            calibration,
             json,
         } => {
             if !margin.is_finite() || margin < 0.0 {
@@ -119,7 +117,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 ))
                 .into());
             }
-            let arm = kin_cmd::arm(robot, calibration.as_deref(), tool)?;
+            let arm = arm.build()?;
             let choice = kin_cmd::IkChoice {
                 current: current.unwrap_or([0.0; 6]),
                 current_given: current.is_some(),
