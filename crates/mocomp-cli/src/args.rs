@@ -33,6 +33,15 @@ pub fn six(s: &str) -> Result<[f64; 6], String> {
     numbers::<6>(s)
 }
 
+/// Two non-negative numbers: a noise level in millimetres and degrees.
+pub fn noise_pair(s: &str) -> Result<[f64; 2], String> {
+    let v = numbers::<2>(s)?;
+    if v.iter().any(|x| *x < 0.0) {
+        return Err("noise levels must not be negative".into());
+    }
+    Ok(v)
+}
+
 /// A robot model name.
 pub fn model(s: &str) -> Result<Model, String> {
     s.parse::<Model>().map_err(|e| e.to_string())

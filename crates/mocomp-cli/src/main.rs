@@ -3,6 +3,7 @@
 #![allow(clippy::print_stdout, clippy::print_stderr)]
 
 mod args;
+mod calib_cmd;
 mod kin_cmd;
 
 use clap::{Args, Parser, Subcommand};
@@ -67,6 +68,106 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Hand-eye and robot-world calibration: X = flange_from_marker, Y = base_from_tracker.
+    Calibrate {
+        #[command(subcommand)]
+        command: CalibrateCommand,
+    },
+}
+
+#[derive(Debug, Subcommand)]
+enum CalibrateCommand {
+    /// Solve for X and Y from a pairs file (CSV; see README.md for its columns).
+    Solve {
+        /// The pairs file.
+        #[arg(long, value_name = "FILE")]
+        pairs: PathBuf,
+        /// Solver: li (the paper's linear method), shah, or refined (nonlinear, robust).
+        #[arg(long, default_value = "refined", value_parser = ["li", "shah", "refined"])]
+        method: String,
+        /// Robot model, needed when the file has joint columns q1..q6.
+        #[arg(long, value_parser = args::model)]
+        robot: Option<Model>,
+        /// The robot's own calibrated DH values (TOML), for joint columns.
+        #[arg(long, value_name = "FILE", requires = "robot")]
+        calibration: Option<PathBuf>,
+        /// Expected tracker noise per axis: millimetres, degrees.
+        #[arg(long, value_name = "MM,DEG", default_value = "0.1,0.1", value_parser = args::noise_pair)]
+        tracker_noise: [f64; 2],
+        /// Expected robot noise per axis: millimetres, degrees.
+        #[arg(long, value_name = "MM,DEG", default_value = "0.03,0.01", value_parser = args::noise_pair)]
+        robot_noise: [f64; 2],
+        /// Leave outlier pairs out and solve again (they are reported either way).
+        #[arg(long)]
+        reject_outliers: bool,
+        /// Write X and Y with the residual report to this TOML file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Propose robot poses for a calibration run around a centre flange pose.
+    Plan {
+        /// Robot model.
+        #[arg(long, value_parser = args::model)]
+        robot: Model,
+        /// Centre flange pose as a UR pose vector (m, rotation vector).
+        #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
+        center: [f64; 6],
+        /// Number of poses.
+        #[arg(long, default_value_t = 20)]
+        count: usize,
+        /// Current joints (the run starts here and stays on their branch). Default: the IK
+        /// solution of the centre nearest the zero configuration.
+        #[arg(long, value_name = "Q1,...,Q6", value_parser = args::six, allow_hyphen_values = true)]
+        current: Option<[f64; 6]>,
+        /// Rough flange_from_marker (rotations turn about the marker's centre).
+        #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
+        marker: Option<[f64; 6]>,
+        /// Rough base_from_tracker (tracker looking along +z): keeps the marker in view.
+        #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
+        tracker: Option<[f64; 6]>,
+        /// Smallest rotation from the centre, degrees.
+        #[arg(long, default_value_t = 15.0)]
+        min_deg: f64,
+        /// Largest rotation from the centre, degrees.
+        #[arg(long, default_value_t = 40.0)]
+        max_deg: f64,
+        /// Shift the flange by up to this much per axis, metres.
+        #[arg(long, default_value_t = 0.10)]
+        spread_m: f64,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a synthetic pairs file with known X and Y, for trying things out.
+    Synth {
+        /// Where to write it.
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+        /// Number of pairs.
+        #[arg(long, default_value_t = 20)]
+        count: usize,
+        /// RNG seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// True X = flange_from_marker (default: 12 cm out on the flange, turned).
+        #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
+        x: Option<[f64; 6]>,
+        /// True Y = base_from_tracker (default: 1.5 m from the robot, facing it).
+        #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = args::six, allow_hyphen_values = true)]
+        y: Option<[f64; 6]>,
+        /// Tracker noise per axis: millimetres, degrees.
+        #[arg(long, value_name = "MM,DEG", default_value = "0.1,0.1", value_parser = args::noise_pair)]
+        tracker_noise: [f64; 2],
+        /// Robot noise per axis: millimetres, degrees.
+        #[arg(long, value_name = "MM,DEG", default_value = "0.03,0.01", value_parser = args::noise_pair)]
+        robot_noise: [f64; 2],
+        /// Shift the flange by up to this much per axis, metres.
+        #[arg(long, default_value_t = 0.20)]
+        spread_m: f64,
+    },
 }
 
 /// The robot whose kinematics a command uses.
@@ -128,9 +229,111 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             kin_cmd::ik(&mut out, &arm, &pose, &choice, json)?;
         }
         Command::Models { json } => kin_cmd::models(&mut out, json)?,
+        Command::Calibrate { command } => calibrate(&mut out, command)?,
     }
     out.flush()?;
     Ok(())
+}
+
+fn pose_arg(name: &str, v: &[f64; 6]) -> anyhow::Result<mocomp_geom::nalgebra::Isometry3<f64>> {
+    mocomp_geom::iso_from_ur_pose(v).map_err(|e| UsageError(format!("{name}: {e}")).into())
+}
+
+fn calibrate(out: &mut impl Write, command: CalibrateCommand) -> anyhow::Result<()> {
+    use mocomp_calib::NoiseModel;
+    let noise = |t: [f64; 2], r: [f64; 2]| NoiseModel::from_mm_deg(t[0], t[1], r[0], r[1]);
+    match command {
+        CalibrateCommand::Solve {
+            pairs,
+            method,
+            robot,
+            calibration,
+            tracker_noise,
+            robot_noise,
+            reject_outliers,
+            out: out_file,
+            json,
+        } => {
+            let arm = match robot {
+                Some(model) => Some(kin_cmd::arm(model, calibration.as_deref(), None)?),
+                None => None,
+            };
+            let method = method
+                .parse()
+                .map_err(|e| UsageError(format!("--method: {e}")))?;
+            calib_cmd::solve_cmd(
+                out,
+                &calib_cmd::SolveArgs {
+                    pairs: &pairs,
+                    arm,
+                    method,
+                    noise: noise(tracker_noise, robot_noise),
+                    reject_outliers,
+                    out_file: out_file.as_deref(),
+                    json,
+                },
+            )
+        }
+        CalibrateCommand::Plan {
+            robot,
+            center,
+            count,
+            current,
+            marker,
+            tracker,
+            min_deg,
+            max_deg,
+            spread_m,
+            json,
+        } => {
+            if !(spread_m.is_finite() && spread_m >= 0.0) {
+                return Err(UsageError(format!("--spread-m {spread_m}: must be ≥ 0")).into());
+            }
+            let args = calib_cmd::PlanArgs {
+                arm: mocomp_kin::Arm::new(robot),
+                center: pose_arg("--center", &center)?,
+                count,
+                current,
+                marker: marker.map(|m| pose_arg("--marker", &m)).transpose()?,
+                tracker: tracker.map(|t| pose_arg("--tracker", &t)).transpose()?,
+                degrees: (min_deg, max_deg),
+                spread_m,
+                json,
+            };
+            calib_cmd::plan_cmd(out, &args)
+        }
+        CalibrateCommand::Synth {
+            out: out_file,
+            count,
+            seed,
+            x,
+            y,
+            tracker_noise,
+            robot_noise,
+            spread_m,
+        } => {
+            let mut options = mocomp_calib::synth::SynthOptions {
+                count,
+                seed,
+                translation_spread_m: spread_m,
+                noise: Some(noise(tracker_noise, robot_noise)),
+                ..Default::default()
+            };
+            if let Some(x) = x {
+                options.flange_from_marker = pose_arg("--x", &x)?;
+            }
+            if let Some(y) = y {
+                options.base_from_tracker = pose_arg("--y", &y)?;
+            }
+            calib_cmd::synth_cmd(
+                out,
+                &calib_cmd::SynthArgs {
+                    out_file: &out_file,
+                    options,
+                },
+            )
+        }
+    }
 }
 
 /// An error in what the user gave (exit code 2).
@@ -148,6 +351,13 @@ impl std::error::Error for UsageError {}
 fn exit_code(err: &anyhow::Error) -> u8 {
     if err.downcast_ref::<UsageError>().is_some() {
         return EXIT_USAGE;
+    }
+    // Calibration: bad or degenerate input is exit 2; a plan that cannot be met is exit 1.
+    if let Some(e) = err.downcast_ref::<mocomp_calib::CalibError>() {
+        return match e {
+            mocomp_calib::CalibError::PlanShort { .. } => EXIT_FAILURE,
+            _ => EXIT_USAGE,
+        };
     }
     // Errors about a pose that cannot be reached are outcomes, not bad input.
     match err.downcast_ref::<KinError>() {

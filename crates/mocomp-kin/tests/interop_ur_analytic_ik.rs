@@ -13,111 +13,19 @@ use mocomp_geom::{
     RIGID_TOLERANCE, iso_from_matrix, rotation_error, rows_from_iso, translation_error,
 };
 use mocomp_kin::{Arm, BranchPolicy, Metric, Model, Selection};
+use mocomp_testkit::{PythonPeer, SplitMix64 as Rng};
 use serde_json::{Value, json};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
-use std::io::{BufRead, BufReader, Write};
-use std::path::PathBuf;
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 
 const CONFIGS_PER_MODEL: usize = 1000;
-const TOL: f64 = 1e-9;
 
-struct Peer {
-    child: Child,
-    stdin: ChildStdin,
-    stdout: BufReader<ChildStdout>,
-}
-
-fn workspace_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
+struct Peer;
 impl Peer {
-    fn start() -> Peer {
-        let root = workspace_root();
-        let python = std::env::var_os("MOCOMP_PYTHON")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| root.join(".venv/bin/python"));
-        let install = "install it with `scripts/test.sh` (creates .venv), or `python3 -m venv .venv && \
-                       .venv/bin/pip install -r requirements-interop.txt` in the workspace root";
-        let mut child = Command::new(&python)
-            .arg(root.join("interop/ur_analytic_ik_peer.py"))
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap_or_else(|e| {
-                panic!(
-                    "interop peer ur-analytic-ik missing: cannot run {}: {e}; {install}",
-                    python.display()
-                )
-            });
-        let stdin = child.stdin.take().unwrap();
-        let stdout = BufReader::new(child.stdout.take().unwrap());
-        let mut peer = Peer {
-            child,
-            stdin,
-            stdout,
-        };
-        let v = peer.try_request(&json!({"op": "version"})).unwrap_or_else(|e| {
-            panic!("interop peer ur-analytic-ik missing ({e}; see Python's message above); {install}")
-        });
-        assert_eq!(
-            v["version"], "0.1.0.post3",
-            "requirements-interop.txt pins 0.1.0.post3"
-        );
-        peer
-    }
-
-    fn try_request(&mut self, req: &Value) -> Result<Value, String> {
-        writeln!(self.stdin, "{req}").map_err(|e| e.to_string())?;
-        self.stdin.flush().map_err(|e| e.to_string())?;
-        let mut line = String::new();
-        let n = self
-            .stdout
-            .read_line(&mut line)
-            .map_err(|e| e.to_string())?;
-        if n == 0 {
-            return Err("the helper exited".into());
-        }
-        let v: Value = serde_json::from_str(&line)
-            .map_err(|e| format!("{e} in {:?}", line.chars().take(120).collect::<String>()))?;
-        if let Some(e) = v.get("error") {
-            return Err(format!("helper error: {e}"));
-        }
-        Ok(v)
-    }
-
-    fn request(&mut self, req: &Value) -> Value {
-        self.try_request(req).unwrap()
+    fn start() -> PythonPeer {
+        PythonPeer::start("ur_analytic_ik_peer.py", "ur-analytic-ik", "0.1.0.post3")
     }
 }
-
-impl Drop for Peer {
-    fn drop(&mut self) {
-        self.child.kill().ok();
-        self.child.wait().ok();
-    }
-}
-
-/// SplitMix64: a seeded, dependency-free sequence so failures reproduce.
-struct Rng(u64);
-impl Rng {
-    fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn angle(&mut self) -> f64 {
-        self.next_f64() * TAU - PI
-    }
-    fn joints(&mut self) -> [f64; 6] {
-        std::array::from_fn(|_| self.angle())
-    }
-}
+const TOL: f64 = 1e-9;
 
 fn matrix_of(v: &Value) -> Matrix4<f64> {
     Matrix4::from_fn(|r, c| v[r][c].as_f64().unwrap())

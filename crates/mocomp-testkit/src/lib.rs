@@ -1,0 +1,138 @@
+//! Test support shared by mocomp's test suites (a dev-dependency only):
+//! - [`PythonPeer`]: a third-party implementation driven through a helper script in `interop/`,
+//!   one JSON request per line and one JSON answer per line, run in the workspace's `.venv` (or
+//!   the Python named by `MOCOMP_PYTHON`). A missing peer is a test failure that says how to
+//!   install it, never a skip.
+//! - [`SplitMix64`]: a tiny seeded generator for tests that must not depend on a RNG crate's
+//!   version.
+#![allow(clippy::panic)] // test support: failures are panics with a message
+
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Write};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+
+/// The workspace root (two levels above this crate).
+pub fn workspace_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// How to install the interop peers.
+pub const INSTALL_HINT: &str = "install them with `scripts/test.sh` (creates .venv), or \
+     `python3 -m venv .venv && .venv/bin/pip install -r requirements-interop.txt` in the \
+     workspace root";
+
+/// A running helper process.
+#[derive(Debug)]
+pub struct PythonPeer {
+    name: String,
+    child: Child,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+}
+
+impl PythonPeer {
+    /// Starts `interop/<helper>` and checks it answers `{"op": "version"}` with `version`.
+    /// Panics, with install instructions, when Python or the peer package is missing.
+    pub fn start(helper: &str, peer: &str, version: &str) -> PythonPeer {
+        let root = workspace_root();
+        let python = std::env::var_os("MOCOMP_PYTHON")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| root.join(".venv/bin/python"));
+        let mut child = Command::new(&python)
+            .arg(root.join("interop").join(helper))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap_or_else(|e| {
+                panic!(
+                    "interop peer {peer} missing: cannot run {}: {e}; {INSTALL_HINT}",
+                    python.display()
+                )
+            });
+        let (Some(stdin), Some(stdout)) = (child.stdin.take(), child.stdout.take()) else {
+            panic!("interop peer {peer}: no pipes to the helper");
+        };
+        let mut p = PythonPeer {
+            name: peer.to_string(),
+            child,
+            stdin,
+            stdout: BufReader::new(stdout),
+        };
+        let v = p
+            .try_request(&serde_json::json!({"op": "version"}))
+            .unwrap_or_else(|e| {
+                panic!(
+                    "interop peer {peer} missing ({e}; see Python's message above); {INSTALL_HINT}"
+                )
+            });
+        let got = v["version"].as_str().unwrap_or("?");
+        assert_eq!(
+            got, version,
+            "interop peer {peer}: requirements-interop.txt pins {version}, found {got}"
+        );
+        p
+    }
+
+    /// Sends one request and reads one answer; an answer with `"error"` is an error.
+    pub fn try_request(&mut self, req: &Value) -> Result<Value, String> {
+        writeln!(self.stdin, "{req}").map_err(|e| e.to_string())?;
+        self.stdin.flush().map_err(|e| e.to_string())?;
+        let mut line = String::new();
+        let n = self
+            .stdout
+            .read_line(&mut line)
+            .map_err(|e| e.to_string())?;
+        if n == 0 {
+            return Err("the helper exited".into());
+        }
+        let v: Value = serde_json::from_str(&line)
+            .map_err(|e| format!("{e} in {:?}", line.chars().take(120).collect::<String>()))?;
+        if let Some(e) = v.get("error") {
+            return Err(format!("helper error: {e}"));
+        }
+        Ok(v)
+    }
+
+    /// Like [`Self::try_request`], panicking with the peer's name on error.
+    pub fn request(&mut self, req: &Value) -> Value {
+        match self.try_request(req) {
+            Ok(v) => v,
+            Err(e) => panic!("interop peer {}: {e}", self.name),
+        }
+    }
+}
+
+impl Drop for PythonPeer {
+    fn drop(&mut self) {
+        self.child.kill().ok();
+        self.child.wait().ok();
+    }
+}
+
+/// SplitMix64: a seeded, dependency-free sequence so failures reproduce.
+#[derive(Debug, Clone)]
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    /// Next value uniform in [0, 1).
+    pub fn next_f64(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// An angle uniform in [−π, π).
+    pub fn angle(&mut self) -> f64 {
+        self.next_f64() * std::f64::consts::TAU - std::f64::consts::PI
+    }
+
+    /// Six angles uniform in [−π, π).
+    pub fn joints(&mut self) -> [f64; 6] {
+        std::array::from_fn(|_| self.angle())
+    }
+}
