@@ -13,13 +13,12 @@ noise-free interop test):
 "seconds" times the OpenCV call alone (median of `repeat` calls, default 1).
 """
 
-import json
 import statistics
-import sys
 import time
 
 import cv2
 import numpy as np
+from jsonlines import serve
 
 METHODS = {
     "SHAH": cv2.CALIB_ROBOT_WORLD_HAND_EYE_SHAH,
@@ -69,16 +68,7 @@ def handle(req):
 
 
 def main():
-    for line in sys.stdin:
-        line = line.strip()
-        if not line:
-            continue
-        try:
-            answer = handle(json.loads(line))
-        except Exception as exc:  # report and keep serving
-            answer = {"error": f"{type(exc).__name__}: {exc}"}
-        sys.stdout.write(json.dumps(answer) + "\n")
-        sys.stdout.flush()
+    serve(handle)
 
 
 if __name__ == "__main__":

@@ -9,20 +9,15 @@ Requests (one per line):
 Errors answer {"error": "..."} and the helper keeps running.
 
 The peer's C++ code prints warnings ("Detected and filtered incorrect IK solution") to the process's
-stdout. The protocol therefore runs on a duplicate of the original stdout, fd 1 is pointed at a
-temporary file, and each answer carries "peer_warnings": the warning lines the peer printed while
-serving that request.
+stdout, so the loop captures fd 1 (jsonlines.serve) and each answer carries "peer_warnings": the
+warning lines the peer printed while serving that request.
 """
 
-import ctypes
-import json
-import os
-import sys
-import tempfile
 from importlib import metadata
 
 import numpy as np
 import ur_analytic_ik
+from jsonlines import serve
 
 
 def handle(req):
@@ -48,26 +43,7 @@ def handle(req):
 
 
 def main():
-    sys.stdout.flush()
-    libc = ctypes.CDLL(None)
-    proto = os.fdopen(os.dup(1), "w", buffering=1)
-    captured = tempfile.TemporaryFile(mode="w+b")
-    os.dup2(captured.fileno(), 1)
-    for line in sys.stdin:
-        line = line.strip()
-        if not line:
-            continue
-        try:
-            answer = handle(json.loads(line))
-        except Exception as exc:  # report and keep serving
-            answer = {"error": f"{type(exc).__name__}: {exc}"}
-        libc.fflush(None)  # C++ output buffered by stdio
-        captured.seek(0)
-        printed = captured.read().decode(errors="replace")
-        captured.seek(0)
-        captured.truncate()
-        answer["peer_warnings"] = sum(1 for ln in printed.splitlines() if ln.strip())
-        proto.write(json.dumps(answer) + "\n")
+    serve(handle, capture_stdout=True)
 
 
 if __name__ == "__main__":

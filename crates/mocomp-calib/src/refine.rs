@@ -69,10 +69,7 @@ fn cost(
     pairs
         .iter()
         .zip(w)
-        .map(|(p, wi)| {
-            let r = residual(p, x, y);
-            wi * (r.rotation.norm_squared() / (sr * sr) + r.translation.norm_squared() / (st * st))
-        })
+        .map(|(p, wi)| wi * normalized(&residual(p, x, y), sr, st).powi(2))
         .sum()
 }
 

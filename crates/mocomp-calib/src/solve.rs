@@ -186,12 +186,7 @@ pub fn solve(pairs: &[Pair], options: &SolveOptions) -> Result<Calibration, Cali
     let mut rounds = 0;
     loop {
         let norms = refine::norms(pairs, &x, &y, noise);
-        let used_norms: Vec<f64> = norms
-            .iter()
-            .zip(&used)
-            .filter(|(_, u)| **u)
-            .map(|(r, _)| *r)
-            .collect();
+        let used_norms = selected(&norms, &used);
         let scale = refine::robust_scale(&used_norms);
         outliers = (0..pairs.len())
             .filter(|&i| norms[i] > OUTLIER_THRESHOLD * scale)
@@ -206,12 +201,7 @@ pub fn solve(pairs: &[Pair], options: &SolveOptions) -> Result<Calibration, Cali
         for &i in &newly {
             used[i] = false;
         }
-        let remaining: Vec<Pair> = pairs
-            .iter()
-            .zip(&used)
-            .filter(|(_, u)| **u)
-            .map(|(p, _)| *p)
-            .collect();
+        let remaining = selected(pairs, &used);
         if remaining.len() < 3 {
             return Err(CalibError::TooManyOutliers {
                 outliers: pairs.len() - remaining.len(),
@@ -253,19 +243,9 @@ pub fn solve(pairs: &[Pair], options: &SolveOptions) -> Result<Calibration, Cali
     let n = n_used.max(1) as f64;
 
     // Uncertainty and conditioning from the information matrix of the pairs used.
-    let used_pairs: Vec<Pair> = pairs
-        .iter()
-        .zip(&used)
-        .filter(|(_, u)| **u)
-        .map(|(p, _)| *p)
-        .collect();
+    let used_pairs = selected(pairs, &used);
     let h = refine::information(&used_pairs, &x, &y, noise);
-    let chi2: f64 = norms
-        .iter()
-        .zip(&used)
-        .filter(|(_, u)| **u)
-        .map(|(r, _)| r * r)
-        .sum();
+    let chi2: f64 = selected(&norms, &used).iter().map(|r| r * r).sum();
     let dof = (6 * used_pairs.len()).saturating_sub(12).max(1) as f64;
     let (uncertainty, condition) = uncertainty_and_condition(&h, chi2 / dof);
     Ok(Calibration {
@@ -283,6 +263,16 @@ pub fn solve(pairs: &[Pair], options: &SolveOptions) -> Result<Calibration, Cali
         uncertainty,
         iterations,
     })
+}
+
+/// The items whose flag in `used` is set.
+fn selected<T: Copy>(items: &[T], used: &[bool]) -> Vec<T> {
+    items
+        .iter()
+        .zip(used)
+        .filter(|(_, u)| **u)
+        .map(|(v, _)| *v)
+        .collect()
 }
 
 fn uncertainty_and_condition(h: &refine::Mat12, reduced_chi2: f64) -> (Uncertainty, f64) {

@@ -14,26 +14,6 @@ use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
 
-fn fmt_row(v: &[f64]) -> String {
-    v.iter()
-        .map(|x| format!("{x:>10.6}"))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-fn print_transform(out: &mut impl Write, title: &str, t: &Isometry3<f64>) -> Result<()> {
-    writeln!(out, "{title}:")?;
-    for row in rows_from_iso(t) {
-        writeln!(out, "  [{} ]", fmt_row(&row))?;
-    }
-    writeln!(
-        out,
-        "  pose [x, y, z, rx, ry, rz] (m, rad): [{}]",
-        fmt_row(&ur_pose_from_iso(t))
-    )?;
-    Ok(())
-}
-
 /// Options of `calibrate solve`.
 #[derive(Debug)]
 pub struct SolveArgs<'a> {
@@ -144,12 +124,18 @@ fn print_report(out: &mut impl Write, c: &Calibration, n: usize) -> Result<()> {
         "method {}, {n} pairs ({} nonlinear iterations)",
         c.method, c.iterations
     )?;
-    print_transform(
+    crate::print::transform(
         out,
         "X = flange_from_marker (metres)",
         &c.flange_from_marker,
+        true,
     )?;
-    print_transform(out, "Y = base_from_tracker (metres)", &c.base_from_tracker)?;
+    crate::print::transform(
+        out,
+        "Y = base_from_tracker (metres)",
+        &c.base_from_tracker,
+        true,
+    )?;
     writeln!(
         out,
         "residuals over the pairs used: RMS {:.3} mm, {:.3}°; max {:.3} mm, {:.3}°",
@@ -182,6 +168,24 @@ fn print_report(out: &mut impl Write, c: &Calibration, n: usize) -> Result<()> {
             r.normalized,
             if r.outlier { "  OUTLIER" } else { "" },
             if r.used { "" } else { " (left out)" }
+        )?;
+    }
+    if !c.checks.suspect.is_empty() {
+        let names: Vec<String> = c
+            .checks
+            .suspect
+            .iter()
+            .map(|&i| {
+                c.residuals[i]
+                    .line
+                    .map(|l| format!("line {l}"))
+                    .unwrap_or_else(|| format!("pair {}", i + 1))
+            })
+            .collect();
+        writeln!(
+            out,
+            "before solving, these pairs' motion disagreed with most others: {}",
+            names.join(", ")
         )?;
     }
     if c.outliers.is_empty() {
@@ -280,15 +284,15 @@ pub fn plan_cmd(out: &mut impl Write, args: &PlanArgs) -> Result<()> {
         "{} calibration poses for {} from [{}] (radians; flange pose in m, rotation vector)",
         poses.len(),
         args.arm.model(),
-        fmt_row(&current)
+        crate::print::row(&current)
     )?;
     for (i, p) in poses.iter().enumerate() {
         writeln!(
             out,
             "{:>3}  q [{}]  pose [{}]  {:>5.1}°",
             i + 1,
-            fmt_row(&p.joints),
-            fmt_row(&ur_pose_from_iso(&p.base_from_flange)),
+            crate::print::row(&p.joints),
+            crate::print::row(&ur_pose_from_iso(&p.base_from_flange)),
             p.rotation_rad.to_degrees()
         )?;
     }
@@ -334,7 +338,17 @@ pub fn synth_cmd(out: &mut impl Write, args: &SynthArgs<'_>) -> Result<()> {
         pairs.len(),
         args.out_file.display()
     )?;
-    print_transform(out, "true X = flange_from_marker", &o.flange_from_marker)?;
-    print_transform(out, "true Y = base_from_tracker", &o.base_from_tracker)?;
+    crate::print::transform(
+        out,
+        "true X = flange_from_marker",
+        &o.flange_from_marker,
+        true,
+    )?;
+    crate::print::transform(
+        out,
+        "true Y = base_from_tracker",
+        &o.base_from_tracker,
+        true,
+    )?;
     Ok(())
 }

@@ -1,7 +1,6 @@
 //! `mocomp fk`, `mocomp ik` and `mocomp models`: printing what `mocomp-kin` computes.
 
 use anyhow::{Context, Result, bail};
-use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{iso_from_ur_pose, rows_from_iso, ur_pose_from_iso};
 use mocomp_kin::{Arm, BranchPolicy, DhCalibration, MODELS, Metric, Model, Selection};
 use serde::Serialize;
@@ -32,21 +31,6 @@ pub fn arm(model: Model, calibration: Option<&Path>, tool: Option<[f64; 6]>) -> 
         arm = arm.with_tool(iso_from_ur_pose(&t).context("--tool")?);
     }
     Ok(arm)
-}
-
-fn fmt_row(v: &[f64]) -> String {
-    v.iter()
-        .map(|x| format!("{x:>10.6}"))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-fn print_matrix(out: &mut impl Write, title: &str, iso: &Isometry3<f64>) -> Result<()> {
-    writeln!(out, "{title}:")?;
-    for row in rows_from_iso(iso) {
-        writeln!(out, "  [{} ]", fmt_row(&row))?;
-    }
-    Ok(())
 }
 
 #[derive(Serialize)]
@@ -84,22 +68,23 @@ pub fn fk(
     } else {
         ""
     };
-    print_matrix(
+    crate::print::transform(
         out,
         &format!("base_from_flange ({}{calibrated}; metres)", arm.model()),
         &flange,
+        false,
     )?;
     writeln!(
         out,
         "pose [x, y, z, rx, ry, rz] (m, rad): [{}]",
-        fmt_row(&ur_pose_from_iso(&flange))
+        crate::print::row(&ur_pose_from_iso(&flange))
     )?;
     if has_tool {
-        print_matrix(out, "base_from_tool (metres)", &tool)?;
+        crate::print::transform(out, "base_from_tool (metres)", &tool, false)?;
         writeln!(
             out,
             "tool pose [x, y, z, rx, ry, rz] (m, rad): [{}]",
-            fmt_row(&ur_pose_from_iso(&tool))
+            crate::print::row(&ur_pose_from_iso(&tool))
         )?;
     }
     Ok(())
@@ -209,7 +194,7 @@ pub fn ik(
             s.branch.shoulder.as_str(),
             s.branch.elbow.as_str(),
             s.branch.wrist.as_str(),
-            fmt_row(&s.joints)
+            crate::print::row(&s.joints)
         )?;
     }
     let from = if choice.current_given {
@@ -226,7 +211,7 @@ pub fn ik(
         out,
         "chosen: #{} as [{}] (nearest ±2π variant to {from}; {metric})",
         chosen.index + 1,
-        fmt_row(&chosen.joints)
+        crate::print::row(&chosen.joints)
     )?;
     if !singular.is_empty() {
         writeln!(

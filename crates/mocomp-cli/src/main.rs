@@ -5,6 +5,7 @@
 mod args;
 mod calib_cmd;
 mod kin_cmd;
+mod print;
 
 use clap::{Args, Parser, Subcommand};
 use mocomp_kin::{KinError, Model};
