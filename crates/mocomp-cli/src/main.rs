@@ -6,6 +6,7 @@ mod args;
 mod calib_cmd;
 mod kin_cmd;
 mod print;
+mod track_cmd;
 
 use clap::{Args, Parser, Subcommand};
 use mocomp_kin::{KinError, Model};
@@ -69,10 +70,66 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Fiducial tracking in IR + depth frames (directories of 16-bit PNG pairs).
+    Track(TrackCli),
     /// Hand-eye and robot-world calibration: X = flange_from_marker, Y = base_from_tracker.
     Calibrate {
         #[command(subcommand)]
         command: CalibrateCommand,
+    },
+}
+
+/// `mocomp track --frames DIR ...` or `mocomp track render ...`.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+struct TrackCli {
+    #[command(subcommand)]
+    command: Option<TrackCommand>,
+    /// Directory of <name>_ir.png / <name>_depth.png pairs (16-bit; depth in mm, 0 = none).
+    #[arg(long, value_name = "DIR", required = true)]
+    frames: Option<PathBuf>,
+    /// Camera intrinsics (TOML: width, height, fx, fy, cx, cy, k1, k2, k3, p1, p2, pixel_centre).
+    #[arg(long, value_name = "FILE", required = true)]
+    intrinsics: Option<PathBuf>,
+    /// Marker geometry: .toml (points_mm), Atracsys .ini or NDI .rom.
+    #[arg(long, value_name = "FILE", required = true)]
+    geometry: Option<PathBuf>,
+    /// Pipeline parameters (TOML; see README.md). Default: built-in values.
+    #[arg(long, value_name = "FILE")]
+    params: Option<PathBuf>,
+    /// Write an overlay image per frame into this directory.
+    #[arg(long, value_name = "DIR")]
+    overlay: Option<PathBuf>,
+    /// One JSON line per frame.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Subcommand)]
+enum TrackCommand {
+    /// Write synthetic frames of a marker (with ground truth) to a directory.
+    Render {
+        /// Output directory.
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+        /// Marker geometry (.toml, .ini, .rom).
+        #[arg(long, value_name = "FILE")]
+        geometry: PathBuf,
+        /// Camera intrinsics (TOML). Default: a typical Kinect v2.
+        #[arg(long, value_name = "FILE")]
+        intrinsics: Option<PathBuf>,
+        /// Number of frames.
+        #[arg(long, default_value_t = 10)]
+        count: usize,
+        /// RNG seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Add sun spots, reflections and (every fifth frame) a hand.
+        #[arg(long)]
+        distractors: bool,
+        /// Hide this fiducial (1-based) in every frame.
+        #[arg(long, value_name = "K")]
+        hide: Option<usize>,
     },
 }
 
@@ -231,6 +288,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Models { json } => kin_cmd::models(&mut out, json)?,
         Command::Calibrate { command } => calibrate(&mut out, command)?,
+        Command::Track(t) => track(&mut out, t)?,
     }
     out.flush()?;
     Ok(())
@@ -238,6 +296,51 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 
 fn pose_arg(name: &str, v: &[f64; 6]) -> anyhow::Result<mocomp_geom::nalgebra::Isometry3<f64>> {
     mocomp_geom::iso_from_ur_pose(v).map_err(|e| UsageError(format!("{name}: {e}")).into())
+}
+
+fn track(out: &mut impl Write, t: TrackCli) -> anyhow::Result<()> {
+    match t.command {
+        Some(TrackCommand::Render {
+            out: dir,
+            geometry,
+            intrinsics,
+            count,
+            seed,
+            distractors,
+            hide,
+        }) => track_cmd::render_frames(
+            out,
+            &track_cmd::RenderArgs {
+                out_dir: &dir,
+                geometry: &geometry,
+                intrinsics: intrinsics.as_deref(),
+                count,
+                seed,
+                distractors,
+                hide,
+            },
+        ),
+        None => {
+            let (Some(frames), Some(intrinsics), Some(geometry)) =
+                (&t.frames, &t.intrinsics, &t.geometry)
+            else {
+                return Err(
+                    UsageError("track needs --frames, --intrinsics and --geometry".into()).into(),
+                );
+            };
+            track_cmd::track(
+                out,
+                &track_cmd::TrackArgs {
+                    frames,
+                    intrinsics,
+                    geometry,
+                    params: t.params.as_deref(),
+                    overlay: t.overlay.as_deref(),
+                    json: t.json,
+                },
+            )
+        }
+    }
 }
 
 fn calibrate(out: &mut impl Write, command: CalibrateCommand) -> anyhow::Result<()> {
@@ -351,6 +454,9 @@ impl std::error::Error for UsageError {}
 
 fn exit_code(err: &anyhow::Error) -> u8 {
     if err.downcast_ref::<UsageError>().is_some() {
+        return EXIT_USAGE;
+    }
+    if err.downcast_ref::<mocomp_vision::VisionError>().is_some() {
         return EXIT_USAGE;
     }
     // Calibration: bad or degenerate input is exit 2; a plan that cannot be met is exit 1.

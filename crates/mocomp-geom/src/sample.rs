@@ -1,0 +1,24 @@
+//! Timestamped pose samples and the `PoseSource` trait through which the control loop reads a
+//! tracker, whatever it is (OpenIGTLink stream, IR+depth fiducial tracking, simulation).
+
+use nalgebra::Isometry3;
+
+/// One tracker sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSample {
+    /// `tracker_from_marker` (e.g. `tracker_from_head`), metres.
+    pub tracker_from_marker: Isometry3<f64>,
+    /// When it was measured (acquisition time), seconds on the monotonic clock the loop uses.
+    pub acquired_s: f64,
+    /// Whether the tracker reported the marker as valid (seen, within its error limit).
+    pub valid: bool,
+    /// Registration error reported with the sample, metres (`NaN` when unknown).
+    pub error_m: f64,
+}
+
+/// A source of tracker samples. `latest` never blocks: it returns the newest sample that has
+/// arrived since the last call, or `None` when nothing new came.
+pub trait PoseSource {
+    /// The newest sample not yet returned, if any.
+    fn latest(&mut self) -> Option<PoseSample>;
+}

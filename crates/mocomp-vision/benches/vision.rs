@@ -1,0 +1,43 @@
+//! One 512×424 frame through the whole pipeline. `cargo bench -p mocomp-vision --bench vision`.
+#![allow(missing_docs, clippy::unwrap_used)]
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use mocomp_geom::nalgebra::Point3;
+use mocomp_vision::render::{Distractors, RenderOptions, render, view_pose};
+use mocomp_vision::{Frame, Intrinsics, MarkerGeometry, TrackParams, Tracker};
+use std::hint::black_box;
+
+fn bench(c: &mut Criterion) {
+    let g = MarkerGeometry::new(
+        "8700449",
+        vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(0.0, 0.04738, 0.02899),
+            Point3::new(0.0, 0.0, 0.0891),
+            Point3::new(0.0, -0.03536, 0.03536),
+        ],
+    )
+    .unwrap();
+    let mut o = RenderOptions::kinect(view_pose(3), 3);
+    let clean = render(&g, &o);
+    o.distractors = Distractors {
+        sun_spots: 2,
+        reflections: 6,
+        hand: true,
+    };
+    let busy = render(&g, &o);
+    let mut tracker = Tracker::new(Intrinsics::kinect_v2(), TrackParams::default(), g).unwrap();
+    for (name, img) in [
+        ("frame_512x424_clean", &clean),
+        ("frame_512x424_distractors", &busy),
+    ] {
+        let frame = Frame::new(img.width, img.height, &img.ir, &img.depth).unwrap();
+        assert!(tracker.process(&frame).unwrap().detection.is_some());
+        c.bench_function(name, |b| {
+            b.iter(|| black_box(tracker.process(black_box(&frame)).unwrap()))
+        });
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
