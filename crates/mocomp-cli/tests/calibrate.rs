@@ -6,7 +6,7 @@
 use mocomp_calib::CalibrationFile;
 use mocomp_geom::nalgebra::Matrix4;
 use mocomp_geom::{iso_from_matrix, iso_from_ur_pose, translation_error};
-use std::path::PathBuf;
+use mocomp_testkit::TempDir;
 use std::process::{Command, Output};
 
 fn mocomp(args: &[&str]) -> Output {
@@ -14,23 +14,6 @@ fn mocomp(args: &[&str]) -> Output {
         .args(args)
         .output()
         .unwrap()
-}
-
-struct TempDir(PathBuf);
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let d = std::env::temp_dir().join(format!("mocomp-{name}-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
-        TempDir(d)
-    }
-    fn path(&self, f: &str) -> String {
-        self.0.join(f).to_str().unwrap().to_string()
-    }
-}
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        std::fs::remove_dir_all(&self.0).ok();
-    }
 }
 
 #[test]

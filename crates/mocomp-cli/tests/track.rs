@@ -6,8 +6,8 @@
 
 use mocomp_geom::nalgebra::Matrix4;
 use mocomp_geom::{iso_from_matrix_mm, rotation_error, translation_error};
+use mocomp_testkit::TempDir;
 use mocomp_vision::codec::{encode_gray16_png, encode_rgb_png};
-use std::path::PathBuf;
 use std::process::{Command, Output};
 
 fn mocomp(args: &[&str]) -> Output {
@@ -15,24 +15,6 @@ fn mocomp(args: &[&str]) -> Output {
         .args(args)
         .output()
         .unwrap()
-}
-
-struct Dir(PathBuf);
-impl Dir {
-    fn new(name: &str) -> Self {
-        let d = std::env::temp_dir().join(format!("mocomp-track-{name}-{}", std::process::id()));
-        std::fs::remove_dir_all(&d).ok();
-        std::fs::create_dir_all(&d).unwrap();
-        Dir(d)
-    }
-    fn p(&self, f: &str) -> String {
-        self.0.join(f).to_str().unwrap().to_string()
-    }
-}
-impl Drop for Dir {
-    fn drop(&mut self) {
-        std::fs::remove_dir_all(&self.0).ok();
-    }
 }
 
 const GEOMETRY: &str =
@@ -45,15 +27,15 @@ fn pose(v: &serde_json::Value) -> mocomp_geom::nalgebra::Isometry3<f64> {
 
 #[test]
 fn rendered_frames_are_tracked_to_their_truth() {
-    let d = Dir::new("ok");
-    std::fs::write(d.p("g.toml"), GEOMETRY).unwrap();
+    let d = TempDir::new("track-ok");
+    std::fs::write(d.path("g.toml"), GEOMETRY).unwrap();
     let out = mocomp(&[
         "track",
         "render",
         "--out",
-        &d.p("frames"),
+        &d.path("frames"),
         "--geometry",
-        &d.p("g.toml"),
+        &d.path("g.toml"),
         "--count",
         "12",
         "--distractors",
@@ -66,13 +48,13 @@ fn rendered_frames_are_tracked_to_their_truth() {
     let out = mocomp(&[
         "track",
         "--frames",
-        &d.p("frames"),
+        &d.path("frames"),
         "--intrinsics",
-        &d.p("frames/intrinsics.toml"),
+        &d.path("frames/intrinsics.toml"),
         "--geometry",
-        &d.p("g.toml"),
+        &d.path("g.toml"),
         "--overlay",
-        &d.p("overlay"),
+        &d.path("overlay"),
         "--json",
     ]);
     assert!(
@@ -81,7 +63,7 @@ fn rendered_frames_are_tracked_to_their_truth() {
         String::from_utf8_lossy(&out.stderr)
     );
     let tracked = String::from_utf8(out.stdout).unwrap();
-    let truth = std::fs::read_to_string(d.p("frames/truth.jsonl")).unwrap();
+    let truth = std::fs::read_to_string(d.path("frames/truth.jsonl")).unwrap();
     let mut found = 0;
     for (a, b) in tracked.lines().zip(truth.lines()) {
         let a: serde_json::Value = serde_json::from_str(a).unwrap();
@@ -102,7 +84,7 @@ fn rendered_frames_are_tracked_to_their_truth() {
         }
     }
     assert!(found >= 10, "found {found} of 12");
-    assert!(std::path::Path::new(&d.p("overlay/0000_overlay.png")).exists());
+    assert!(std::path::Path::new(&d.path("overlay/0000_overlay.png")).exists());
 }
 
 fn expect_error(args: &[&str], needles: &[&str]) {
@@ -122,10 +104,10 @@ fn expect_error(args: &[&str], needles: &[&str]) {
 
 #[test]
 fn bad_input_is_named() {
-    let d = Dir::new("bad");
-    std::fs::write(d.p("g.toml"), GEOMETRY).unwrap();
+    let d = TempDir::new("track-bad");
+    std::fs::write(d.path("g.toml"), GEOMETRY).unwrap();
     std::fs::write(
-        d.p("i.toml"),
+        d.path("i.toml"),
         "width = 4\nheight = 3\nfx = 3\nfy = 3\ncx = 2\ncy = 1.5\n",
     )
     .unwrap();
@@ -133,11 +115,11 @@ fn bad_input_is_named() {
         vec![
             "track".to_string(),
             "--frames".into(),
-            d.p(frames),
+            d.path(frames),
             "--intrinsics".into(),
-            d.p("i.toml"),
+            d.path("i.toml"),
             "--geometry".into(),
-            d.p("g.toml"),
+            d.path("g.toml"),
         ]
     };
     let run = |frames: &str, needles: &[&str]| {
@@ -146,65 +128,65 @@ fn bad_input_is_named() {
         expect_error(&refs, needles);
     };
     // IR and depth of different sizes.
-    std::fs::create_dir_all(d.p("sizes")).unwrap();
+    std::fs::create_dir_all(d.path("sizes")).unwrap();
     std::fs::write(
-        d.p("sizes/a_ir.png"),
+        d.path("sizes/a_ir.png"),
         encode_gray16_png(4, 3, &[0; 12], "a").unwrap(),
     )
     .unwrap();
     std::fs::write(
-        d.p("sizes/a_depth.png"),
+        d.path("sizes/a_depth.png"),
         encode_gray16_png(5, 3, &[0; 15], "a").unwrap(),
     )
     .unwrap();
     run("sizes", &["a_depth.png", "5×3", "4×3"]);
     // An 8-bit image where 16-bit is expected.
-    std::fs::create_dir_all(d.p("eight")).unwrap();
+    std::fs::create_dir_all(d.path("eight")).unwrap();
     std::fs::write(
-        d.p("eight/a_ir.png"),
+        d.path("eight/a_ir.png"),
         encode_rgb_png(4, 3, &[0; 36], "a").unwrap(),
     )
     .unwrap();
     std::fs::write(
-        d.p("eight/a_depth.png"),
+        d.path("eight/a_depth.png"),
         encode_gray16_png(4, 3, &[0; 12], "a").unwrap(),
     )
     .unwrap();
     run("eight", &["a_ir.png", "16-bit"]);
     // A missing depth image, and an empty directory.
-    std::fs::create_dir_all(d.p("nodepth")).unwrap();
+    std::fs::create_dir_all(d.path("nodepth")).unwrap();
     std::fs::write(
-        d.p("nodepth/a_ir.png"),
+        d.path("nodepth/a_ir.png"),
         encode_gray16_png(4, 3, &[0; 12], "a").unwrap(),
     )
     .unwrap();
     run("nodepth", &["a_ir.png", "no matching depth"]);
-    std::fs::create_dir_all(d.p("empty")).unwrap();
+    std::fs::create_dir_all(d.path("empty")).unwrap();
     run("empty", &["no <name>_ir.png"]);
     // A frame not the size of the intrinsics.
-    std::fs::create_dir_all(d.p("other")).unwrap();
+    std::fs::create_dir_all(d.path("other")).unwrap();
     std::fs::write(
-        d.p("other/a_ir.png"),
+        d.path("other/a_ir.png"),
         encode_gray16_png(2, 2, &[0; 4], "a").unwrap(),
     )
     .unwrap();
     std::fs::write(
-        d.p("other/a_depth.png"),
+        d.path("other/a_depth.png"),
         encode_gray16_png(2, 2, &[0; 4], "a").unwrap(),
     )
     .unwrap();
     run("other", &["a_ir.png", "2×2", "4×3"]);
     // A geometry with fewer than 3 points.
-    std::fs::write(d.p("two.toml"), "points_mm = [[0,0,0],[50,0,0]]\n").unwrap();
+    std::fs::write(d.path("two.toml"), "points_mm = [[0,0,0],[50,0,0]]\n").unwrap();
     expect_error(
         &[
             "track",
             "--frames",
-            &d.p("empty"),
+            &d.path("empty"),
             "--intrinsics",
-            &d.p("i.toml"),
+            &d.path("i.toml"),
             "--geometry",
-            &d.p("two.toml"),
+            &d.path("two.toml"),
         ],
         &["two.toml", "at least 3"],
     );
@@ -212,22 +194,22 @@ fn bad_input_is_named() {
 
 #[test]
 fn frames_without_markers_are_reported_and_the_run_goes_on() {
-    let d = Dir::new("blank");
-    std::fs::write(d.p("g.toml"), GEOMETRY).unwrap();
+    let d = TempDir::new("track-blank");
+    std::fs::write(d.path("g.toml"), GEOMETRY).unwrap();
     std::fs::write(
-        d.p("i.toml"),
+        d.path("i.toml"),
         "width = 8\nheight = 6\nfx = 6\nfy = 6\ncx = 4\ncy = 3\n",
     )
     .unwrap();
-    std::fs::create_dir_all(d.p("f")).unwrap();
+    std::fs::create_dir_all(d.path("f")).unwrap();
     for name in ["a", "b"] {
         std::fs::write(
-            d.p(&format!("f/{name}_ir.png")),
+            d.path(&format!("f/{name}_ir.png")),
             encode_gray16_png(8, 6, &[100; 48], name).unwrap(),
         )
         .unwrap();
         std::fs::write(
-            d.p(&format!("f/{name}_depth.png")),
+            d.path(&format!("f/{name}_depth.png")),
             encode_gray16_png(8, 6, &[1000; 48], name).unwrap(),
         )
         .unwrap();
@@ -235,11 +217,11 @@ fn frames_without_markers_are_reported_and_the_run_goes_on() {
     let out = mocomp(&[
         "track",
         "--frames",
-        &d.p("f"),
+        &d.path("f"),
         "--intrinsics",
-        &d.p("i.toml"),
+        &d.path("i.toml"),
         "--geometry",
-        &d.p("g.toml"),
+        &d.path("g.toml"),
         "--json",
     ]);
     assert!(out.status.success());

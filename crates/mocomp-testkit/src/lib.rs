@@ -5,6 +5,7 @@
 //!   install it, never a skip.
 //! - [`SplitMix64`]: a tiny seeded generator for tests that must not depend on a RNG crate's
 //!   version.
+//! - [`TempDir`]: a scratch directory removed when dropped.
 #![allow(clippy::panic)] // test support: failures are panics with a message
 
 use serde_json::Value;
@@ -108,6 +109,33 @@ impl Drop for PythonPeer {
     fn drop(&mut self) {
         self.child.kill().ok();
         self.child.wait().ok();
+    }
+}
+
+/// A temporary directory under the system's temp dir, removed when dropped.
+#[derive(Debug)]
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    /// Creates (fresh) `mocomp-<name>-<pid>`.
+    pub fn new(name: &str) -> Self {
+        let d = std::env::temp_dir().join(format!("mocomp-{name}-{}", std::process::id()));
+        std::fs::remove_dir_all(&d).ok();
+        if let Err(e) = std::fs::create_dir_all(&d) {
+            panic!("cannot create {}: {e}", d.display());
+        }
+        TempDir(d)
+    }
+
+    /// The path of `file` inside it, as a string (for command lines).
+    pub fn path(&self, file: &str) -> String {
+        self.0.join(file).to_string_lossy().into_owned()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        std::fs::remove_dir_all(&self.0).ok();
     }
 }
 

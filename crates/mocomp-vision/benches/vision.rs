@@ -2,22 +2,12 @@
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use mocomp_geom::nalgebra::Point3;
 use mocomp_vision::render::{Distractors, RenderOptions, render, view_pose};
 use mocomp_vision::{Frame, Intrinsics, MarkerGeometry, TrackParams, Tracker};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
-    let g = MarkerGeometry::new(
-        "8700449",
-        vec![
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(0.0, 0.04738, 0.02899),
-            Point3::new(0.0, 0.0, 0.0891),
-            Point3::new(0.0, -0.03536, 0.03536),
-        ],
-    )
-    .unwrap();
+    let g = MarkerGeometry::ndi_8700449();
     let mut o = RenderOptions::kinect(view_pose(3), 3);
     let clean = render(&g, &o);
     o.distractors = Distractors {

@@ -42,20 +42,21 @@ pub fn decode_gray16_png(bytes: &[u8], what: &str) -> Result<Gray16, VisionError
     }
 }
 
-/// Encodes a 16-bit grayscale PNG.
-pub fn encode_gray16_png(
-    width: u32,
-    height: u32,
-    data: &[u16],
+fn encode<P: image::PixelWithColorType>(
+    buf: Option<ImageBuffer<P, Vec<P::Subpixel>>>,
+    len: usize,
+    (width, height): (u32, u32),
     what: &str,
-) -> Result<Vec<u8>, VisionError> {
-    let buf: ImageBuffer<Luma<u16>, Vec<u16>> = ImageBuffer::from_raw(width, height, data.to_vec())
-        .ok_or(VisionError::BufferSize {
-            what: "16-bit image",
-            len: data.len(),
-            width: width as usize,
-            height: height as usize,
-        })?;
+) -> Result<Vec<u8>, VisionError>
+where
+    [P::Subpixel]: image::EncodableLayout,
+{
+    let buf = buf.ok_or(VisionError::BufferSize {
+        what: "image to encode",
+        len,
+        width: width as usize,
+        height: height as usize,
+    })?;
     let mut out = Cursor::new(Vec::new());
     buf.write_to(&mut out, ImageFormat::Png)
         .map_err(|e| VisionError::Decode {
@@ -65,6 +66,17 @@ pub fn encode_gray16_png(
     Ok(out.into_inner())
 }
 
+/// Encodes a 16-bit grayscale PNG.
+pub fn encode_gray16_png(
+    width: u32,
+    height: u32,
+    data: &[u16],
+    what: &str,
+) -> Result<Vec<u8>, VisionError> {
+    let buf = ImageBuffer::<Luma<u16>, Vec<u16>>::from_raw(width, height, data.to_vec());
+    encode(buf, data.len(), (width, height), what)
+}
+
 /// Encodes an 8-bit RGB PNG.
 pub fn encode_rgb_png(
     width: u32,
@@ -72,20 +84,8 @@ pub fn encode_rgb_png(
     data: &[u8],
     what: &str,
 ) -> Result<Vec<u8>, VisionError> {
-    let buf: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(width, height, data.to_vec())
-        .ok_or(VisionError::BufferSize {
-            what: "RGB image",
-            len: data.len() / 3,
-            width: width as usize,
-            height: height as usize,
-        })?;
-    let mut out = Cursor::new(Vec::new());
-    buf.write_to(&mut out, ImageFormat::Png)
-        .map_err(|e| VisionError::Decode {
-            what: what.to_string(),
-            message: e.to_string(),
-        })?;
-    Ok(out.into_inner())
+    let buf = ImageBuffer::<Rgb<u8>, Vec<u8>>::from_raw(width, height, data.to_vec());
+    encode(buf, data.len() / 3, (width, height), what)
 }
 
 #[cfg(test)]

@@ -301,6 +301,20 @@ impl MarkerGeometry {
         }
     }
 
+    /// NDI's passive tool 8700449 (4 fiducials in its x = 0 plane; distances 50.0–89.1 mm with
+    /// gaps ≥ 5 mm), values from its `.rom` as listed in the reference notes. The face is +x.
+    pub fn ndi_8700449() -> Self {
+        Self {
+            name: "NDI 8700449".into(),
+            points: vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(0.0, 0.04738, 0.02899),
+                Point3::new(0.0, 0.0, 0.0891),
+                Point3::new(0.0, -0.03536, 0.03536),
+            ],
+        }
+    }
+
     /// Number of fiducials.
     pub fn len(&self) -> usize {
         self.points.len()

@@ -155,17 +155,7 @@ mod tests {
     use mocomp_geom::quat_from_rotvec;
 
     fn geometry() -> MarkerGeometry {
-        // NDI 8700449's layout (distinct distances ≥ 50 mm, gaps ≥ 5 mm).
-        MarkerGeometry::new(
-            "8700449",
-            vec![
-                Point3::new(0.0, 0.0, 0.0),
-                Point3::new(0.0, 0.04738, 0.02899),
-                Point3::new(0.0, 0.0, 0.0891),
-                Point3::new(0.0, -0.03536, 0.03536),
-            ],
-        )
-        .unwrap()
+        MarkerGeometry::ndi_8700449()
     }
 
     fn seen(g: &MarkerGeometry) -> Vec<Point3<f64>> {

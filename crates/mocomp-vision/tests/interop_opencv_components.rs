@@ -4,7 +4,6 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
-use mocomp_geom::nalgebra::Point3;
 use mocomp_testkit::{PythonPeer, SplitMix64};
 use mocomp_vision::blobs::{Blob, Gates, Labeler};
 use mocomp_vision::params::CentroidWeighting;
@@ -75,16 +74,7 @@ fn compare(peer: &mut PythonPeer, name: &str, w: u32, h: u32, mask: &[bool]) -> 
 #[test]
 fn labelling_matches_opencv() {
     let mut peer = PythonPeer::start("opencv_vision_peer.py", "opencv-python-headless", "4.14.0");
-    let g = MarkerGeometry::new(
-        "m",
-        vec![
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(0.0, 0.04738, 0.02899),
-            Point3::new(0.0, 0.0, 0.0891),
-            Point3::new(0.0, -0.03536, 0.03536),
-        ],
-    )
-    .unwrap();
+    let g = MarkerGeometry::ndi_8700449();
     let mut total = 0;
     // Rendered frames with distractors, thresholded.
     for seed in 0..4 {

@@ -3,7 +3,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
-use mocomp_geom::nalgebra::{Isometry3, Point3};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSource, translation_error};
 use mocomp_vision::render::{RenderOptions, render, view_pose};
 use mocomp_vision::source::{TimedFrame, VisionPoseSource};
@@ -11,16 +11,7 @@ use mocomp_vision::{Intrinsics, MarkerGeometry, TrackParams, Tracker};
 use std::collections::VecDeque;
 
 fn geometry() -> MarkerGeometry {
-    MarkerGeometry::new(
-        "m",
-        vec![
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(0.0, 0.04738, 0.02899),
-            Point3::new(0.0, 0.0, 0.0891),
-            Point3::new(0.0, -0.03536, 0.03536),
-        ],
-    )
-    .unwrap()
+    MarkerGeometry::ndi_8700449()
 }
 
 fn frame(pose: Isometry3<f64>, seed: u64, t: f64) -> TimedFrame {

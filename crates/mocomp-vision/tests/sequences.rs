@@ -4,7 +4,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
-use mocomp_geom::nalgebra::{Isometry3, Point3};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{rotation_error, translation_error};
 use mocomp_vision::params::Registration;
 use mocomp_vision::render::{Distractors, RenderOptions, render, view_pose};
@@ -12,16 +12,7 @@ use mocomp_vision::{Frame, MarkerGeometry, NotFound, TrackParams, Tracker, Visio
 
 /// NDI 8700449's layout: distances 50.0–89.1 mm, gaps ≥ 5 mm.
 fn geometry() -> MarkerGeometry {
-    MarkerGeometry::new(
-        "8700449",
-        vec![
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(0.0, 0.04738, 0.02899),
-            Point3::new(0.0, 0.0, 0.0891),
-            Point3::new(0.0, -0.03536, 0.03536),
-        ],
-    )
-    .unwrap()
+    MarkerGeometry::ndi_8700449()
 }
 
 struct Stats {
