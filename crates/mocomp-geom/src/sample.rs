@@ -22,3 +22,10 @@ pub trait PoseSource {
     /// The newest sample not yet returned, if any.
     fn latest(&mut self) -> Option<PoseSample>;
 }
+
+/// A monotonic clock, seconds. The live system uses the machine's monotonic clock; the simulator
+/// steps its own. Implementations live at the I/O edges (this crate reads no clock).
+pub trait Clock: Send + Sync {
+    /// Seconds since the clock's origin.
+    fn now_s(&self) -> f64;
+}
