@@ -16,7 +16,20 @@ say "installing interop peers (requirements-interop.txt)"
 .venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-interop.txt
 export MOCOMP_PYTHON="$PWD/.venv/bin/python"
 
-# 2. Rust gates. The toolchain comes from rust-toolchain.toml.
+# 2. Debian packages: the C++ OpenIGTLink library and its example sources (interop peer).
+missing=()
+for p in libopenigtlink-dev openigtlink-examples g++; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  say "installing Debian packages: ${missing[*]}"
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}"
+fi
+
+# 3. Rust gates. The toolchain comes from rust-toolchain.toml.
 say "cargo fmt --check"
 cargo fmt --all -- --check
 say "cargo clippy (all targets, -D warnings)"

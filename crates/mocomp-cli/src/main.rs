@@ -4,6 +4,7 @@
 
 mod args;
 mod calib_cmd;
+mod igtl_cmd;
 mod kin_cmd;
 mod print;
 mod track_cmd;
@@ -69,6 +70,52 @@ enum Command {
         /// Print JSON.
         #[arg(long)]
         json: bool,
+    },
+    /// Print the poses an OpenIGTLink server streams (PLUS, 3D Slicer, a tracker), as received.
+    Listen {
+        /// Server address.
+        #[arg(long, value_name = "HOST:PORT")]
+        igtl: String,
+        /// Device name (TRANSFORM device or TDATA tool), e.g. PLUS's HeadToTracker.
+        #[arg(long, default_value = "HeadToTracker")]
+        device: String,
+        /// Stop after this many poses.
+        #[arg(long)]
+        count: Option<u64>,
+        /// Give up when no pose arrives for this many seconds.
+        #[arg(long, default_value_t = 10.0)]
+        timeout: f64,
+        /// Ask the server for a TDATA stream (STT_TDATA) after connecting.
+        #[arg(long)]
+        stt_tdata: bool,
+        /// One JSON line per pose: {"device", "t", "valid", "tracker_from_marker": [[4×4, mm]]}.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Serve poses over OpenIGTLink (TRANSFORM messages) from a file or a simulated head.
+    ServePoses {
+        /// Port to listen on (PLUS and Slicer use 18944).
+        #[arg(long, default_value_t = 18944)]
+        igtl_port: u16,
+        /// Address to bind.
+        #[arg(long, default_value = "127.0.0.1")]
+        host: String,
+        /// "sim" (a gently moving head), or a JSON-lines file with "tracker_from_marker" (4×4, mm),
+        /// such as `mocomp listen --json` output.
+        #[arg(long, value_name = "FILE|sim")]
+        from: String,
+        /// Device name.
+        #[arg(long, default_value = "HeadToTracker")]
+        device: String,
+        /// Poses per second.
+        #[arg(long, default_value_t = 60.0)]
+        rate: f64,
+        /// Stop after this many (default: the file once; forever for sim).
+        #[arg(long)]
+        count: Option<u64>,
+        /// Header version: 1, or 2 with TransformStatus metadata (as PLUS and Slicer send).
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=2))]
+        header_version: u16,
     },
     /// Fiducial tracking in IR + depth frames (directories of 16-bit PNG pairs).
     Track(TrackCli),
@@ -289,6 +336,60 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Models { json } => kin_cmd::models(&mut out, json)?,
         Command::Calibrate { command } => calibrate(&mut out, command)?,
         Command::Track(t) => track(&mut out, t)?,
+        Command::Listen {
+            igtl,
+            device,
+            count,
+            timeout,
+            stt_tdata,
+            json,
+        } => {
+            if !(timeout.is_finite() && timeout > 0.0) {
+                return Err(UsageError(format!(
+                    "--timeout {timeout}: must be a positive number of seconds"
+                ))
+                .into());
+            }
+            igtl_cmd::listen(
+                &mut out,
+                &igtl_cmd::ListenArgs {
+                    addr: &igtl,
+                    device: &device,
+                    count,
+                    timeout: std::time::Duration::from_secs_f64(timeout),
+                    stt_tdata,
+                    json,
+                },
+            )?;
+        }
+        Command::ServePoses {
+            igtl_port,
+            host,
+            from,
+            device,
+            rate,
+            count,
+            header_version,
+        } => {
+            let path = PathBuf::from(&from);
+            let feed = if from == "sim" {
+                igtl_cmd::PoseFeed::Sim
+            } else {
+                igtl_cmd::PoseFeed::File(&path)
+            };
+            igtl_cmd::serve(
+                &mut out,
+                &igtl_cmd::ServeArgs {
+                    host: &host,
+                    port: igtl_port,
+                    feed,
+                    device: &device,
+                    rate_hz: rate,
+                    count,
+                    header_version,
+                },
+            )?;
+        }
     }
     out.flush()?;
     Ok(())
@@ -455,6 +556,9 @@ impl std::error::Error for UsageError {}
 fn exit_code(err: &anyhow::Error) -> u8 {
     if err.downcast_ref::<UsageError>().is_some() {
         return EXIT_USAGE;
+    }
+    if err.downcast_ref::<igtl_cmd::NothingReceived>().is_some() {
+        return EXIT_FAILURE;
     }
     if err.downcast_ref::<mocomp_vision::VisionError>().is_some() {
         return EXIT_USAGE;

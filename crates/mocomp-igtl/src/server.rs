@@ -25,6 +25,9 @@ pub struct ServerConfig {
     pub queue: usize,
     /// Largest body accepted from a client.
     pub max_body: u64,
+    /// Send TDATA to every client, not only to those that asked with STT_TDATA (some receivers,
+    /// like the OpenIGTLink examples, never ask).
+    pub push_tdata: bool,
 }
 
 impl Default for ServerConfig {
@@ -32,6 +35,7 @@ impl Default for ServerConfig {
         Self {
             queue: 1024,
             max_body: DEFAULT_MAX_BODY,
+            push_tdata: false,
         }
     }
 }
@@ -154,7 +158,7 @@ impl Server {
                 None => latest.push((type_name, device, Arc::clone(&bytes))),
             }
         }
-        let tdata = type_name == "TDATA";
+        let tdata = type_name == "TDATA" && !self.shared.config.push_tdata;
         let c = &self.shared.counters;
         if let Ok(mut clients) = self.shared.clients.lock() {
             clients.retain(|slot| {

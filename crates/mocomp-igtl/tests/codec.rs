@@ -10,8 +10,8 @@ use mocomp_igtl::name::Name;
 use mocomp_igtl::{
     Body, DecodeError, Decoder, DeviceName, Message, MetaEntry, Timestamp, TypeName, decode, encode,
 };
+use mocomp_testkit::proptest_config;
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
 
 /// The floats of `Testing/igtlutil/igtl_test_data_transform.h`.
 const GOLDEN_FLOATS: [f32; 12] = [
@@ -265,17 +265,8 @@ fn message() -> impl Strategy<Value = Message> {
         })
 }
 
-fn config(cases: u32) -> ProptestConfig {
-    ProptestConfig {
-        cases,
-        rng_seed: RngSeed::Fixed(5),
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
-
 proptest! {
-    #![proptest_config(config(3000))]
+    #![proptest_config(proptest_config(3000, 5))]
 
     #[test]
     fn every_message_round_trips(m in message()) {

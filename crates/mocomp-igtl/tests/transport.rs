@@ -10,18 +10,11 @@ use mocomp_igtl::client::{Client, ClientConfig, MonotonicClock};
 use mocomp_igtl::message::{Body, MetaEntry, TDataElement, transform_floats};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{DeviceName, Message, Timestamp, encode};
+use mocomp_testkit::wait_until;
 use std::io::Write;
 use std::net::TcpListener;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
-
-fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
-    let end = Instant::now() + Duration::from_secs(10);
-    while !f() {
-        assert!(Instant::now() < end, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(2));
-    }
-}
+use std::time::Duration;
 
 fn pose(k: f64) -> Isometry3<f64> {
     Isometry3::new(

@@ -12,19 +12,9 @@ use mocomp_kin::{
     Arm, Branch, BranchCoordinates, BranchPolicy, DhCalibration, DhParams, KinError, Metric, Model,
     Selection, Solutions, Unreachable, fk_nominal,
 };
+use mocomp_testkit::proptest_config as config;
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
 use std::f64::consts::{PI, TAU};
-
-fn config(cases: u32, seed: u64) -> ProptestConfig {
-    ProptestConfig {
-        cases,
-        max_global_rejects: 100 * cases,
-        rng_seed: RngSeed::Fixed(seed),
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
 
 fn any_model() -> impl Strategy<Value = Model> {
     prop::sample::select(Model::ALL.to_vec())

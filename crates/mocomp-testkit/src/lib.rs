@@ -5,7 +5,8 @@
 //!   install it, never a skip.
 //! - [`SplitMix64`]: a tiny seeded generator for tests that must not depend on a RNG crate's
 //!   version.
-//! - [`TempDir`]: a scratch directory removed when dropped.
+//! - [`TempDir`]: a scratch directory removed when dropped; [`free_port`] and [`wait_until`] for
+//!   socket and thread tests; [`proptest_config`] with a fixed seed.
 #![allow(clippy::panic)] // test support: failures are panics with a message
 
 use serde_json::Value;
@@ -109,6 +110,37 @@ impl Drop for PythonPeer {
     fn drop(&mut self) {
         self.child.kill().ok();
         self.child.wait().ok();
+    }
+}
+
+/// A free TCP port on 127.0.0.1 (bound and released; a tiny window for a race remains).
+pub fn free_port() -> u16 {
+    match std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()) {
+        Ok(a) => a.port(),
+        Err(e) => panic!("no free port on 127.0.0.1: {e}"),
+    }
+}
+
+/// Polls `f` every 2 ms until it is true; panics naming `what` after 10 s. For tests on threads
+/// and sockets, where fixed sleeps are flaky on loaded machines.
+pub fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
+    let end = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while !f() {
+        if std::time::Instant::now() > end {
+            panic!("timed out waiting for {what}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+}
+
+/// A proptest configuration with a fixed seed (failures reproduce) and no persistence files.
+pub fn proptest_config(cases: u32, seed: u64) -> proptest::test_runner::Config {
+    proptest::test_runner::Config {
+        cases,
+        max_global_rejects: 100 * cases,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(seed),
+        failure_persistence: None,
+        ..proptest::test_runner::Config::default()
     }
 }
 

@@ -4,22 +4,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
 use mocomp_geom::nalgebra::Point3;
+use mocomp_testkit::proptest_config;
 use mocomp_vision::codec::decode_gray16_png;
 use mocomp_vision::{Frame, Intrinsics, MarkerGeometry, TrackParams, Tracker};
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
-
-fn config(cases: u32) -> ProptestConfig {
-    ProptestConfig {
-        cases,
-        rng_seed: RngSeed::Fixed(4),
-        failure_persistence: None,
-        ..ProptestConfig::default()
-    }
-}
 
 proptest! {
-    #![proptest_config(config(2000))]
+    #![proptest_config(proptest_config(2000, 4))]
 
     #[test]
     fn rom_parser_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..900), fix_magic in any::<bool>()) {
@@ -46,7 +37,7 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(config(60))]
+    #![proptest_config(proptest_config(60, 4))]
 
     #[test]
     fn random_frames_give_results_not_panics(

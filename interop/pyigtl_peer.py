@@ -1,0 +1,72 @@
+"""Expose pyigtl (an independent Python OpenIGTLink implementation) to mocomp's tests.
+
+Requests (one JSON line each):
+  {"op": "version"}                                  -> {"version": "0.3.4"}
+  {"op": "server", "port": p}                        -> starts a pyigtl server on 127.0.0.1:p
+  {"op": "client", "port": p}                        -> starts a pyigtl client to 127.0.0.1:p
+  {"op": "connected"}                                -> {"connected": bool}
+  {"op": "send", "kind": "transform"|"string", "device": d, "matrix": [[4x4 mm]] | "string": s,
+   "timestamp": seconds, "header_version": 1|2, "metadata": {k: v}, "message_id": n}
+  {"op": "wait", "device": d, "timeout": s}          -> {"found": bool, "type", "matrix",
+                                                         "string", "timestamp", "header_version",
+                                                         "metadata", "message_id"}
+pyigtl's quirks (see peers.md): it does not verify CRCs, drops STATUS and GET_ messages, and keeps
+only the newest message per device name.
+"""
+
+from importlib import metadata as md
+
+import numpy as np
+import pyigtl
+from jsonlines import serve
+
+STATE = {"endpoint": None}
+
+
+def describe(m):
+    out = {
+        "found": True,
+        "type": type(m).__name__,
+        "timestamp": m.timestamp,
+        "header_version": m.header_version,
+        "metadata": dict(m.metadata),
+        "message_id": m.message_id,
+    }
+    if isinstance(m, pyigtl.TransformMessage):
+        out["matrix"] = np.asarray(m.matrix, dtype=float).tolist()
+    if isinstance(m, pyigtl.StringMessage):
+        out["string"] = m.string
+    return out
+
+
+def handle(req):
+    op = req.get("op")
+    if op == "version":
+        return {"version": md.version("pyigtl")}
+    if op == "server":
+        STATE["endpoint"] = pyigtl.OpenIGTLinkServer(port=int(req["port"]), local_server=True)
+        return {"ok": True}
+    if op == "client":
+        STATE["endpoint"] = pyigtl.OpenIGTLinkClient(host="127.0.0.1", port=int(req["port"]))
+        return {"ok": True}
+    ep = STATE["endpoint"]
+    if op == "connected":
+        return {"connected": bool(ep.is_connected())}
+    if op == "send":
+        if req["kind"] == "transform":
+            m = pyigtl.TransformMessage(np.array(req["matrix"]), timestamp=req["timestamp"], device_name=req["device"])
+        else:
+            m = pyigtl.StringMessage(req["string"], timestamp=req["timestamp"], device_name=req["device"])
+        m.header_version = int(req.get("header_version", 1))
+        m.metadata = dict(req.get("metadata", {}))
+        m.message_id = int(req.get("message_id", 0))
+        ep.send_message(m, wait=True)
+        return {"ok": True}
+    if op == "wait":
+        m = ep.wait_for_message(req["device"], timeout=float(req.get("timeout", 5)))
+        return {"found": False} if m is None else describe(m)
+    return {"error": f"unknown op {op!r}"}
+
+
+if __name__ == "__main__":
+    serve(handle)
