@@ -1,6 +1,7 @@
 //! Pose math for mocomp: rigid transforms, the UR pose vector, homogeneous matrices, quaternions,
 //! pose error metrics (including the seed paper's Frobenius deviation `d`), SE(3) interpolation,
-//! averaging and orthonormalisation.
+//! averaging and orthonormalisation; the timestamped sample types and the lock-free newest-value
+//! cell shared by the I/O clients.
 //!
 //! # Conventions
 //! - Units inside are metres and radians. Millimetres and degrees appear only in functions whose
@@ -8,7 +9,8 @@
 //! - A transform `a_from_b: Isometry3<f64>` maps points expressed in frame `b` into frame `a`, so
 //!   chains read left to right:
 //!   `base_from_flange = base_from_tracker * tracker_from_head * head_from_coil * coil_from_flange`.
-//! - Nothing here does I/O, reads a clock or spawns a thread.
+//! - Nothing here does I/O or spawns a thread; [`MonotonicClock`] is the only clock reader, for
+//!   the edges to create and hand to the loop.
 //!
 //! `nalgebra` is re-exported so that every mocomp crate uses the one version pinned here.
 
@@ -17,6 +19,7 @@ pub mod interp;
 pub mod metrics;
 pub mod pose;
 pub mod sample;
+pub mod seqlock;
 pub mod units;
 
 pub use error::GeomError;
@@ -28,7 +31,8 @@ pub use pose::{
     iso_from_wxyz, matrix_from_iso, matrix_mm_from_iso, quat_from_rotvec, rotvec_from_quat,
     rows_from_iso, ur_pose_from_iso, ur_pose_near, wxyz_from_iso,
 };
-pub use sample::{Clock, PoseSample, PoseSource};
+pub use sample::{Clock, MonotonicClock, PoseSample, PoseSource};
+pub use seqlock::SeqLock;
 
 /// A rigid transform `a_from_b` (rotation and translation in metres).
 pub type Pose = nalgebra::Isometry3<f64>;

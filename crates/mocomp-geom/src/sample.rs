@@ -24,8 +24,36 @@ pub trait PoseSource {
 }
 
 /// A monotonic clock, seconds. The live system uses the machine's monotonic clock; the simulator
-/// steps its own. Implementations live at the I/O edges (this crate reads no clock).
+/// steps its own.
 pub trait Clock: Send + Sync {
     /// Seconds since the clock's origin.
     fn now_s(&self) -> f64;
+}
+
+/// The machine's monotonic clock, seconds since it was created: the one clock the live system
+/// uses (created at the edges and handed to the loop and the I/O threads).
+#[derive(Debug, Clone, Copy)]
+pub struct MonotonicClock {
+    origin: std::time::Instant,
+}
+
+impl MonotonicClock {
+    /// A clock starting at 0 now.
+    pub fn new() -> Self {
+        Self {
+            origin: std::time::Instant::now(),
+        }
+    }
+}
+
+impl Default for MonotonicClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for MonotonicClock {
+    fn now_s(&self) -> f64 {
+        self.origin.elapsed().as_secs_f64()
+    }
 }

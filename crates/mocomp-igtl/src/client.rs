@@ -24,32 +24,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-/// The machine's monotonic clock, seconds since it was created.
-#[derive(Debug, Clone, Copy)]
-pub struct MonotonicClock {
-    origin: Instant,
-}
-
-impl MonotonicClock {
-    /// A clock starting at 0 now.
-    pub fn new() -> Self {
-        Self {
-            origin: Instant::now(),
-        }
-    }
-}
-
-impl Default for MonotonicClock {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Clock for MonotonicClock {
-    fn now_s(&self) -> f64 {
-        self.origin.elapsed().as_secs_f64()
-    }
-}
+pub use mocomp_geom::MonotonicClock;
 
 /// Client settings.
 #[derive(Debug, Clone)]

@@ -1,26 +1,13 @@
 //! A single-writer cell holding the newest [`PoseSample`], readable from another thread without
 //! locks or allocation: a sequence lock over atomics (no `unsafe`).
 
-use mocomp_geom::PoseSample;
 use mocomp_geom::nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
-use std::sync::atomic::{AtomicU64, Ordering, fence};
-
-const WORDS: usize = 10;
+use mocomp_geom::{PoseSample, SeqLock};
 
 /// The newest sample, with a version that grows with every publication.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub struct LatestCell {
-    seq: AtomicU64,
-    words: [AtomicU64; WORDS],
-}
-
-impl Default for LatestCell {
-    fn default() -> Self {
-        Self {
-            seq: AtomicU64::new(0),
-            words: std::array::from_fn(|_| AtomicU64::new(0)),
-        }
-    }
+    cell: SeqLock<10>,
 }
 
 impl LatestCell {
@@ -33,7 +20,7 @@ impl LatestCell {
     pub fn publish(&self, s: &PoseSample) {
         let t = s.tracker_from_marker.translation.vector;
         let q = s.tracker_from_marker.rotation.coords; // i, j, k, w
-        let values = [
+        self.cell.publish(&[
             t.x,
             t.y,
             t.z,
@@ -44,49 +31,26 @@ impl LatestCell {
             s.acquired_s,
             if s.valid { 1.0 } else { 0.0 },
             s.error_m,
-        ];
-        let v = self.seq.load(Ordering::Relaxed);
-        self.seq.store(v.wrapping_add(1), Ordering::Relaxed);
-        fence(Ordering::Release);
-        for (w, x) in self.words.iter().zip(values) {
-            w.store(x.to_bits(), Ordering::Relaxed);
-        }
-        self.seq.store(v.wrapping_add(2), Ordering::Release);
+        ]);
     }
 
     /// The newest sample and its version (1, 2, … in publication order), or `None` before the
     /// first publication. Never blocks: retries only while a publication is in progress.
     pub fn read(&self) -> Option<(u64, PoseSample)> {
-        loop {
-            let s1 = self.seq.load(Ordering::Acquire);
-            if s1 == 0 {
-                return None;
-            }
-            if s1 & 1 == 1 {
-                std::hint::spin_loop();
-                continue;
-            }
-            let mut v = [0f64; WORDS];
-            for (x, w) in v.iter_mut().zip(&self.words) {
-                *x = f64::from_bits(w.load(Ordering::Relaxed));
-            }
-            fence(Ordering::Acquire);
-            if self.seq.load(Ordering::Relaxed) == s1 {
-                let pose = Isometry3::from_parts(
-                    Translation3::new(v[0], v[1], v[2]),
-                    UnitQuaternion::new_unchecked(Quaternion::new(v[6], v[3], v[4], v[5])),
-                );
-                return Some((
-                    s1 / 2,
-                    PoseSample {
-                        tracker_from_marker: pose,
-                        acquired_s: v[7],
-                        valid: v[8] != 0.0,
-                        error_m: v[9],
-                    },
-                ));
-            }
-        }
+        let (version, v) = self.cell.read()?;
+        let pose = Isometry3::from_parts(
+            Translation3::new(v[0], v[1], v[2]),
+            UnitQuaternion::new_unchecked(Quaternion::new(v[6], v[3], v[4], v[5])),
+        );
+        Some((
+            version,
+            PoseSample {
+                tracker_from_marker: pose,
+                acquired_s: v[7],
+                valid: v[8] != 0.0,
+                error_m: v[9],
+            },
+        ))
     }
 }
 

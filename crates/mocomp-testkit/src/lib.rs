@@ -133,6 +133,18 @@ pub fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
     }
 }
 
+/// Like [`wait_until`], but spins (yielding) instead of sleeping: for lockstep tests that hand
+/// every cycle across threads, where a 2 ms sleep per hand-over would dominate.
+pub fn spin_until(what: &str, mut f: impl FnMut() -> bool) {
+    let end = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while !f() {
+        if std::time::Instant::now() > end {
+            panic!("timed out waiting for {what}");
+        }
+        std::thread::yield_now();
+    }
+}
+
 /// A proptest configuration with a fixed seed (failures reproduce) and no persistence files.
 pub fn proptest_config(cases: u32, seed: u64) -> proptest::test_runner::Config {
     proptest::test_runner::Config {

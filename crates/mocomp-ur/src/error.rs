@@ -1,0 +1,167 @@
+//! Errors of the UR interfaces.
+
+use crate::types::DataType;
+
+/// An RTDE encoding or decoding error.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum RtdeError {
+    /// A frame's size field is below the header size: the stream is out of step.
+    #[error("RTDE frame at byte {offset} declares size {size}, below the 3-byte header")]
+    BadFrameSize {
+        /// Byte offset of the frame in the stream.
+        offset: u64,
+        /// The declared size.
+        size: usize,
+    },
+    /// A package whose payload does not fit its type's layout.
+    #[error("malformed RTDE package '{kind}': {what}")]
+    Malformed {
+        /// Package type character.
+        kind: char,
+        /// What is wrong.
+        what: String,
+    },
+    /// A package type RTDE does not define.
+    #[error("unknown RTDE package type 0x{0:02x}")]
+    UnknownType(u8),
+    /// A package larger than 65,535 bytes.
+    #[error("RTDE package of {0} bytes exceeds the 65,535-byte frame limit")]
+    TooLarge(usize),
+    /// A length-prefixed text longer than 255 bytes.
+    #[error("RTDE text field {field} is {len} bytes, the limit is 255")]
+    FieldTooLong {
+        /// Field name.
+        field: &'static str,
+        /// Its length.
+        len: usize,
+    },
+    /// Variables the controller does not know.
+    #[error("the controller does not know RTDE variable(s) {names} (NOT_FOUND)")]
+    NotFound {
+        /// Comma-separated names.
+        names: String,
+    },
+    /// Inputs owned by another client or a fieldbus interface.
+    #[error(
+        "RTDE input(s) {names} are in use by another RTDE client or a fieldbus interface \
+         (EtherNet/IP, PROFINET, MODBUS) (IN_USE)"
+    )]
+    InUse {
+        /// Comma-separated names.
+        names: String,
+    },
+    /// A type name RTDE does not define.
+    #[error("the controller answered type {type_name:?} for RTDE variable {name}")]
+    UnknownDataType {
+        /// Variable.
+        name: String,
+        /// The type word received.
+        type_name: String,
+    },
+    /// A setup reply with a different number of entries than requested.
+    #[error("recipe has {requested} variables but {answered} were given")]
+    RecipeMismatch {
+        /// Variables in the recipe.
+        requested: usize,
+        /// Types or values given.
+        answered: usize,
+    },
+    /// A data package of the wrong size for its recipe.
+    #[error("data package for recipe {id} has {got} bytes, the recipe needs {expected}")]
+    DataSize {
+        /// Recipe id.
+        id: u8,
+        /// Bytes received.
+        got: usize,
+        /// Bytes expected.
+        expected: usize,
+    },
+    /// A value of the wrong type for its variable.
+    #[error("RTDE variable {name} is {expected}, the value given is {got}")]
+    TypeMismatch {
+        /// Variable.
+        name: String,
+        /// Its type.
+        expected: DataType,
+        /// The value's type.
+        got: DataType,
+    },
+}
+
+/// An error talking to a robot (or to the simulator) over the network.
+#[derive(Debug, thiserror::Error)]
+pub enum UrError {
+    /// A socket operation failed.
+    #[error("{context}: {source}")]
+    Io {
+        /// What we were doing (names the interface and address).
+        context: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The peer sent bytes that are not valid RTDE.
+    #[error("{context}: {source}")]
+    Rtde {
+        /// What we were doing.
+        context: String,
+        /// The cause.
+        source: RtdeError,
+    },
+    /// No answer in time.
+    #[error("timed out after {ms} ms waiting for {what}")]
+    Timeout {
+        /// What we waited for.
+        what: String,
+        /// How long, milliseconds.
+        ms: u128,
+    },
+    /// The controller refused a request.
+    #[error("the controller refused {what}")]
+    Refused {
+        /// The request.
+        what: String,
+    },
+    /// The controller runs no RTDE protocol version we speak.
+    #[error("the controller accepts neither RTDE protocol version 2 nor 1")]
+    NoProtocol,
+    /// A dashboard reply we did not expect.
+    #[error("dashboard command {command:?} answered {reply:?} (expected {expected})")]
+    Dashboard {
+        /// The command sent.
+        command: String,
+        /// The reply received.
+        reply: String,
+        /// What a successful reply looks like.
+        expected: &'static str,
+    },
+    /// The connection closed.
+    #[error("{what}: the connection was closed")]
+    Closed {
+        /// Which interface.
+        what: String,
+    },
+    /// The robot is in a state that forbids the command.
+    #[error("command refused: {0}")]
+    Fault(crate::robot::RobotFault),
+    /// A command argument is out of range.
+    #[error("{field} = {value} is outside [{min}, {max}]")]
+    OutOfRange {
+        /// Argument name.
+        field: &'static str,
+        /// Given value.
+        value: f64,
+        /// Smallest allowed.
+        min: f64,
+        /// Largest allowed.
+        max: f64,
+    },
+}
+
+impl UrError {
+    pub(crate) fn io(context: impl Into<String>, source: std::io::Error) -> UrError {
+        UrError::Io {
+            context: context.into(),
+            source,
+        }
+    }
+}

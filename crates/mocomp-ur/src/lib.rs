@@ -1,0 +1,29 @@
+//! Universal Robots interfaces for mocomp.
+//!
+//! - [`codec`], [`types`]: the RTDE wire format (TCP 30004) and the controller's typed variable
+//!   table, without I/O; [`connection`]: a blocking RTDE client connection (protocol 2 with
+//!   fallback to 1, recipes, start/pause, text messages).
+//! - [`dashboard`]: the dashboard client (TCP 29999): power, brakes, play/stop, modes, protective
+//!   stop unlock, remote-control check.
+//! - [`program`]: mocomp's resident URScript control program and **its register protocol** (in
+//!   the external-client register range 24–47, with an RTDE watchdog).
+//! - [`robot`]: the [`Robot`] trait the control loop uses, the robot state and faults;
+//!   [`client`]: [`UrRobot`], its implementation over RTDE (state on its own thread, newest state
+//!   readable without blocking or locks).
+//!
+//! Units: radians, metres, seconds everywhere; TCP poses as `base_from_tcp` isometries.
+
+pub mod client;
+pub mod codec;
+pub mod connection;
+pub mod dashboard;
+pub mod error;
+pub mod program;
+pub mod robot;
+pub mod types;
+
+pub use client::{UrConfig, UrRobot};
+pub use codec::{ControllerVersion, Recipe};
+pub use error::{RtdeError, UrError};
+pub use robot::{Robot, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams};
+pub use types::{DataType, Value};

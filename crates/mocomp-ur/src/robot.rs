@@ -1,0 +1,303 @@
+//! The robot as the control loop sees it: the [`Robot`] trait, the state it reports, and the
+//! faults that stop it.
+
+use crate::error::UrError;
+use mocomp_geom::Pose;
+
+macro_rules! code_enum {
+    ($(#[$m:meta])* $name:ident { $($(#[$vm:meta])* $v:ident = $code:literal, $word:literal;)* }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum $name {
+            $($(#[$vm])* $v,)*
+            /// A code this table does not know.
+            Other(i32),
+        }
+        impl $name {
+            /// From the controller's code.
+            pub fn from_code(c: i32) -> Self {
+                match c { $($code => $name::$v,)* other => $name::Other(other) }
+            }
+            /// The controller's code.
+            pub fn code(self) -> i32 {
+                match self { $($name::$v => $code,)* $name::Other(c) => c }
+            }
+            /// The word the dashboard uses (`RUNNING`).
+            pub fn name(self) -> &'static str {
+                match self { $($name::$v => $word,)* $name::Other(_) => "UNKNOWN" }
+            }
+            /// From the dashboard's word.
+            pub fn from_name(s: &str) -> Option<Self> {
+                match s { $($word => Some($name::$v),)* _ => None }
+            }
+        }
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                match self {
+                    $name::Other(c) => write!(f, "UNKNOWN({c})"),
+                    v => f.write_str(v.name()),
+                }
+            }
+        }
+    };
+}
+
+code_enum! {
+    /// The controller's robot mode (RTDE `robot_mode`).
+    RobotMode {
+        /// No controller.
+        NoController = -1, "NO_CONTROLLER";
+        /// Disconnected.
+        Disconnected = 0, "DISCONNECTED";
+        /// Confirm safety.
+        ConfirmSafety = 1, "CONFIRM_SAFETY";
+        /// Booting.
+        Booting = 2, "BOOTING";
+        /// Power off.
+        PowerOff = 3, "POWER_OFF";
+        /// Power on.
+        PowerOn = 4, "POWER_ON";
+        /// Idle: powered, brakes engaged.
+        Idle = 5, "IDLE";
+        /// Backdrive.
+        Backdrive = 6, "BACKDRIVE";
+        /// Running: brakes released, ready to move.
+        Running = 7, "RUNNING";
+        /// Updating firmware.
+        UpdatingFirmware = 8, "UPDATING_FIRMWARE";
+    }
+}
+
+code_enum! {
+    /// The controller's safety mode (RTDE `safety_mode`).
+    SafetyMode {
+        /// Normal.
+        Normal = 1, "NORMAL";
+        /// Reduced.
+        Reduced = 2, "REDUCED";
+        /// Protective stop.
+        ProtectiveStop = 3, "PROTECTIVE_STOP";
+        /// Recovery.
+        Recovery = 4, "RECOVERY";
+        /// Safeguard stop.
+        SafeguardStop = 5, "SAFEGUARD_STOP";
+        /// System emergency stop.
+        SystemEmergencyStop = 6, "SYSTEM_EMERGENCY_STOP";
+        /// Robot emergency stop.
+        RobotEmergencyStop = 7, "ROBOT_EMERGENCY_STOP";
+        /// Violation.
+        Violation = 8, "VIOLATION";
+        /// Fault.
+        Fault = 9, "FAULT";
+        /// Validate joint id.
+        ValidateJointId = 10, "VALIDATE_JOINT_ID";
+        /// Undefined.
+        Undefined = 11, "UNDEFINED_SAFETY_MODE";
+        /// Automatic-mode safeguard stop.
+        AutomaticModeSafeguardStop = 12, "AUTOMATIC_MODE_SAFEGUARD_STOP";
+        /// Three-position enabling stop.
+        ThreePositionEnablingStop = 13, "SYSTEM_THREE_POSITION_ENABLING_STOP";
+    }
+}
+
+code_enum! {
+    /// The program runtime state (RTDE `runtime_state`).
+    RuntimeState {
+        /// Stopping.
+        Stopping = 0, "STOPPING";
+        /// Stopped.
+        Stopped = 1, "STOPPED";
+        /// Playing.
+        Playing = 2, "PLAYING";
+        /// Pausing.
+        Pausing = 3, "PAUSING";
+        /// Paused.
+        Paused = 4, "PAUSED";
+        /// Resuming.
+        Resuming = 5, "RESUMING";
+    }
+}
+
+/// `safety_status_bits`: protective stop.
+pub const SAFETY_BIT_PROTECTIVE_STOP: u32 = 1 << 2;
+/// `safety_status_bits`: system emergency stop.
+pub const SAFETY_BIT_SYSTEM_EMERGENCY_STOP: u32 = 1 << 5;
+/// `safety_status_bits`: robot emergency stop.
+pub const SAFETY_BIT_ROBOT_EMERGENCY_STOP: u32 = 1 << 6;
+/// `safety_status_bits`: emergency stop.
+pub const SAFETY_BIT_EMERGENCY_STOP: u32 = 1 << 7;
+/// `robot_status_bits`: power on.
+pub const ROBOT_BIT_POWER_ON: u32 = 1;
+/// `robot_status_bits`: program running.
+pub const ROBOT_BIT_PROGRAM_RUNNING: u32 = 1 << 1;
+
+/// Why the robot cannot be commanded. Each is a defined state with its own recovery.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RobotFault {
+    /// No state for longer than the staleness limit, or the connection closed.
+    Disconnected,
+    /// An emergency stop is active (recover: release it, power on, brake release, restart).
+    EmergencyStop,
+    /// A protective stop is active (recover: dashboard `unlock protective stop`, restart).
+    ProtectiveStop,
+    /// Another safety mode than normal or reduced.
+    Safety(SafetyMode),
+    /// The arm is not in `RUNNING` mode (powered off, brakes engaged, …).
+    NotRunning(RobotMode),
+    /// Our control program is not running (stopped by the watchdog, a stop, or a fault).
+    ProgramStopped,
+}
+
+impl std::fmt::Display for RobotFault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RobotFault::Disconnected => f.write_str("robot connection lost or state stale"),
+            RobotFault::EmergencyStop => f.write_str("emergency stop"),
+            RobotFault::ProtectiveStop => f.write_str("protective stop"),
+            RobotFault::Safety(m) => write!(f, "safety mode {m}"),
+            RobotFault::NotRunning(m) => write!(f, "robot mode {m}, not RUNNING"),
+            RobotFault::ProgramStopped => f.write_str("the control program is not running"),
+        }
+    }
+}
+
+/// The robot's state at one controller cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobotState {
+    /// Controller time of the cycle (s since controller start).
+    pub controller_s: f64,
+    /// When we received it, on our clock (s).
+    pub received_s: f64,
+    /// Actual joint positions (rad).
+    pub actual_q: [f64; 6],
+    /// Actual joint velocities (rad/s).
+    pub actual_qd: [f64; 6],
+    /// Target joint positions (rad).
+    pub target_q: [f64; 6],
+    /// Actual TCP pose `base_from_tcp`.
+    pub base_from_tcp: Pose,
+    /// Robot mode.
+    pub robot_mode: RobotMode,
+    /// Safety mode.
+    pub safety_mode: SafetyMode,
+    /// Program runtime state.
+    pub runtime_state: RuntimeState,
+    /// `robot_status_bits`.
+    pub robot_status_bits: u32,
+    /// `safety_status_bits`.
+    pub safety_status_bits: u32,
+    /// Actual speed scaling (0..1).
+    pub speed_scaling: f64,
+    /// Our program's mode register (see [`crate::program`]): 0 not running, 1 idle, …
+    pub program_mode: i32,
+    /// The sequence number of the newest command our program has taken.
+    pub acked_seq: i32,
+    /// The sequence number of the newest MOVEJ our program has completed.
+    pub move_done_seq: i32,
+    /// Whether our program (its protocol id) is running.
+    pub program_ours: bool,
+    /// Whether the connection is up.
+    pub connected: bool,
+}
+
+impl RobotState {
+    /// What forbids commanding the robot now, if anything (in order of severity).
+    pub fn fault(&self) -> Option<RobotFault> {
+        if !self.connected {
+            return Some(RobotFault::Disconnected);
+        }
+        let bits = self.safety_status_bits;
+        if bits
+            & (SAFETY_BIT_EMERGENCY_STOP
+                | SAFETY_BIT_ROBOT_EMERGENCY_STOP
+                | SAFETY_BIT_SYSTEM_EMERGENCY_STOP)
+            != 0
+            || matches!(
+                self.safety_mode,
+                SafetyMode::RobotEmergencyStop | SafetyMode::SystemEmergencyStop
+            )
+        {
+            return Some(RobotFault::EmergencyStop);
+        }
+        if bits & SAFETY_BIT_PROTECTIVE_STOP != 0 || self.safety_mode == SafetyMode::ProtectiveStop
+        {
+            return Some(RobotFault::ProtectiveStop);
+        }
+        if !matches!(self.safety_mode, SafetyMode::Normal | SafetyMode::Reduced) {
+            return Some(RobotFault::Safety(self.safety_mode));
+        }
+        if self.robot_mode != RobotMode::Running {
+            return Some(RobotFault::NotRunning(self.robot_mode));
+        }
+        if self.runtime_state != RuntimeState::Playing
+            || !self.program_ours
+            || self.program_mode <= 0
+        {
+            return Some(RobotFault::ProgramStopped);
+        }
+        None
+    }
+}
+
+/// The parameters of `servoj`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoParams {
+    /// The time each target controls the robot, s (the controller period: 0.002 / 0.008).
+    pub time_s: f64,
+    /// Lookahead time, s, in [0.03, 0.2].
+    pub lookahead_s: f64,
+    /// Proportional gain, in [100, 2000].
+    pub gain: f64,
+}
+
+impl ServoParams {
+    /// ur_rtde's example values (lookahead 0.1 s, gain 300) for a controller period.
+    pub fn for_period(period_s: f64) -> Self {
+        Self {
+            time_s: period_s,
+            lookahead_s: 0.1,
+            gain: 300.0,
+        }
+    }
+
+    /// Checks the ranges the controller accepts (URScript manual, ur_rtde's limits).
+    pub fn validate(&self) -> Result<(), UrError> {
+        range("servo time_s", self.time_s, 0.001, 1.0)?;
+        range("servo lookahead_s", self.lookahead_s, 0.03, 0.2)?;
+        range("servo gain", self.gain, 100.0, 2000.0)
+    }
+}
+
+pub(crate) fn range(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), UrError> {
+    if value.is_finite() && value >= min && value <= max {
+        Ok(())
+    } else {
+        Err(UrError::OutOfRange {
+            field,
+            value,
+            min,
+            max,
+        })
+    }
+}
+
+/// A robot the control loop can drive. State arrives on its own; reading it never blocks.
+pub trait Robot {
+    /// The newest state, or `None` before the first.
+    fn state(&self) -> Option<RobotState>;
+    /// How many states have arrived (grows by one per controller cycle received).
+    fn state_count(&self) -> u64;
+    /// The controller period, s.
+    fn period_s(&self) -> f64;
+    /// Streams one servo target (call every cycle). Returns the command's sequence number.
+    fn servo(&mut self, q: &[f64; 6], params: &ServoParams) -> Result<i32, UrError>;
+    /// Starts a point-to-point joint move (`movej`); its completion shows as
+    /// [`RobotState::move_done_seq`] reaching the returned sequence number.
+    fn move_joints(&mut self, q: &[f64; 6], speed: f64, accel: f64) -> Result<i32, UrError>;
+    /// Joint speed control (`speedj`), until the next command or stop.
+    fn speed_joints(&mut self, qd: &[f64; 6], accel: f64) -> Result<i32, UrError>;
+    /// Decelerates to standstill (`stopj`). Sent even when the robot reports a fault.
+    fn stop(&mut self, decel: f64) -> Result<i32, UrError>;
+    /// Repeats the last command (keeps the watchdog fed while nothing new is commanded).
+    fn keep_alive(&mut self) -> Result<(), UrError>;
+}

@@ -1,0 +1,277 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+//! Our client (`mocomp-ur`) against our simulator (`mocomp-ursim`), over TCP on loopback.
+
+use mocomp_geom::{Clock, MonotonicClock, translation_error};
+use mocomp_kin::{Arm, Model};
+use mocomp_testkit::{spin_until, wait_until};
+use mocomp_ur::connection::RtdeConnection;
+use mocomp_ur::robot::{RobotFault, RuntimeState, SafetyMode};
+use mocomp_ur::{Robot, ServoParams, UrConfig, UrError, UrRobot};
+use mocomp_ursim::{ControllerConfig, Sim, SimClock, SimConfig};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+fn sim(model: Model, clock: SimClock) -> Sim {
+    let mut c = SimConfig::stepped_local(ControllerConfig::new(model));
+    c.clock = clock;
+    Sim::start(c).unwrap()
+}
+
+fn config_for(sim: &Sim) -> UrConfig {
+    let a = sim.addrs();
+    let mut c = UrConfig::new(a.rtde.ip());
+    c.rtde_port = a.rtde.port();
+    c.dashboard_port = a.dashboard.port();
+    c.script_port = a.realtime.port();
+    c
+}
+
+fn connect(sim: &Sim) -> UrRobot {
+    UrRobot::connect(config_for(sim), Arc::new(MonotonicClock::new())).unwrap()
+}
+
+/// Steps a stepped simulator in the background while `f` runs (connecting needs state packages).
+fn pumped<T>(sim: &Sim, f: impl FnOnce() -> T) -> T {
+    let done = AtomicBool::new(false);
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            while !done.load(Ordering::Relaxed) {
+                sim.step();
+                std::thread::sleep(Duration::from_micros(500));
+            }
+        });
+        let r = f();
+        done.store(true, Ordering::Relaxed);
+        r
+    })
+}
+
+#[test]
+fn state_matches_the_controller_and_the_kinematic_model() {
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut robot = connect(&sim);
+    assert_eq!(robot.controller_version().major, 5);
+    assert_eq!(robot.period_s(), 0.002);
+    let n0 = robot.state_count();
+    wait_until("50 more states", || {
+        robot.keep_alive().unwrap();
+        robot.state_count() >= n0 + 50
+    });
+    let s = robot.state().unwrap();
+    assert!(s.fault().is_none(), "{:?}", s.fault());
+    assert_eq!(s.runtime_state, RuntimeState::Playing);
+    assert!(s.program_ours);
+    let q = sim.with(|c| c.q());
+    for (a, b) in s.actual_q.iter().zip(&q) {
+        assert!((a - b).abs() < 1e-12, "a robot at rest");
+    }
+    let fk = Arm::new(Model::Ur5e).fk(&s.actual_q);
+    assert!(translation_error(&fk, &s.base_from_tcp) < 1e-12);
+}
+
+#[test]
+fn servo_streaming_tracks_a_trajectory_on_a_stepped_clock_deterministically() {
+    fn run() -> (f64, Vec<[f64; 6]>) {
+        let sim = sim(Model::Ur3e, SimClock::Stepped);
+        let mut robot = pumped(&sim, || connect(&sim));
+        let q0 = robot.state().unwrap().actual_q;
+        let params = ServoParams {
+            time_s: 0.002,
+            lookahead_s: 0.05,
+            gain: 1000.0,
+        };
+        let mut max_err: f64 = 0.0;
+        let mut trace = Vec::new();
+        for k in 0..1500 {
+            // Lockstep: one command per controller cycle, one state per cycle.
+            let t = k as f64 * 0.002;
+            let mut q = q0;
+            q[0] += 0.3 * (1.0 - (2.0 * t).cos());
+            q[4] += 0.2 * (3.0 * t).sin();
+            let n = sim.stats().inputs;
+            robot.servo(&q, &params).unwrap();
+            spin_until("the command at the simulator", || sim.stats().inputs > n);
+            let before = robot.state_count();
+            sim.step();
+            spin_until("the state", || robot.state_count() > before);
+            let s = robot.state().unwrap();
+            // The servo lags a moving target by about lookahead × speed (≤ 0.05 × 0.6 rad/s).
+            if k > 100 {
+                max_err = max_err.max((s.actual_q[0] - q[0]).abs());
+            }
+            trace.push(s.actual_q);
+        }
+        assert_eq!(sim.with(|c| c.protective_stops()), 0);
+        (max_err, trace)
+    }
+    let (e1, t1) = run();
+    let (e2, t2) = run();
+    assert!(e1 < 0.035 && e1 > 0.001, "tracking error {e1} rad");
+    assert_eq!(e1, e2);
+    assert_eq!(t1, t2, "bit-identical runs on the stepped clock");
+}
+
+#[test]
+fn the_watchdog_stops_the_program_when_the_client_goes_silent() {
+    let sim = sim(Model::Ur3e, SimClock::RealTime);
+    let mut cfg = config_for(&sim);
+    cfg.watchdog_hz = 20.0;
+    let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
+    let q = robot.state().unwrap().actual_q;
+    let p = ServoParams::for_period(0.002);
+    for _ in 0..50 {
+        robot.servo(&q, &p).unwrap();
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    assert!(robot.state().unwrap().fault().is_none());
+    // Silence: the program stops within 50 ms plus a cycle.
+    std::thread::sleep(Duration::from_millis(150));
+    let s = robot.state().unwrap();
+    assert_eq!(s.runtime_state, RuntimeState::Stopped);
+    assert_eq!(s.fault(), Some(RobotFault::ProgramStopped));
+    let (ev, _) = sim.with(|c| c.events());
+    assert!(
+        ev.iter().any(|e| e.text.contains("RTDE watchdog")),
+        "{ev:?}"
+    );
+    // Commands are refused while the program is stopped, then it restarts on request.
+    assert!(matches!(
+        robot.servo(&q, &p),
+        Err(UrError::Fault(RobotFault::ProgramStopped))
+    ));
+    robot.restart_program().unwrap();
+    assert!(robot.state().unwrap().fault().is_none());
+}
+
+#[test]
+fn a_setpoint_jump_is_a_protective_stop_detected_at_once_and_recovered_via_the_dashboard() {
+    let sim = sim(Model::Ur5e, SimClock::Stepped);
+    let mut robot = pumped(&sim, || connect(&sim));
+    let mut q = robot.state().unwrap().actual_q;
+    let p = ServoParams::for_period(0.002);
+    q[1] += 0.2; // 0.2 rad in one 2 ms cycle: 100 rad/s.
+    let n = sim.stats().inputs;
+    robot.servo(&q, &p).unwrap();
+    wait_until("the command", || sim.stats().inputs > n);
+    let before = robot.state_count();
+    sim.step();
+    wait_until("the next state", || robot.state_count() > before);
+    // Detected in the very next state package.
+    let s = robot.state().unwrap();
+    assert_eq!(s.safety_mode, SafetyMode::ProtectiveStop);
+    assert_eq!(s.fault(), Some(RobotFault::ProtectiveStop));
+    assert!(matches!(
+        robot.servo(&q, &p),
+        Err(UrError::Fault(RobotFault::ProtectiveStop))
+    ));
+    let (ev, _) = sim.with(|c| c.events());
+    assert!(ev.iter().any(|e| e.text.contains("C204A3")), "{ev:?}");
+    pumped(&sim, || robot.recover_protective_stop()).unwrap();
+    let s = robot.state().unwrap();
+    assert_eq!(s.safety_mode, SafetyMode::Normal);
+    assert!(s.fault().is_none());
+}
+
+#[test]
+fn movej_speedj_and_stopj_move_the_joints_as_commanded() {
+    let sim = sim(Model::Ur10, SimClock::RealTime);
+    let mut robot = connect(&sim);
+    assert_eq!(robot.period_s(), 0.008, "CB3");
+    let q0 = robot.state().unwrap().actual_q;
+    let mut goal = q0;
+    goal[0] += 0.3;
+    goal[2] -= 0.2;
+    let seq = robot.move_joints(&goal, 1.0, 4.0).unwrap();
+    wait_until("the move", || {
+        robot.keep_alive().unwrap();
+        std::thread::sleep(Duration::from_millis(5));
+        robot.state().unwrap().move_done_seq == seq
+    });
+    let q = robot.state().unwrap().actual_q;
+    for j in 0..6 {
+        assert!((q[j] - goal[j]).abs() < 1e-9, "joint {j}");
+    }
+    robot
+        .speed_joints(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.5], 10.0)
+        .unwrap();
+    wait_until("speed", || {
+        robot.keep_alive().unwrap();
+        std::thread::sleep(Duration::from_millis(5));
+        (robot.state().unwrap().actual_qd[5] - 0.5).abs() < 1e-9
+    });
+    robot.stop(5.0).unwrap();
+    wait_until("standstill", || {
+        robot.keep_alive().unwrap();
+        std::thread::sleep(Duration::from_millis(5));
+        let s = robot.state().unwrap();
+        s.actual_qd.iter().all(|v| *v == 0.0) && s.program_mode == 1
+    });
+    assert!(robot.state().unwrap().fault().is_none());
+}
+
+#[test]
+fn emergency_stop_and_connection_loss_are_detected() {
+    let sim = sim(Model::Ur3e, SimClock::RealTime);
+    let robot = connect(&sim);
+    sim.with(|c| c.emergency_stop());
+    wait_until("e-stop seen", || {
+        robot.state().unwrap().fault() == Some(RobotFault::EmergencyStop)
+    });
+    drop(sim);
+    wait_until("disconnect seen", || !robot.state().unwrap().connected);
+    assert_eq!(
+        robot.state().unwrap().fault(),
+        Some(RobotFault::Disconnected)
+    );
+    assert!(robot.last_error().is_some());
+    let clock = MonotonicClock::new();
+    assert_eq!(
+        robot.fault_at(clock.now_s() + 1e6, 0.01),
+        Some(RobotFault::Disconnected)
+    );
+}
+
+#[test]
+fn protocol_1_controllers_are_handled() {
+    let mut c = SimConfig::stepped_local(ControllerConfig::new(Model::Ur5));
+    c.clock = SimClock::RealTime;
+    c.max_protocol = 1;
+    let sim = Sim::start(c).unwrap();
+    let mut conn = RtdeConnection::connect(sim.addrs().rtde, Duration::from_secs(2)).unwrap();
+    assert_eq!(conn.negotiate().unwrap(), 1);
+    let mut robot = connect(&sim);
+    wait_until("states", || {
+        robot.keep_alive().unwrap();
+        robot.state_count() > 10
+    });
+    assert!(robot.state().unwrap().fault().is_none());
+}
+
+#[test]
+fn unknown_and_busy_variables_are_named() {
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let t = Duration::from_secs(2);
+    let mut a = RtdeConnection::connect(sim.addrs().rtde, t).unwrap();
+    a.negotiate().unwrap();
+    let e = a
+        .setup_outputs(500.0, &["timestamp", "actual_qq", "actual_q"])
+        .unwrap_err();
+    assert!(e.to_string().contains("actual_qq (NOT_FOUND)"), "{e}");
+    a.setup_inputs(&["input_int_register_30", "input_double_register_30"])
+        .unwrap();
+    // The same connection may reuse its registers in another recipe (ur_rtde does).
+    let r2 = a.setup_inputs(&["input_int_register_30"]).unwrap();
+    assert_eq!(r2.id, 2, "input recipes numbered per connection");
+    let mut b = RtdeConnection::connect(sim.addrs().rtde, t).unwrap();
+    b.negotiate().unwrap();
+    let e = b
+        .setup_inputs(&["input_int_register_31", "input_double_register_30"])
+        .unwrap_err();
+    assert!(e.to_string().contains("input_double_register_30"), "{e}");
+    assert!(e.to_string().contains("IN_USE"), "{e}");
+    a.shutdown();
+    drop(a);
+    wait_until("release on disconnect", || sim.rtde_connections() == 1);
+    b.setup_inputs(&["input_double_register_30"]).unwrap();
+}

@@ -1,0 +1,147 @@
+"""Interop helper: SDU's ur_rtde (PyPI `ur-rtde`) as a client of a UR controller (ours:
+mocomp-ursim). One JSON request per line, one JSON answer per line (see jsonlines.py).
+
+Ops: version; receive (RTDEReceiveInterface: rate and values); control_connect (RTDEControlInterface
+plus a receiver); moveJ; servo_stream (servoJ at the controller rate with initPeriod/waitPeriod);
+speedJ; speedStop; servoStop; stopJ; stopScript; disconnect.
+"""
+
+import importlib.metadata
+import math
+import statistics
+import time
+
+from jsonlines import serve
+
+import rtde_control
+import rtde_receive
+
+state = {}
+
+
+def pctl(xs, p):
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(round(p / 100.0 * (len(xs) - 1))))]
+
+
+def receive(req):
+    r = rtde_receive.RTDEReceiveInterface(req["host"], req.get("frequency", -1.0))
+    t_end = time.monotonic() + req.get("seconds", 1.0)
+    stamps = []
+    last = None
+    while time.monotonic() < t_end:
+        ts = r.getTimestamp()
+        if ts != last:
+            stamps.append(ts)
+            last = ts
+        time.sleep(0.0002)
+    out = {
+        "distinct": len(stamps),
+        "first_ts": stamps[0],
+        "last_ts": stamps[-1],
+        "actual_q": list(r.getActualQ()),
+        "target_q": list(r.getTargetQ()),
+        "tcp": list(r.getActualTCPPose()),
+        "robot_mode": r.getRobotMode(),
+        "safety_mode": r.getSafetyMode(),
+        "runtime_state": r.getRuntimeState(),
+        "speed_scaling": r.getSpeedScaling(),
+        "joint_mode": list(r.getJointMode()),
+        "protective_stopped": r.isProtectiveStopped(),
+    }
+    r.disconnect()
+    return out
+
+
+def control_connect(req):
+    host = req["host"]
+    t0 = time.monotonic()
+    c = rtde_control.RTDEControlInterface(host)
+    connect_ms = (time.monotonic() - t0) * 1e3
+    r = rtde_receive.RTDEReceiveInterface(host)
+    state["c"], state["r"] = c, r
+    return {"connect_ms": connect_ms, "q": list(r.getActualQ()), "steptime": c.getStepTime()}
+
+
+def wait_steady(r, seconds=0.05):
+    time.sleep(seconds)
+    return list(r.getActualQ())
+
+
+def handle(req):
+    op = req["op"]
+    if op == "version":
+        return {"version": importlib.metadata.version("ur-rtde")}
+    if op == "receive":
+        return receive(req)
+    if op == "control_connect":
+        return control_connect(req)
+    c, r = state.get("c"), state.get("r")
+    if c is None:
+        raise RuntimeError("control_connect first")
+    if op == "moveJ":
+        ok = c.moveJ(req["q"], req.get("speed", 1.05), req.get("acc", 1.4))
+        return {"ok": ok, "q": wait_steady(r)}
+    if op == "servo_stream":
+        dt = req.get("dt", 0.002)
+        n = int(req["seconds"] / dt)
+        amp = req["amplitude"]
+        q0 = list(r.getActualQ())
+        periods, calls, errs = [], [], []
+        target = q0
+        last = None
+        for k in range(n):
+            t_start = c.initPeriod()
+            now = time.perf_counter()
+            if last is not None:
+                periods.append((now - last) * 1e3)
+            last = now
+            s = k * dt
+            target = list(q0)
+            target[0] = q0[0] + amp * (1 - math.cos(2 * s))
+            target[5] = q0[5] + amp * math.sin(3 * s)
+            t0 = time.perf_counter()
+            c.servoJ(target, 0.0, 0.0, dt, req.get("lookahead", 0.1), req.get("gain", 300))
+            calls.append((time.perf_counter() - t0) * 1e6)
+            if k * dt > 0.5:
+                # The servo lags a moving target: compare with the target a lookahead ago.
+                errs.append(abs(r.getActualQ()[0] - target[0]))
+            c.waitPeriod(t_start)
+        c.servoStop(10.0)
+        return {
+            "n": n,
+            "period_median_ms": statistics.median(periods),
+            "period_p99_ms": pctl(periods, 99),
+            "period_max_ms": max(periods),
+            "call_median_us": statistics.median(calls),
+            "max_err": max(errs),
+            "final_target": target,
+            "final_actual": wait_steady(r, 0.3),
+        }
+    if op == "speedJ":
+        ok = c.speedJ(req["qd"], req.get("acc", 0.5), 0.0)
+        time.sleep(req.get("seconds", 0.5))
+        return {"ok": ok, "qd": list(r.getActualQd()), "q": list(r.getActualQ())}
+    if op == "speedStop":
+        c.speedStop(req.get("acc", 10.0))
+        return {"qd": list(r.getActualQd()), "q": wait_steady(r)}
+    if op == "servoStop":
+        c.servoStop(req.get("acc", 10.0))
+        return {"q": wait_steady(r)}
+    if op == "stopJ":
+        c.stopJ(req.get("acc", 2.0), False)
+        return {"qd": list(r.getActualQd()), "q": wait_steady(r)}
+    if op == "stopScript":
+        c.stopScript()
+        time.sleep(0.05)
+        return {"runtime_state": r.getRuntimeState()}
+    if op == "disconnect":
+        c.disconnect()
+        r.disconnect()
+        state.clear()
+        return {"ok": True}
+    raise ValueError(f"unknown op {op}")
+
+
+if __name__ == "__main__":
+    serve(handle)
