@@ -308,14 +308,24 @@ fn text(kind: u8, b: &[u8], field: &str) -> Result<String, RtdeError> {
     })
 }
 
-/// Splits a comma-separated list; one trailing comma (ur_rtde sends one) is dropped.
+/// Splits a comma-separated list; one trailing comma (ur_rtde sends one) is dropped. Names are
+/// taken exactly (no trimming); an empty name is malformed.
 fn csv_list(kind: u8, b: &[u8]) -> Result<Vec<String>, RtdeError> {
     let s = text(kind, b, "name list")?;
     let s = s.strip_suffix(',').unwrap_or(&s);
     if s.is_empty() {
         return Ok(Vec::new());
     }
-    Ok(s.split(',').map(|n| n.trim().to_string()).collect())
+    s.split(',')
+        .enumerate()
+        .map(|(i, n)| {
+            if n.is_empty() {
+                Err(malformed(kind, format!("empty name at position {}", i + 1)))
+            } else {
+                Ok(n.to_string())
+            }
+        })
+        .collect()
 }
 
 fn text_v2(kind: u8, p: &[u8]) -> Result<TextMessage, RtdeError> {
