@@ -7,11 +7,13 @@ mod calib_cmd;
 mod igtl_cmd;
 mod kin_cmd;
 mod print;
+mod robot_cmd;
 mod track_cmd;
 
 use clap::{Args, Parser, Subcommand};
 use mocomp_kin::{KinError, Model};
 use std::io::Write;
+use std::net::IpAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -119,6 +121,24 @@ enum Command {
     },
     /// Fiducial tracking in IR + depth frames (directories of 16-bit PNG pairs).
     Track(TrackCli),
+    /// A simulated UR controller on the standard ports of a loopback address (RTDE 30004,
+    /// dashboard 29999, script 30001–30003), for mocomp or any UR client (ur_rtde, …).
+    Ursim {
+        /// Robot model (ur3, ur5, ur10: CB3 at 125 Hz; ur3e … ur30: e-Series at 500 Hz).
+        #[arg(long, value_parser = args::model, default_value = "ur3")]
+        model: Model,
+        /// Address to serve on; one loopback address per simulated robot.
+        #[arg(long, default_value = "127.0.0.2")]
+        host: IpAddr,
+        /// Stop after this many seconds (default: run until killed).
+        #[arg(long)]
+        seconds: Option<f64>,
+    },
+    /// Talk to a UR controller (a real one, or `mocomp ursim`) with mocomp's client.
+    Robot {
+        #[command(subcommand)]
+        command: RobotCommand,
+    },
     /// Hand-eye and robot-world calibration: X = flange_from_marker, Y = base_from_tracker.
     Calibrate {
         #[command(subcommand)]
@@ -275,6 +295,53 @@ enum CalibrateCommand {
     },
 }
 
+#[derive(Debug, Subcommand)]
+enum RobotCommand {
+    /// Connect, start the control program and print the state.
+    State {
+        /// Controller address.
+        #[arg(long)]
+        host: IpAddr,
+        /// Start a simulated controller of this model at --host first.
+        #[arg(long, value_parser = args::model)]
+        ursim: Option<Model>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Stream a smooth joint trajectory with servoj at the controller rate; report the tracking
+    /// error and the loop timing. Moves joints 1 and 6 by up to --amplitude: clear the space.
+    Stream {
+        /// Controller address.
+        #[arg(long)]
+        host: IpAddr,
+        /// Robot model (for the TCP error).
+        #[arg(long, value_parser = args::model)]
+        model: Model,
+        /// Start a simulated controller of --model at --host first.
+        #[arg(long)]
+        ursim: bool,
+        /// Seconds to stream.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+        /// Joint motion amplitude, radians.
+        #[arg(long, default_value_t = 0.2)]
+        amplitude: f64,
+        /// Joint motion frequency, Hz.
+        #[arg(long, default_value_t = 0.5)]
+        frequency: f64,
+        /// servoj lookahead time, seconds [0.03, 0.2].
+        #[arg(long, default_value_t = 0.05)]
+        lookahead: f64,
+        /// servoj gain [100, 2000].
+        #[arg(long, default_value_t = 1000.0)]
+        gain: f64,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
 /// The robot whose kinematics a command uses.
 #[derive(Debug, Args)]
 struct ArmArgs {
@@ -334,6 +401,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             kin_cmd::ik(&mut out, &arm, &pose, &choice, json)?;
         }
         Command::Models { json } => kin_cmd::models(&mut out, json)?,
+        Command::Ursim {
+            model,
+            host,
+            seconds,
+        } => {
+            if seconds.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
+                return Err(UsageError("--seconds: must be a positive number".into()).into());
+            }
+            robot_cmd::ursim(&mut out, model, host, seconds)?;
+        }
+        Command::Robot { command } => robot(&mut out, command)?,
         Command::Calibrate { command } => calibrate(&mut out, command)?,
         Command::Track(t) => track(&mut out, t)?,
         Command::Listen {
@@ -393,6 +471,47 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
     out.flush()?;
     Ok(())
+}
+
+fn robot(out: &mut impl Write, command: RobotCommand) -> anyhow::Result<()> {
+    match command {
+        RobotCommand::State { host, ursim, json } => {
+            let _sim = ursim.map(|m| robot_cmd::start_sim(m, host)).transpose()?;
+            robot_cmd::state(out, host, json)
+        }
+        RobotCommand::Stream {
+            host,
+            model,
+            ursim,
+            seconds,
+            amplitude,
+            frequency,
+            lookahead,
+            gain,
+            json,
+        } => {
+            for (name, v, lo, hi) in [
+                ("--seconds", seconds, 0.1, 3600.0),
+                ("--amplitude", amplitude, 0.0, 1.0),
+                ("--frequency", frequency, 0.01, 5.0),
+            ] {
+                if !(v.is_finite() && v >= lo && v <= hi) {
+                    return Err(UsageError(format!("{name} {v}: must be in [{lo}, {hi}]")).into());
+                }
+            }
+            let _sim = ursim
+                .then(|| robot_cmd::start_sim(model, host))
+                .transpose()?;
+            let a = robot_cmd::StreamArgs {
+                seconds,
+                amplitude,
+                frequency,
+                lookahead,
+                gain,
+            };
+            robot_cmd::stream(out, model, host, a, json)
+        }
+    }
 }
 
 fn pose_arg(name: &str, v: &[f64; 6]) -> anyhow::Result<mocomp_geom::nalgebra::Isometry3<f64>> {
@@ -558,6 +677,16 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         return EXIT_USAGE;
     }
     if err.downcast_ref::<igtl_cmd::NothingReceived>().is_some() {
+        return EXIT_FAILURE;
+    }
+    // A robot that is unreachable, refuses or faults is an outcome; a bad argument is not.
+    if let Some(e) = err.downcast_ref::<mocomp_ur::UrError>() {
+        return match e {
+            mocomp_ur::UrError::OutOfRange { .. } => EXIT_USAGE,
+            _ => EXIT_FAILURE,
+        };
+    }
+    if err.downcast_ref::<mocomp_ursim::SimError>().is_some() {
         return EXIT_FAILURE;
     }
     if err.downcast_ref::<mocomp_vision::VisionError>().is_some() {

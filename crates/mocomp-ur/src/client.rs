@@ -405,7 +405,7 @@ impl UrRobot {
             .encode_input_package(&self.values, &mut self.buf)
             .map_err(|e| UrError::Rtde {
                 context: "encoding a command".into(),
-                source: e,
+                cause: e,
             })?;
         self.writer
             .write_all(&self.buf)

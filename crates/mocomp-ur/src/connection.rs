@@ -170,7 +170,7 @@ impl RtdeConnection {
             .encode_input_package(values, &mut self.out)
             .map_err(|e| UrError::Rtde {
                 context: format!("encoding inputs for recipe {}", recipe.id),
-                source: e,
+                cause: e,
             })?;
         self.stream
             .write_all(&self.out)
@@ -190,13 +190,13 @@ impl RtdeConnection {
         loop {
             while let Some(f) = self.decoder.next_frame().map_err(|e| UrError::Rtde {
                 context: format!("RTDE stream from {}", self.addr),
-                source: e,
+                cause: e,
             })? {
                 match decode_reply(f.kind, f.payload, self.version) {
                     Ok(Reply::Data { payload, .. }) => {
                         recipe.unpack(payload, values).map_err(|e| UrError::Rtde {
                             context: format!("data package from {}", self.addr),
-                            source: e,
+                            cause: e,
                         })?;
                         got = true;
                         if !newest {
@@ -208,7 +208,7 @@ impl RtdeConnection {
                     Err(e) => {
                         return Err(UrError::Rtde {
                             context: format!("RTDE stream from {}", self.addr),
-                            source: e,
+                            cause: e,
                         });
                     }
                 }
@@ -235,7 +235,7 @@ impl RtdeConnection {
     fn rtde_err(&self, what: &str, e: RtdeError) -> UrError {
         UrError::Rtde {
             context: format!("{what} on {}", self.addr),
-            source: e,
+            cause: e,
         }
     }
 
@@ -253,7 +253,7 @@ impl RtdeConnection {
         loop {
             while let Some(f) = self.decoder.next_frame().map_err(|e| UrError::Rtde {
                 context: format!("RTDE stream from {}", self.addr),
-                source: e,
+                cause: e,
             })? {
                 if f.kind == kind::TEXT_MESSAGE {
                     if let Ok(Reply::Text(t)) = decode_reply(f.kind, f.payload, self.version) {
@@ -267,7 +267,7 @@ impl RtdeConnection {
                 let r =
                     decode_reply(f.kind, f.payload, self.version).map_err(|e| UrError::Rtde {
                         context: format!("reply from {}", self.addr),
-                        source: e,
+                        cause: e,
                     })?;
                 return pick(r).ok_or_else(|| UrError::Refused {
                     what: format!("reply '{}'", char::from(want)),

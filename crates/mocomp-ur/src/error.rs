@@ -91,21 +91,22 @@ pub enum RtdeError {
 /// An error talking to a robot (or to the simulator) over the network.
 #[derive(Debug, thiserror::Error)]
 pub enum UrError {
-    /// A socket operation failed.
-    #[error("{context}: {source}")]
+    /// A socket operation failed. (The cause is part of the message, not a separate source,
+    /// so error chains print it once.)
+    #[error("{context}: {cause}")]
     Io {
         /// What we were doing (names the interface and address).
         context: String,
         /// The cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The peer sent bytes that are not valid RTDE.
-    #[error("{context}: {source}")]
+    #[error("{context}: {cause}")]
     Rtde {
         /// What we were doing.
         context: String,
         /// The cause.
-        source: RtdeError,
+        cause: RtdeError,
     },
     /// No answer in time.
     #[error("timed out after {ms} ms waiting for {what}")]
@@ -158,10 +159,10 @@ pub enum UrError {
 }
 
 impl UrError {
-    pub(crate) fn io(context: impl Into<String>, source: std::io::Error) -> UrError {
+    pub(crate) fn io(context: impl Into<String>, cause: std::io::Error) -> UrError {
         UrError::Io {
             context: context.into(),
-            source,
+            cause,
         }
     }
 }

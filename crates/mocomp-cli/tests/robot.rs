@@ -1,0 +1,93 @@
+//! `mocomp ursim` and `mocomp robot` end to end (each on its own loopback address).
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+
+use std::io::BufRead;
+use std::process::{Command, Stdio};
+
+fn mocomp(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_mocomp"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn robot_stream_against_an_in_process_simulator_reports_its_figures() {
+    let o = mocomp(&[
+        "robot",
+        "stream",
+        "--host",
+        "127.0.78.2",
+        "--model",
+        "ur3e",
+        "--ursim",
+        "--seconds",
+        "2",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["rate_hz"], 500.0);
+    assert_eq!(v["cycles"], 1000);
+    assert_eq!(v["protective_stop"], false);
+    // The joints follow the target with the servo's lag (lookahead × speed) and no more.
+    let lag = v["expected_lag_rad"].as_f64().unwrap();
+    let err = v["tracking_joint_max_rad"].as_f64().unwrap();
+    assert!(err > 0.3 * lag && err < 1.5 * lag, "{err} vs lag {lag}");
+    assert!(v["lag_compensated_joint_max_rad"].as_f64().unwrap() < 0.3 * lag);
+}
+
+#[test]
+fn ursim_serves_the_standard_ports_and_robot_state_reads_it() {
+    let mut sim = Command::new(env!("CARGO_BIN_EXE_mocomp"))
+        .args([
+            "ursim",
+            "--model",
+            "ur10",
+            "--host",
+            "127.0.78.3",
+            "--seconds",
+            "20",
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    std::io::BufReader::new(sim.stdout.as_mut().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("RTDE 127.0.78.3:30004"), "{first}");
+    assert!(first.contains("dashboard 127.0.78.3:29999"), "{first}");
+    assert!(first.contains("125 Hz"), "{first}");
+    let o = mocomp(&["robot", "state", "--host", "127.0.78.3", "--json"]);
+    sim.kill().ok();
+    sim.wait().ok();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["robot_mode"], "RUNNING");
+    assert_eq!(v["safety_mode"], "NORMAL");
+    assert_eq!(v["runtime_state"], "PLAYING");
+    assert!(v["fault"].is_null());
+}
+
+#[test]
+fn unreachable_controller_and_bad_arguments_are_named() {
+    let o = mocomp(&["robot", "state", "--host", "127.0.78.99"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("127.0.78.99"), "{e}");
+    let o = mocomp(&[
+        "robot",
+        "stream",
+        "--host",
+        "127.0.78.4",
+        "--model",
+        "ur5",
+        "--seconds",
+        "-1",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = mocomp(&["ursim", "--model", "ur99"]);
+    assert_eq!(o.status.code(), Some(2));
+}
