@@ -136,6 +136,8 @@ struct StreamReport {
     period_p99_ms: f64,
     period_max_ms: f64,
     missed_cycles: usize,
+    servo_call_median_us: f64,
+    servo_call_p99_us: f64,
     ack_latency_median_ms: f64,
     ack_latency_p99_ms: f64,
     tracking_joint_max_rad: f64,
@@ -190,6 +192,7 @@ pub fn stream(
     let n = (a.seconds / period).round() as usize;
     let mut periods = Vec::with_capacity(n);
     let mut acks = Vec::with_capacity(n);
+    let mut calls = Vec::with_capacity(n);
     let mut joint_err = Vec::with_capacity(n);
     let mut comp_err = Vec::with_capacity(n);
     let mut tcp_err = Vec::with_capacity(n);
@@ -221,6 +224,7 @@ pub fn stream(
         let q = target(t);
         let sent = clock.now_s();
         let seq = robot.servo(&q, &params)?;
+        calls.push((clock.now_s() - sent) * 1e6);
         pending.push_back((seq, sent));
         if !last_send.is_nan() {
             periods.push((sent - last_send) * 1e3);
@@ -251,6 +255,8 @@ pub fn stream(
         period_p99_ms: percentile(&mut periods.clone(), 99.0),
         period_max_ms: max(&periods),
         missed_cycles: missed,
+        servo_call_median_us: percentile(&mut calls.clone(), 50.0),
+        servo_call_p99_us: percentile(&mut calls, 99.0),
         ack_latency_median_ms: percentile(&mut acks.clone(), 50.0),
         ack_latency_p99_ms: percentile(&mut acks, 99.0),
         tracking_joint_max_rad: max(&joint_err),
@@ -267,7 +273,7 @@ pub fn stream(
     } else {
         writeln!(
             out,
-            "{} ({} at {:.0} Hz): {} cycles in {} s\n  period median {:.3} ms, p99 {:.3} ms, max {:.3} ms, missed {}\n  command → acknowledged in state: median {:.2} ms, p99 {:.2} ms\n  tracking vs current target: joint max {:.4} rad (rms {:.4}; servo lag expected ≈ lookahead × speed = {:.4}), TCP max {:.2} mm (rms {:.2})\n  vs target one lookahead earlier: joint max {:.5} rad",
+            "{} ({} at {:.0} Hz): {} cycles in {} s\n  period median {:.3} ms, p99 {:.3} ms, max {:.3} ms, missed {}\n  servo call median {:.1} us, p99 {:.1} us\n  command → acknowledged in state: median {:.2} ms, p99 {:.2} ms\n  tracking vs current target: joint max {:.4} rad (rms {:.4}; servo lag expected ≈ lookahead × speed = {:.4}), TCP max {:.2} mm (rms {:.2})\n  vs target one lookahead earlier: joint max {:.5} rad",
             report.model,
             report.controller,
             report.rate_hz,
@@ -277,6 +283,8 @@ pub fn stream(
             report.period_p99_ms,
             report.period_max_ms,
             report.missed_cycles,
+            report.servo_call_median_us,
+            report.servo_call_p99_us,
             report.ack_latency_median_ms,
             report.ack_latency_p99_ms,
             report.tracking_joint_max_rad,
