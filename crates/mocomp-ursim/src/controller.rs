@@ -1424,6 +1424,78 @@ mod tests {
     }
 
     #[test]
+    fn joint_limits_and_speed_limits_are_protective_stops() {
+        let mut cfg = ControllerConfig::new(Model::Ur5e);
+        cfg.initial_q[1] = -std::f64::consts::TAU + 0.01; // shoulder 10 mrad from its limit
+        let mut c = Controller::new(cfg);
+        c.load_program(&mp::script(20.0));
+        c.apply_input(InputSlot::Int(24), Value::Int32(mcmd::SPEEDJ));
+        c.apply_input(InputSlot::Int(25), Value::Int32(1));
+        c.apply_input(InputSlot::Double(25), Value::Double(-0.5));
+        c.apply_input(InputSlot::Double(30), Value::Double(10.0));
+        step_fed(&mut c, 60);
+        assert_eq!(c.safety_mode(), SafetyMode::ProtectiveStop);
+        assert!(c.q()[1] >= -std::f64::consts::TAU, "never beyond the limit");
+        let (ev, _) = c.events();
+        assert!(
+            ev.iter()
+                .any(|e| e.text.contains("joint 2 reached its position limit"))
+        );
+
+        let mut c = running(Model::Ur10); // UR10 base: 120°/s
+        c.apply_input(InputSlot::Int(24), Value::Int32(mcmd::SPEEDJ));
+        c.apply_input(InputSlot::Int(25), Value::Int32(1));
+        c.apply_input(InputSlot::Double(24), Value::Double(2.5));
+        c.step();
+        assert_eq!(c.safety_mode(), SafetyMode::ProtectiveStop);
+        let (ev, _) = c.events();
+        assert!(
+            ev.iter().any(|e| e.text.contains("joint 1 speed command")),
+            "{ev:?}"
+        );
+    }
+
+    #[test]
+    fn power_and_brakes_follow_the_dashboard() {
+        let mut cfg = ControllerConfig::new(Model::Ur3);
+        cfg.powered = false;
+        let mut c = Controller::new(cfg);
+        assert_eq!(c.dashboard("robotmode"), "Robotmode: POWER_OFF");
+        c.load_program(&mp::script(20.0));
+        assert_eq!(
+            c.runtime_state(),
+            RuntimeState::Stopped,
+            "no program without power"
+        );
+        assert_eq!(c.dashboard("power on"), "Powering on");
+        assert_eq!(c.dashboard("robotmode"), "Robotmode: IDLE");
+        assert_eq!(c.dashboard("brake release"), "Brake releasing");
+        assert_eq!(c.dashboard("robotmode"), "Robotmode: RUNNING");
+        assert_eq!(c.dashboard("is in remote control"), "true");
+        assert!(
+            c.dashboard("get serial number")
+                .bytes()
+                .all(|b| b.is_ascii_digit())
+        );
+        assert!(
+            c.dashboard("PolyscopeVersion")
+                .starts_with("URSoftware 3.15.7.106331")
+        );
+        c.emergency_stop();
+        assert_eq!(
+            c.dashboard("power on"),
+            "Failed to power on: emergency stop active"
+        );
+        c.release_emergency_stop();
+        assert_eq!(c.dashboard("safetymode"), "Safetymode: NORMAL");
+        assert_eq!(c.dashboard("robotmode"), "Robotmode: POWER_OFF");
+        assert!(
+            c.dashboard("frobnicate")
+                .starts_with("could not understand")
+        );
+    }
+
+    #[test]
     fn programs_are_recognised() {
         assert_eq!(
             classify_program(&mp::script(12.5)),

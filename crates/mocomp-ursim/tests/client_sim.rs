@@ -275,3 +275,27 @@ fn unknown_and_busy_variables_are_named() {
     wait_until("release on disconnect", || sim.rtde_connections() == 1);
     b.setup_inputs(&["input_double_register_30"]).unwrap();
 }
+
+#[test]
+fn the_client_powers_on_and_reconnects_on_request() {
+    // Standard ports on its own loopback address, so a restarted controller is at the same place.
+    let host: std::net::IpAddr = "127.0.79.2".parse().unwrap();
+    let mut ctrl = ControllerConfig::new(Model::Ur3e);
+    ctrl.powered = false;
+    let sim = Sim::start(SimConfig::new(ctrl.clone(), host)).unwrap();
+    let mut cfg = UrConfig::new(host);
+    // Powered off: refused, naming the mode …
+    let e = UrRobot::connect(cfg.clone(), Arc::new(MonotonicClock::new())).unwrap_err();
+    assert!(e.to_string().contains("POWER_OFF"), "{e}");
+    // … unless asked to power on and release the brakes.
+    cfg.power_on = true;
+    let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
+    assert!(robot.state().unwrap().fault().is_none());
+    drop(sim);
+    wait_until("the loss seen", || {
+        robot.state().unwrap().fault() == Some(RobotFault::Disconnected)
+    });
+    let _sim = Sim::start(SimConfig::new(ControllerConfig::new(Model::Ur3e), host)).unwrap();
+    robot.reconnect().unwrap();
+    assert!(robot.state().unwrap().fault().is_none());
+}
