@@ -177,6 +177,19 @@ fn short_str(out: &mut Vec<u8>, s: &str, field: &'static str) -> Result<(), Rtde
     Ok(())
 }
 
+/// The v2 text layout (`len, message, len, source, level`); on error the frame begun at `at` is
+/// removed.
+fn encode_text_v2(t: &TextMessage, at: usize, out: &mut Vec<u8>) -> Result<(), RtdeError> {
+    let r =
+        short_str(out, &t.message, "message").and_then(|()| short_str(out, &t.source, "source"));
+    if let Err(e) = r {
+        out.truncate(at);
+        return Err(e);
+    }
+    out.push(t.level);
+    Ok(())
+}
+
 fn names_csv(out: &mut Vec<u8>, names: &[String]) {
     for (i, n) in names.iter().enumerate() {
         if i > 0 {
@@ -197,13 +210,7 @@ pub fn encode_request(req: &Request<'_>, version: u16, out: &mut Vec<u8>) -> Res
         Request::ControllerVersion => at = begin(out, kind::GET_URCONTROL_VERSION),
         Request::Text(t) => {
             at = begin(out, kind::TEXT_MESSAGE);
-            let r = short_str(out, &t.message, "message")
-                .and_then(|()| short_str(out, &t.source, "source"));
-            if let Err(e) = r {
-                out.truncate(at);
-                return Err(e);
-            }
-            out.push(t.level);
+            encode_text_v2(t, at, out)?;
         }
         Request::Data { recipe_id, payload } => {
             at = begin(out, kind::DATA_PACKAGE);
@@ -244,13 +251,7 @@ pub fn encode_reply(rep: &Reply<'_>, version: u16, out: &mut Vec<u8>) -> Result<
         Reply::Text(t) => {
             at = begin(out, kind::TEXT_MESSAGE);
             if version >= PROTOCOL_V2 {
-                let r = short_str(out, &t.message, "message")
-                    .and_then(|()| short_str(out, &t.source, "source"));
-                if let Err(e) = r {
-                    out.truncate(at);
-                    return Err(e);
-                }
-                out.push(t.level);
+                encode_text_v2(t, at, out)?;
             } else {
                 out.push(t.level);
                 out.extend_from_slice(t.message.as_bytes());

@@ -124,33 +124,29 @@ impl RtdeConnection {
 
     /// Starts synchronisation (data packages flow after this).
     pub fn start(&mut self) -> Result<(), UrError> {
-        self.send(&Request::Start)?;
-        let ok = self.reply(kind::START, |r| match r {
-            Reply::Start(ok) => Some(ok),
-            _ => None,
-        })?;
-        if ok {
-            Ok(())
-        } else {
-            Err(UrError::Refused {
-                what: "RTDE start (is there an output recipe?)".into(),
-            })
-        }
+        self.accepted(
+            &Request::Start,
+            kind::START,
+            "RTDE start (is there an output recipe?)",
+        )
     }
 
     /// Pauses synchronisation. Data packages already on the way are skipped.
     pub fn pause(&mut self) -> Result<(), UrError> {
-        self.send(&Request::Pause)?;
-        let ok = self.reply(kind::PAUSE, |r| match r {
-            Reply::Pause(ok) => Some(ok),
+        self.accepted(&Request::Pause, kind::PAUSE, "RTDE pause")
+    }
+
+    /// Sends a request whose reply is one accepted/refused byte.
+    fn accepted(&mut self, req: &Request<'_>, want: u8, what: &str) -> Result<(), UrError> {
+        self.send(req)?;
+        let ok = self.reply(want, |r| match r {
+            Reply::Start(ok) | Reply::Pause(ok) => Some(ok),
             _ => None,
         })?;
         if ok {
             Ok(())
         } else {
-            Err(UrError::Refused {
-                what: "RTDE pause".into(),
-            })
+            Err(UrError::Refused { what: what.into() })
         }
     }
 

@@ -678,6 +678,41 @@ fn handle_request(req: Request<'_>, sess: &mut RtdeSession, shared: &Shared) {
     }
 }
 
+/// Reads `\n`-terminated lines (lossy UTF-8) until the peer closes, the simulator stops, or
+/// `on_line` returns false. A line longer than `max` is dropped and reported.
+fn for_each_line(
+    s: TcpStream,
+    shared: &Shared,
+    max: usize,
+    mut on_line: impl FnMut(String) -> bool,
+) {
+    let mut r = BufReader::new(s);
+    let mut line = Vec::new();
+    while !shared.stop.load(Ordering::Relaxed) {
+        match r.read_until(b'\n', &mut line) {
+            Ok(0) => return,
+            Ok(_) if line.last() == Some(&b'\n') => {
+                let text = String::from_utf8_lossy(&line).into_owned();
+                line.clear();
+                if !on_line(text) {
+                    return;
+                }
+            }
+            Ok(_) => {}
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+                ) => {}
+            Err(_) => return,
+        }
+        if line.len() > max {
+            line.clear();
+            lock(&shared.ctrl).event_public(format!("input line over {max} bytes dropped"));
+        }
+    }
+}
+
 fn serve_dashboard(s: TcpStream, shared: Arc<Shared>) {
     let Ok(mut w) = s.try_clone() else { return };
     if w.write_all(b"Connected: Universal Robots Dashboard Server\n")
@@ -685,90 +720,41 @@ fn serve_dashboard(s: TcpStream, shared: Arc<Shared>) {
     {
         return;
     }
-    let mut r = BufReader::new(s);
-    let mut line = Vec::new();
-    loop {
-        if shared.stop.load(Ordering::Relaxed) {
-            return;
-        }
-        match r.read_until(b'\n', &mut line) {
-            Ok(0) => return,
-            Ok(_) if line.last() == Some(&b'\n') => {
-                let text = String::from_utf8_lossy(&line).into_owned();
-                line.clear();
-                let reply = lock(&shared.ctrl).dashboard(&text);
-                if w.write_all(format!("{reply}\n").as_bytes()).is_err() {
-                    return;
-                }
-                if reply == "Disconnected" {
-                    return;
-                }
-            }
-            Ok(_) => {}
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                ) => {}
-            Err(_) => return,
-        }
-        if line.len() > 4096 {
-            line.clear();
-            lock(&shared.ctrl).event_public("dashboard line over 4096 bytes dropped".into());
-        }
-    }
+    for_each_line(s, &shared, 4096, |text| {
+        let reply = lock(&shared.ctrl).dashboard(&text);
+        w.write_all(format!("{reply}\n").as_bytes()).is_ok() && reply != "Disconnected"
+    });
 }
 
 /// Largest program accepted on a script port.
 const MAX_PROGRAM: usize = 4 << 20;
 
 fn serve_script(s: TcpStream, shared: Arc<Shared>) {
-    let mut r = BufReader::new(s);
-    let mut line = Vec::new();
     let mut program: Option<String> = None;
-    loop {
-        if shared.stop.load(Ordering::Relaxed) {
-            return;
-        }
-        match r.read_until(b'\n', &mut line) {
-            Ok(0) => return,
-            Ok(_) if line.last() == Some(&b'\n') => {
-                let text = String::from_utf8_lossy(&line).into_owned();
-                line.clear();
-                let starts_block = text.starts_with("def ") || text.starts_with("sec ");
-                match program.as_mut() {
-                    None if starts_block => program = Some(text),
-                    None => {
-                        if !text.trim().is_empty() {
-                            lock(&shared.ctrl).event_public(format!(
-                                "script line outside a program ignored: {:?}",
-                                text.trim().chars().take(60).collect::<String>()
-                            ));
-                        }
-                    }
-                    Some(p) => {
-                        p.push_str(&text);
-                        if text.trim_end() == "end" {
-                            if let Some(p) = program.take() {
-                                lock(&shared.ctrl).load_program(&p);
-                            }
-                        } else if p.len() > MAX_PROGRAM {
-                            program = None;
-                            lock(&shared.ctrl).event_public("program over 4 MiB discarded".into());
-                        }
-                    }
+    for_each_line(s, &shared, MAX_PROGRAM, |text| {
+        let starts_block = text.starts_with("def ") || text.starts_with("sec ");
+        match program.as_mut() {
+            None if starts_block => program = Some(text),
+            None => {
+                if !text.trim().is_empty() {
+                    lock(&shared.ctrl).event_public(format!(
+                        "script line outside a program ignored: {:?}",
+                        text.trim().chars().take(60).collect::<String>()
+                    ));
                 }
             }
-            Ok(_) => {}
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                ) => {}
-            Err(_) => return,
+            Some(p) => {
+                p.push_str(&text);
+                if text.trim_end() == "end" {
+                    if let Some(p) = program.take() {
+                        lock(&shared.ctrl).load_program(&p);
+                    }
+                } else if p.len() > MAX_PROGRAM {
+                    program = None;
+                    lock(&shared.ctrl).event_public("program over 4 MiB discarded".into());
+                }
+            }
         }
-        if line.len() > MAX_PROGRAM {
-            line.clear();
-        }
-    }
+        true
+    });
 }
