@@ -31,7 +31,7 @@ pub use pose::{
     iso_from_wxyz, matrix_from_iso, matrix_mm_from_iso, quat_from_rotvec, rotvec_from_quat,
     rows_from_iso, ur_pose_from_iso, ur_pose_near, wxyz_from_iso,
 };
-pub use sample::{Clock, MonotonicClock, PoseSample, PoseSource};
+pub use sample::{Clock, MonotonicClock, PoseSample, PoseSource, SteppedClock};
 pub use seqlock::SeqLock;
 
 /// A rigid transform `a_from_b` (rotation and translation in metres).

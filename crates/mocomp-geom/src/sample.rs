@@ -57,3 +57,35 @@ impl Clock for MonotonicClock {
         self.origin.elapsed().as_secs_f64()
     }
 }
+
+/// A clock that moves only when told (the simulator's clock): deterministic runs.
+#[derive(Debug, Default)]
+pub struct SteppedClock {
+    bits: std::sync::atomic::AtomicU64,
+}
+
+impl SteppedClock {
+    /// A clock at `t` seconds.
+    pub fn new(t: f64) -> Self {
+        Self {
+            bits: std::sync::atomic::AtomicU64::new(t.to_bits()),
+        }
+    }
+
+    /// Sets the time.
+    pub fn set(&self, t: f64) {
+        self.bits
+            .store(t.to_bits(), std::sync::atomic::Ordering::Release);
+    }
+
+    /// Advances the time by `dt` seconds.
+    pub fn advance(&self, dt: f64) {
+        self.set(self.now_s() + dt);
+    }
+}
+
+impl Clock for SteppedClock {
+    fn now_s(&self) -> f64 {
+        f64::from_bits(self.bits.load(std::sync::atomic::Ordering::Acquire))
+    }
+}

@@ -1,0 +1,101 @@
+//! The collision model: the head as an ellipsoid in the head marker's frame, the coil as spheres
+//! along its approach axis, the arm's links as capsules between DH frames. Distances are exact
+//! for points against the ellipsoid (Newton on the standard secular equation); capsules are
+//! sampled as spheres along their axis.
+
+use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
+
+/// The head: an ellipsoid in the head (marker) frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadModel {
+    /// `head_from_ellipsoid`: the ellipsoid's centre and axes in the head frame.
+    pub head_from_ellipsoid: Isometry3<f64>,
+    /// Semi-axes, m.
+    pub radii: Vector3<f64>,
+}
+
+impl HeadModel {
+    /// Signed distance (m) from a point in the head frame to the surface: positive outside,
+    /// negative inside (inside: a lower bound of the depth).
+    pub fn distance(&self, p_head: &Point3<f64>) -> f64 {
+        let p = self
+            .head_from_ellipsoid
+            .inverse_transform_point(p_head)
+            .coords;
+        ellipsoid_distance(&p, &self.radii)
+    }
+}
+
+/// Distance from `p` (ellipsoid frame) to the ellipsoid with semi-axes `r`.
+pub fn ellipsoid_distance(p: &Vector3<f64>, r: &Vector3<f64>) -> f64 {
+    let s = (p.x / r.x).powi(2) + (p.y / r.y).powi(2) + (p.z / r.z).powi(2);
+    let rmin = r.x.min(r.y).min(r.z);
+    if s <= 1.0 {
+        return -(1.0 - s.sqrt()) * rmin;
+    }
+    // Closest point y_i = r_i² p_i / (t + r_i²), with t ≥ 0 the root of
+    // f(t) = Σ (r_i p_i / (t + r_i²))² − 1, decreasing and convex: Newton from t = 0 converges
+    // monotonically.
+    let a = [r.x * r.x, r.y * r.y, r.z * r.z];
+    let q = [p.x, p.y, p.z];
+    let mut t = 0.0;
+    for _ in 0..40 {
+        let mut f = -1.0;
+        let mut df = 0.0;
+        for i in 0..3 {
+            let u = r[i] * q[i] / (t + a[i]);
+            f += u * u;
+            df += -2.0 * u * u / (t + a[i]);
+        }
+        if f.abs() < 1e-14 || df == 0.0 {
+            break;
+        }
+        t -= f / df;
+    }
+    let y = Vector3::new(
+        a[0] * q[0] / (t + a[0]),
+        a[1] * q[1] / (t + a[1]),
+        a[2] * q[2] / (t + a[2]),
+    );
+    (p - y).norm()
+}
+
+/// The coil: spheres along its approach axis (+z of the coil frame points into the head; the
+/// coil's face is the origin).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CoilModel {
+    /// Coil radius seen from the head, m.
+    pub radius: f64,
+    /// Coil thickness behind its face (towards the flange), m.
+    pub thickness: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ellipsoid_distance_is_exact_on_the_axes_and_bounded_elsewhere() {
+        let r = Vector3::new(0.08, 0.10, 0.12);
+        assert!((ellipsoid_distance(&Vector3::new(0.0, 0.0, 0.125), &r) - 0.005).abs() < 1e-12);
+        assert!((ellipsoid_distance(&Vector3::new(0.2, 0.0, 0.0), &r) - 0.12).abs() < 1e-12);
+        assert!(ellipsoid_distance(&Vector3::zeros(), &r) < 0.0);
+        // Against brute force over the surface.
+        let p = Vector3::new(0.1, 0.07, 0.09);
+        let mut best = f64::INFINITY;
+        for i in 0..400 {
+            for j in 0..400 {
+                let th = std::f64::consts::PI * f64::from(i) / 399.0;
+                let ph = std::f64::consts::TAU * f64::from(j) / 400.0;
+                let y = Vector3::new(
+                    r.x * th.sin() * ph.cos(),
+                    r.y * th.sin() * ph.sin(),
+                    r.z * th.cos(),
+                );
+                best = best.min((p - y).norm());
+            }
+        }
+        let d = ellipsoid_distance(&p, &r);
+        assert!(d <= best + 1e-9 && best - d < 2e-4, "{d} vs {best}");
+    }
+}

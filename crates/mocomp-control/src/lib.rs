@@ -1,0 +1,17 @@
+//! The compensation loop (the seed paper's section V, at the robot's rate), with what the paper
+//! left out: prediction that hides latency, a safety supervisor, and a collision model of the
+//! head, the coil and the arm.
+//!
+//! It talks to the robot and the tracker only through [`mocomp_ur::Robot`] and
+//! [`mocomp_geom::PoseSource`], and takes the time as an argument, so the simulator steps it
+//! deterministically and the live binary drives it from the monotonic clock.
+
+pub mod compensator;
+pub mod config;
+pub mod geometry;
+pub mod predict;
+
+pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
+pub use config::LoopConfig;
+pub use geometry::{CoilModel, HeadModel};
+pub use predict::{PosePredictor, PredictorConfig};

@@ -1,0 +1,387 @@
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
+//! Deterministic closed-loop tests: the compensation loop drives a simulated UR3e (mocomp-ursim,
+//! stepped clock, over TCP through the real client) following a simulated head seen by a
+//! simulated tracker (rate, latency, noise, dropouts, outliers), in lockstep.
+
+use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode, Reason};
+use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::{Clock, PoseSample, PoseSource, SteppedClock, rotation_error, translation_error};
+use mocomp_kin::{Arm, Model, Selection};
+use mocomp_ur::{Robot, RobotFault, UrConfig, UrRobot};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+const PERIOD: f64 = 0.002;
+
+fn base_from_tracker() -> Isometry3<f64> {
+    Isometry3::new(Vector3::new(1.2, 0.3, 0.4), Vector3::new(0.1, -0.2, 2.8))
+}
+
+/// The coil 5 cm below the flange, along the flange's z axis.
+fn flange_from_coil() -> Isometry3<f64> {
+    Isometry3::translation(0.0, 0.0, 0.05)
+}
+
+/// On top of the head, 3 mm above the scalp, the coil's z axis pointing into the head.
+fn head_from_coil_goal() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.113),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+    )
+}
+
+/// The head at rest: in front of the UR3e.
+fn head_rest() -> Isometry3<f64> {
+    Isometry3::new(
+        Vector3::new(0.30, -0.12, -0.02),
+        Vector3::new(0.0, 0.0, 0.3),
+    )
+}
+
+/// A head trajectory: base_from_head at time t.
+type Motion = Box<dyn Fn(f64) -> Isometry3<f64> + Send + Sync>;
+
+/// The tracker model.
+#[derive(Clone)]
+struct TrackerModel {
+    rate_hz: f64,
+    latency_s: f64,
+    noise_m: f64,
+    noise_rad: f64,
+    /// No samples are acquired in these intervals.
+    dropouts: Vec<(f64, f64)>,
+    /// Samples acquired at these times are displaced by 5 cm.
+    outliers: Vec<f64>,
+    seed: u64,
+}
+
+impl Default for TrackerModel {
+    fn default() -> Self {
+        Self {
+            rate_hz: 60.0,
+            latency_s: 0.02,
+            noise_m: 1e-4,
+            noise_rad: 1e-3,
+            dropouts: Vec::new(),
+            outliers: Vec::new(),
+            seed: 1,
+        }
+    }
+}
+
+struct SimTracker {
+    model: TrackerModel,
+    motion: Arc<Motion>,
+    clock: Arc<SteppedClock>,
+    next_k: u64,
+    rng: rand_chacha::ChaCha8Rng,
+}
+
+impl PoseSource for SimTracker {
+    fn latest(&mut self) -> Option<PoseSample> {
+        let now = self.clock.now_s();
+        let mut newest = None;
+        loop {
+            let t_acq = self.next_k as f64 / self.model.rate_hz;
+            if t_acq + self.model.latency_s > now + 1e-9 {
+                break;
+            }
+            self.next_k += 1;
+            if self
+                .model
+                .dropouts
+                .iter()
+                .any(|(a, b)| t_acq >= *a && t_acq < *b)
+            {
+                continue;
+            }
+            let n = Normal::new(0.0, 1.0).unwrap();
+            let mut g = || n.sample(&mut self.rng);
+            let dp = Vector3::new(g(), g(), g()) * self.model.noise_m;
+            let dr = Vector3::new(g(), g(), g()) * self.model.noise_rad;
+            let mut truth = base_from_tracker().inverse() * (self.motion)(t_acq);
+            if self
+                .model
+                .outliers
+                .iter()
+                .any(|t| (t - t_acq).abs() < 0.5 / self.model.rate_hz)
+            {
+                truth.translation.vector += Vector3::new(0.05, 0.0, 0.0);
+            }
+            let noisy = Isometry3::from_parts(
+                Translation3::from(truth.translation.vector + dp),
+                UnitQuaternion::from_scaled_axis(dr) * truth.rotation,
+            );
+            newest = Some(PoseSample {
+                tracker_from_marker: noisy,
+                acquired_s: t_acq,
+                valid: true,
+                error_m: f64::NAN,
+            });
+        }
+        newest
+    }
+}
+
+struct Outcome {
+    records: Vec<CycleRecord>,
+    /// (t, translation mm, rotation deg) of the coil against the true goal.
+    errors: Vec<(f64, f64, f64)>,
+    sim: Sim,
+}
+
+impl Outcome {
+    fn events(&self) -> Vec<(f64, Event)> {
+        self.records
+            .iter()
+            .filter_map(|r| r.event.map(|e| (r.t, e)))
+            .collect()
+    }
+
+    fn max_mm(&self, from: f64, to: f64) -> f64 {
+        self.errors
+            .iter()
+            .filter(|e| e.0 >= from && e.0 < to)
+            .fold(0.0f64, |m, e| m.max(e.1))
+    }
+}
+
+/// Something to do to the simulator, and when.
+type Poke = (f64, fn(&Sim));
+
+struct Scenario {
+    motion: Motion,
+    tracker: TrackerModel,
+    seconds: f64,
+    predict: bool,
+    goal: Isometry3<f64>,
+    /// Something to do to the simulator at a time.
+    poke: Option<Poke>,
+}
+
+impl Scenario {
+    fn new(motion: Motion, seconds: f64) -> Self {
+        Self {
+            motion,
+            tracker: TrackerModel::default(),
+            seconds,
+            predict: true,
+            goal: head_from_coil_goal(),
+            poke: None,
+        }
+    }
+}
+
+fn spin(what: &str, limit: Duration, mut f: impl FnMut() -> bool) -> bool {
+    let end = Instant::now() + limit;
+    while !f() {
+        if Instant::now() > end {
+            let _ = what;
+            return false;
+        }
+        std::thread::yield_now();
+    }
+    true
+}
+
+fn run(sc: Scenario) -> Outcome {
+    let arm = Arm::new(Model::Ur3e);
+    let motion = Arc::new(sc.motion);
+    let head0 = motion(0.0);
+    // The robot starts with the coil at the goal for the head's initial pose (where the
+    // planner will bring it; see issue 7's planner).
+    let cfg0 = LoopConfig::new(base_from_tracker(), flange_from_coil(), sc.goal, PERIOD);
+    let start_goal = head0 * sc.goal * flange_from_coil().inverse();
+    let q0 = arm
+        .ik_closest(
+            &start_goal,
+            &[0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+            &Selection::tracking(0.05),
+        )
+        .map(|c| c.joints)
+        .unwrap_or([0.0, -1.3, 1.6, -1.87, -1.57, 0.0]);
+    let mut ctrl = ControllerConfig::new(Model::Ur3e);
+    ctrl.initial_q = q0;
+    let sim = Sim::start(SimConfig::stepped_local(ctrl)).unwrap();
+    let clock = Arc::new(SteppedClock::new(0.0));
+    let a = sim.addrs();
+    let mut ucfg = UrConfig::new(a.rtde.ip());
+    ucfg.rtde_port = a.rtde.port();
+    ucfg.dashboard_port = a.dashboard.port();
+    ucfg.script_port = a.realtime.port();
+    // Connect while stepping the simulator (the clock stays at 0 until the run starts).
+    let done = AtomicBool::new(false);
+    let mut robot = std::thread::scope(|s| {
+        s.spawn(|| {
+            while !done.load(Ordering::Relaxed) {
+                sim.step();
+                std::thread::sleep(Duration::from_micros(300));
+            }
+        });
+        let r = UrRobot::connect(ucfg, clock.clone()).unwrap();
+        done.store(true, Ordering::Relaxed);
+        r
+    });
+    let mut cfg = cfg0;
+    cfg.predict = sc.predict;
+    let mut comp = Compensator::new(cfg, arm, PERIOD);
+    let mut tracker = SimTracker {
+        model: sc.tracker.clone(),
+        motion: Arc::clone(&motion),
+        clock: Arc::clone(&clock),
+        next_k: 0,
+        rng: rand_chacha::ChaCha8Rng::seed_from_u64(sc.tracker.seed),
+    };
+    // One step so the state carries the stepped clock's time.
+    let n = robot.state_count();
+    robot.keep_alive().unwrap();
+    sim.step();
+    spin("state", Duration::from_secs(5), || robot.state_count() > n);
+    let cycles = (sc.seconds / PERIOD).round() as usize;
+    let mut records = Vec::with_capacity(cycles);
+    let mut errors = Vec::with_capacity(cycles);
+    let mut poked = false;
+    for _ in 0..cycles {
+        let now = clock.now_s();
+        if let Some((_, f)) = sc.poke.filter(|(t, _)| !poked && now >= *t) {
+            f(&sim);
+            poked = true;
+        }
+        let inputs = sim.stats().inputs;
+        let rec = comp.cycle(now, &mut robot, &mut tracker);
+        if !matches!(rec.mode, Mode::Faulted(_)) {
+            spin("command", Duration::from_millis(200), || {
+                sim.stats().inputs > inputs
+            });
+        } else {
+            robot.keep_alive().ok();
+            spin("keep-alive", Duration::from_millis(200), || {
+                sim.stats().inputs > inputs
+            });
+        }
+        let states = robot.state_count();
+        clock.advance(PERIOD);
+        sim.step();
+        spin("state", Duration::from_secs(5), || {
+            robot.state_count() > states
+        });
+        let s = robot.state().unwrap();
+        let t = clock.now_s();
+        let coil = arm.fk_flange(&s.actual_q) * flange_from_coil();
+        let goal = motion(t) * sc.goal;
+        errors.push((
+            t,
+            translation_error(&coil, &goal) * 1e3,
+            rotation_error(&coil, &goal).to_degrees(),
+        ));
+        records.push(rec);
+    }
+    Outcome {
+        records,
+        errors,
+        sim,
+    }
+}
+
+fn still() -> Motion {
+    Box::new(|_| head_rest())
+}
+
+/// Nods (pitch) and turns (yaw) with translation: peaks of 80 mm/s and 35°/s.
+fn nod_and_turn() -> Motion {
+    Box::new(|t| {
+        let w = 4.0; // rad/s (0.64 Hz)
+        let ramp = (t / 0.5).min(1.0); // start from rest
+        let x = 0.02 * ramp * (w * t).sin(); // 20 mm · 4 = 80 mm/s peak
+        let yaw = 0.15 * ramp * (w * t).sin(); // 0.15 · 4 = 0.6 rad/s = 34°/s
+        let pitch = 0.08 * ramp * (0.7 * w * t).sin();
+        head_rest() * Isometry3::new(Vector3::new(x, 0.5 * x, 0.0), Vector3::new(0.0, pitch, yaw))
+    })
+}
+
+#[test]
+fn a_turn_too_fast_to_follow_holds_then_resumes() {
+    // A 0.6 rad yaw in 0.2 s (3 rad/s) at t = 0.5 s.
+    let m: Motion = Box::new(|t| {
+        let s = ((t - 0.5) / 0.2).clamp(0.0, 1.0);
+        let s = s * s * (3.0 - 2.0 * s);
+        head_rest() * Isometry3::rotation(Vector3::new(0.0, 0.0, 0.6 * s))
+    });
+    let o = run(Scenario::new(m, 3.5));
+    let ev = o.events();
+    eprintln!("fast turn events: {ev:?}");
+    let hold = ev
+        .iter()
+        .find(|(_, e)| matches!(e, Event::Hold(Reason::HeadTooFast(..))))
+        .expect("a hold for head speed");
+    assert!(hold.0 > 0.5 && hold.0 < 0.7);
+    let resume = ev.iter().find(|(t, e)| *t > hold.0 && *e == Event::Resume);
+    assert!(resume.is_some(), "resumed: {ev:?}");
+    // Back on the goal at the end.
+    let end = o.max_mm(3.2, 3.5);
+    assert!(end < 0.5, "{end}");
+    assert_eq!(o.sim.with(|c| c.protective_stops()), 0);
+}
+
+#[test]
+fn a_goal_inside_the_head_is_refused() {
+    let mut sc = Scenario::new(still(), 0.5);
+    sc.goal = Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.05),
+        head_from_coil_goal().rotation,
+    );
+    let o = run(sc);
+    assert!(o.records.iter().all(|r| matches!(r.mode, Mode::Holding(_))));
+    assert!(
+        o.events()
+            .iter()
+            .any(|(_, e)| matches!(e, Event::Hold(Reason::GoalInsideHead(_))))
+    );
+}
+
+#[test]
+fn a_goal_out_of_reach_is_refused() {
+    let far: Motion = Box::new(|_| Isometry3::translation(1.5, 0.0, 0.0) * head_rest());
+    let o = run(Scenario::new(far, 0.5));
+    assert!(
+        o.events()
+            .iter()
+            .any(|(_, e)| *e == Event::Hold(Reason::Unreachable)),
+        "{:?}",
+        o.events()
+    );
+    let q0 = o.records[0].q_actual;
+    let q1 = o.records.last().unwrap().q_actual;
+    assert_eq!(q0, q1, "nothing moved");
+}
+
+#[test]
+fn a_protective_stop_is_detected_and_reported() {
+    let mut sc = Scenario::new(nod_and_turn(), 1.5);
+    sc.poke = Some((1.0, |sim: &Sim| {
+        sim.with(|c| c.protective_stop("test: bumped".into()))
+    }));
+    let o = run(sc);
+    let ev = o.events();
+    let stop = ev
+        .iter()
+        .find(|(_, e)| *e == Event::Hold(Reason::Robot(RobotFault::ProtectiveStop)))
+        .expect("reported");
+    assert!(
+        stop.0 >= 1.0 && stop.0 < 1.0 + 3.0 * PERIOD,
+        "within a cycle: {}",
+        stop.0
+    );
+    assert!(
+        o.records.last().unwrap().mode == Mode::Faulted(Reason::Robot(RobotFault::ProtectiveStop))
+    );
+}
