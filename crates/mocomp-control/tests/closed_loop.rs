@@ -12,7 +12,7 @@ use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{Clock, PoseSample, PoseSource, SteppedClock, rotation_error, translation_error};
 use mocomp_kin::{Arm, Model, Selection};
-use mocomp_ur::{Robot, RobotFault, UrConfig, UrRobot};
+use mocomp_ur::{Robot, RobotFault, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -213,11 +213,7 @@ fn run(sc: Scenario) -> Outcome {
     ctrl.initial_q = q0;
     let sim = Sim::start(SimConfig::stepped_local(ctrl)).unwrap();
     let clock = Arc::new(SteppedClock::new(0.0));
-    let a = sim.addrs();
-    let mut ucfg = UrConfig::new(a.rtde.ip());
-    ucfg.rtde_port = a.rtde.port();
-    ucfg.dashboard_port = a.dashboard.port();
-    ucfg.script_port = a.realtime.port();
+    let ucfg = sim.ur_config();
     // Connect while stepping the simulator (the clock stays at 0 until the run starts).
     let done = AtomicBool::new(false);
     let mut robot = std::thread::scope(|s| {

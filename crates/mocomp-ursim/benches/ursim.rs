@@ -10,7 +10,7 @@ use mocomp_kin::Model;
 use mocomp_ur::client::STATE_NAMES;
 use mocomp_ur::codec::{Direction, FrameDecoder, Recipe, Reply, decode_reply};
 use mocomp_ur::program::INPUT_NAMES;
-use mocomp_ur::{Robot, ServoParams, UrConfig, UrRobot, Value};
+use mocomp_ur::{Robot, ServoParams, UrRobot, Value};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
 use std::hint::black_box;
 use std::sync::Arc;
@@ -115,11 +115,7 @@ fn codec(c: &mut Criterion) {
 
 fn round_trip(c: &mut Criterion) {
     let sim = Sim::start(SimConfig::stepped_local(ControllerConfig::new(Model::Ur5e))).unwrap();
-    let a = sim.addrs();
-    let mut cfg = UrConfig::new(a.rtde.ip());
-    cfg.rtde_port = a.rtde.port();
-    cfg.dashboard_port = a.dashboard.port();
-    cfg.script_port = a.realtime.port();
+    let mut cfg = sim.ur_config();
     cfg.watchdog_hz = 1.0;
     let done = AtomicBool::new(false);
     let mut robot = std::thread::scope(|s| {

@@ -290,6 +290,16 @@ impl Sim {
         self.addrs
     }
 
+    /// A client configuration for this simulator's addresses and ports (whatever they are).
+    pub fn ur_config(&self) -> mocomp_ur::UrConfig {
+        let a = self.addrs;
+        let mut c = mocomp_ur::UrConfig::new(a.rtde.ip());
+        c.rtde_port = a.rtde.port();
+        c.dashboard_port = a.dashboard.port();
+        c.script_port = a.realtime.port();
+        c
+    }
+
     /// Runs one controller cycle and sends the outputs due (stepped clock; with the real-time
     /// clock this adds a cycle).
     pub fn step(&self) {

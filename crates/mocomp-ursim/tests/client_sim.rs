@@ -19,12 +19,7 @@ fn sim(model: Model, clock: SimClock) -> Sim {
 }
 
 fn config_for(sim: &Sim) -> UrConfig {
-    let a = sim.addrs();
-    let mut c = UrConfig::new(a.rtde.ip());
-    c.rtde_port = a.rtde.port();
-    c.dashboard_port = a.dashboard.port();
-    c.script_port = a.realtime.port();
-    c
+    sim.ur_config()
 }
 
 fn connect(sim: &Sim) -> UrRobot {

@@ -8,7 +8,7 @@ use mocomp_testkit::{SplitMix64, wait_until};
 use mocomp_ur::codec::{Direction, Recipe, Request, encode_request};
 use mocomp_ur::connection::RtdeConnection;
 use mocomp_ur::types::Value;
-use mocomp_ur::{Robot, UrConfig, UrError, UrRobot};
+use mocomp_ur::{Robot, UrError, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimClock, SimConfig};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -73,11 +73,7 @@ fn garbage_on_every_port_leaves_the_simulator_serving() {
     );
     wait_until("the bad packages counted", || sim.stats().bad_packages >= 8);
     // The simulator still serves a well-behaved client, and nothing moved the arm.
-    let mut cfg = UrConfig::new(a.rtde.ip());
-    cfg.rtde_port = a.rtde.port();
-    cfg.dashboard_port = a.dashboard.port();
-    cfg.script_port = a.realtime.port();
-    let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
+    let mut robot = UrRobot::connect(sim.ur_config(), Arc::new(MonotonicClock::new())).unwrap();
     let n = robot.state_count();
     wait_until("states", || {
         robot.keep_alive().unwrap();
