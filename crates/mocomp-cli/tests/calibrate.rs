@@ -3,18 +3,13 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
+mod common;
+use common::{assert_success, mocomp};
+
 use mocomp_calib::CalibrationFile;
 use mocomp_geom::nalgebra::Matrix4;
 use mocomp_geom::{iso_from_matrix, iso_from_ur_pose, translation_error};
 use mocomp_testkit::TempDir;
-use std::process::{Command, Output};
-
-fn mocomp(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 #[test]
 fn synth_then_solve_recovers_x_and_y() {
@@ -33,11 +28,7 @@ fn synth_then_solve_recovers_x_and_y() {
         "--x",
         x,
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let toml = dir.path("calib.toml");
     let out = mocomp(&[
         "calibrate",
@@ -48,11 +39,7 @@ fn synth_then_solve_recovers_x_and_y() {
         &toml,
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for key in ["X", "Y", "rms_mm", "rms_deg", "max_mm", "outliers"] {
         assert!(j.get(key).is_some(), "missing {key}");
@@ -203,11 +190,7 @@ fn plan_prints_poses_or_says_why_not() {
         "8",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(j["poses"].as_array().unwrap().len(), 8);
     assert!(j["tour_time_s"].as_f64().unwrap() > 0.0);

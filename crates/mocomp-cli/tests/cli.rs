@@ -3,22 +3,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 use mocomp_geom::{iso_from_ur_pose, rotation_error, translation_error};
 use mocomp_kin::{Arm, Model};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn mocomp(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args(args)
-        .output()
-        .expect("run mocomp")
-}
+mod common;
+use common::{assert_success, mocomp};
 
 fn stdout_json(out: &Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "exit {:?}, stderr: {}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(out);
     serde_json::from_slice(&out.stdout).expect("one JSON document")
 }
 

@@ -2,6 +2,9 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
+mod common;
+use common::assert_success;
+
 use mocomp_testkit::{TempDir, free_port};
 use std::io::BufRead;
 use std::process::{Command, Stdio};
@@ -56,11 +59,7 @@ fn listen_prints_what_serve_poses_sends() {
         ])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     let got: Vec<serde_json::Value> = text
         .lines()

@@ -2,15 +2,11 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
+mod common;
+use common::{assert_success, mocomp};
+
 use std::io::BufRead;
 use std::process::{Command, Stdio};
-
-fn mocomp(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 #[test]
 fn robot_stream_against_an_in_process_simulator_reports_its_figures() {
@@ -26,7 +22,7 @@ fn robot_stream_against_an_in_process_simulator_reports_its_figures() {
         "2",
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_success(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["rate_hz"], 500.0);
     assert_eq!(v["cycles"], 1000);
@@ -63,7 +59,7 @@ fn ursim_serves_the_standard_ports_and_robot_state_reads_it() {
     let o = mocomp(&["robot", "state", "--host", "127.0.78.3", "--json"]);
     sim.kill().ok();
     sim.wait().ok();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_success(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["robot_mode"], "RUNNING");
     assert_eq!(v["safety_mode"], "NORMAL");

@@ -4,18 +4,13 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
+mod common;
+use common::{assert_success, mocomp};
+
 use mocomp_geom::nalgebra::Matrix4;
 use mocomp_geom::{iso_from_matrix_mm, rotation_error, translation_error};
 use mocomp_testkit::TempDir;
 use mocomp_vision::codec::{encode_gray16_png, encode_rgb_png};
-use std::process::{Command, Output};
-
-fn mocomp(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 const GEOMETRY: &str =
     "name = \"8700449\"\npoints_mm = [[0,0,0],[0,47.38,28.99],[0,0,89.1],[0,-35.36,35.36]]\n";
@@ -40,11 +35,7 @@ fn rendered_frames_are_tracked_to_their_truth() {
         "12",
         "--distractors",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let out = mocomp(&[
         "track",
         "--frames",
@@ -57,11 +48,7 @@ fn rendered_frames_are_tracked_to_their_truth() {
         &d.path("overlay"),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let tracked = String::from_utf8(out.stdout).unwrap();
     let truth = std::fs::read_to_string(d.path("frames/truth.jsonl")).unwrap();
     let mut found = 0;

@@ -500,11 +500,6 @@ impl Compensator {
                     } else {
                         Mode::Tracking
                     };
-                    let next = if self.mode == Mode::Approaching && far {
-                        Mode::Approaching
-                    } else {
-                        next
-                    };
                     event = event.or(self.enter(next));
                     if self.mode == Mode::Approaching {
                         speed_fraction = self.cfg.approach_speed_fraction;
@@ -528,15 +523,13 @@ impl Compensator {
         let saved = (self.q_cmd, self.v_cmd);
         let mut q_next = self.limit(&desired, speed_fraction);
         if let Some(r) = base_from_head.and_then(|bh| self.collision(&saved.0, &q_next, &bh)) {
-            {
-                // Refuse: decelerate along the last command instead.
-                (self.q_cmd, self.v_cmd) = saved;
-                let hold = self.q_cmd;
-                q_next = self.limit(&hold, speed_fraction);
-                self.clear_since = None;
-                // A hold outranks a resume decided earlier in the same cycle.
-                event = self.enter(Mode::Holding(r)).or(event);
-            }
+            // Refuse: decelerate along the last command instead.
+            (self.q_cmd, self.v_cmd) = saved;
+            let hold = self.q_cmd;
+            q_next = self.limit(&hold, speed_fraction);
+            self.clear_since = None;
+            // A hold outranks a resume decided earlier in the same cycle.
+            event = self.enter(Mode::Holding(r)).or(event);
         }
         self.q_cmd = q_next;
         rec.q_command = q_next;

@@ -181,11 +181,11 @@ impl Scenario {
     }
 }
 
-fn spin(what: &str, limit: Duration, mut f: impl FnMut() -> bool) -> bool {
+/// Spins until `f` holds or `limit` passes; whether it held.
+fn spin(limit: Duration, mut f: impl FnMut() -> bool) -> bool {
     let end = Instant::now() + limit;
     while !f() {
         if Instant::now() > end {
-            let _ = what;
             return false;
         }
         std::thread::yield_now();
@@ -241,7 +241,7 @@ fn run(sc: Scenario) -> Outcome {
     let n = robot.state_count();
     robot.keep_alive().unwrap();
     sim.step();
-    spin("state", Duration::from_secs(5), || robot.state_count() > n);
+    spin(Duration::from_secs(5), || robot.state_count() > n);
     let cycles = (sc.seconds / PERIOD).round() as usize;
     let mut records = Vec::with_capacity(cycles);
     let mut errors = Vec::with_capacity(cycles);
@@ -255,21 +255,15 @@ fn run(sc: Scenario) -> Outcome {
         let inputs = sim.stats().inputs;
         let rec = comp.cycle(now, &mut robot, &mut tracker);
         if !matches!(rec.mode, Mode::Faulted(_)) {
-            spin("command", Duration::from_millis(200), || {
-                sim.stats().inputs > inputs
-            });
+            spin(Duration::from_millis(200), || sim.stats().inputs > inputs);
         } else {
             robot.keep_alive().ok();
-            spin("keep-alive", Duration::from_millis(200), || {
-                sim.stats().inputs > inputs
-            });
+            spin(Duration::from_millis(200), || sim.stats().inputs > inputs);
         }
         let states = robot.state_count();
         clock.advance(PERIOD);
         sim.step();
-        spin("state", Duration::from_secs(5), || {
-            robot.state_count() > states
-        });
+        spin(Duration::from_secs(5), || robot.state_count() > states);
         let s = robot.state().unwrap();
         let t = clock.now_s();
         let coil = arm.fk_flange(&s.actual_q) * flange_from_coil();

@@ -240,10 +240,9 @@ impl UrRobot {
         let thread = {
             let shared = Arc::clone(&shared);
             let clock = Arc::clone(&clock);
-            let period = 1.0 / frequency;
             std::thread::Builder::new()
                 .name("ur-state".into())
-                .spawn(move || state_thread(conn, out, values, shared, clock, period))
+                .spawn(move || state_thread(conn, out, values, shared, clock))
                 .map_err(|e| UrError::io("starting the state thread", e))?
         };
         let mut robot = UrRobot {
@@ -531,7 +530,6 @@ fn state_thread(
     mut values: Vec<Value>,
     shared: Arc<Shared>,
     clock: Arc<dyn Clock>,
-    _period: f64,
 ) {
     let mut last: Option<RobotState> = None;
     while !shared.stop.load(Ordering::Relaxed) {

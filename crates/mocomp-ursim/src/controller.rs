@@ -320,11 +320,6 @@ enum Motion {
     Stop { decel: f64 },
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Blocking {
-    Motion,
-}
-
 #[derive(Debug, Clone, Copy)]
 struct MocompProgram {
     last_seq: i32,
@@ -338,7 +333,8 @@ struct RtdeProgram {
     off_int: usize,
     off_double: usize,
     executing: bool,
-    blocking: Option<Blocking>,
+    /// Inside a blocking `process_cmd` until the motion ends (then DONE is signalled).
+    blocking: bool,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -567,12 +563,8 @@ impl Controller {
         self.regs.in_int.get(i).copied().unwrap_or(0)
     }
 
-    /// Records an event (the servers log protocol problems here).
-    pub fn event_public(&mut self, text: String) {
-        self.event(text);
-    }
-
-    fn event(&mut self, text: String) {
+    /// Records an event (the servers log protocol problems here too).
+    pub fn record_event(&mut self, text: String) {
         if self.events.len() >= MAX_EVENTS {
             self.events.pop_front();
         }
@@ -624,7 +616,7 @@ impl Controller {
             self.stop_program("a new program was sent".into());
         }
         if !self.can_move() {
-            self.event(format!(
+            self.record_event(format!(
                 "program not started: robot mode {}, safety mode {}",
                 self.robot_mode, self.safety_mode
             ));
@@ -647,7 +639,7 @@ impl Controller {
                     hz: watchdog_hz,
                     since_s: self.time_s,
                 });
-                self.event(format!(
+                self.record_event(format!(
                     "mocomp control program started (watchdog {watchdog_hz} Hz)"
                 ));
             }
@@ -659,17 +651,17 @@ impl Controller {
                     off_int,
                     off_double,
                     executing: false,
-                    blocking: None,
+                    blocking: false,
                 });
                 self.regs.out_int[off_int] = 1;
                 self.watchdog = None;
-                self.event(format!(
+                self.record_event(format!(
                     "ur_rtde control script started (register offset {off_int})"
                 ));
             }
             ProgramKind::Unsupported => {
                 let first = text.lines().next().unwrap_or("").chars().take(60);
-                self.event(format!(
+                self.record_event(format!(
                     "program {:?} not run: the simulator runs only mocomp's and ur_rtde's \
                      control programs",
                     first.collect::<String>()
@@ -691,7 +683,7 @@ impl Controller {
         if !matches!(self.motion, Motion::Idle) {
             self.motion = Motion::Stop { decel: 4.0 };
         }
-        self.event(format!("program stopped: {why}"));
+        self.record_event(format!("program stopped: {why}"));
     }
 
     /// Enters a protective stop.
@@ -702,7 +694,7 @@ impl Controller {
         self.protective_stops += 1;
         self.safety_mode = SafetyMode::ProtectiveStop;
         self.stopped_at_s = self.time_s;
-        self.event(format!("protective stop: {why}"));
+        self.record_event(format!("protective stop: {why}"));
         self.program = Program::None;
         self.watchdog = None;
         self.runtime = RuntimeState::Stopped;
@@ -714,7 +706,7 @@ impl Controller {
     /// Presses the emergency stop: the arm stops and powers off.
     pub fn emergency_stop(&mut self) {
         self.safety_mode = SafetyMode::RobotEmergencyStop;
-        self.event("emergency stop pressed".into());
+        self.record_event("emergency stop pressed".into());
         self.program = Program::None;
         self.watchdog = None;
         self.runtime = RuntimeState::Stopped;
@@ -731,7 +723,7 @@ impl Controller {
         ) {
             self.safety_mode = SafetyMode::Normal;
             self.robot_mode = RobotMode::PowerOff;
-            self.event("emergency stop released; power on and release the brakes".into());
+            self.record_event("emergency stop released; power on and release the brakes".into());
         }
     }
 
@@ -802,7 +794,7 @@ impl Controller {
                         .into();
                 }
                 self.safety_mode = SafetyMode::Normal;
-                self.event("protective stop unlocked".into());
+                self.record_event("protective stop unlocked".into());
                 "Protective stop releasing".into()
             }
             "close safety popup" => "closing safety popup".into(),
@@ -1023,7 +1015,7 @@ impl Controller {
     }
 
     fn run_ur_rtde(&mut self, mut p: RtdeProgram) {
-        if p.blocking.is_some() {
+        if p.blocking {
             return; // inside process_cmd until the motion ends
         }
         let oi = p.off_int;
@@ -1042,7 +1034,7 @@ impl Controller {
                 return;
             }
             p.executing = true;
-            if p.blocking.is_none() {
+            if !p.blocking {
                 self.regs.out_int[oi] = 2;
             }
         }
@@ -1060,7 +1052,7 @@ impl Controller {
                     return false;
                 }
                 if i1 == 0 {
-                    p.blocking = Some(Blocking::Motion);
+                    p.blocking = true;
                 }
             }
             9 => {
@@ -1081,7 +1073,7 @@ impl Controller {
                 };
                 self.motion = Motion::Stop { decel: a };
                 if command != 34 || i1 == 0 {
-                    p.blocking = Some(Blocking::Motion);
+                    p.blocking = true;
                 }
             }
             35 => {
@@ -1096,11 +1088,11 @@ impl Controller {
             }
             26 => self.regs.out_double[od] = self.period,
             255 => {
-                self.event("ur_rtde: Received stop script!".into());
+                self.record_event("ur_rtde: Received stop script!".into());
                 self.stop_program("ur_rtde STOP_SCRIPT".into());
                 return false;
             }
-            other => self.event(format!(
+            other => self.record_event(format!(
                 "ur_rtde command {other} is not emulated; acknowledged without effect"
             )),
         }
@@ -1111,8 +1103,8 @@ impl Controller {
         let idle = matches!(self.motion, Motion::Idle);
         match &mut self.program {
             Program::UrRtde(p) => {
-                if p.blocking.is_some() && idle {
-                    p.blocking = None;
+                if p.blocking && idle {
+                    p.blocking = false;
                     let oi = p.off_int;
                     self.regs.out_int[oi] = 2;
                 }

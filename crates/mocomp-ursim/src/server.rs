@@ -471,7 +471,7 @@ impl RtdeSession {
 
     fn warn(&mut self, shared: &Shared, text: String) {
         shared.counters.bad.fetch_add(1, Ordering::Relaxed);
-        lock(&shared.ctrl).event_public(format!("RTDE client {}: {text}", self.id));
+        lock(&shared.ctrl).record_event(format!("RTDE client {}: {text}", self.id));
         if self.warnings < 10 && self.version >= PROTOCOL_V2 {
             self.warnings += 1;
             let mut message = text;
@@ -570,7 +570,7 @@ fn handle_request(req: Request<'_>, sess: &mut RtdeSession, shared: &Shared) {
             sess.reply(&Reply::ControllerVersion(v));
         }
         Request::Text(t) => {
-            lock(&shared.ctrl).event_public(format!(
+            lock(&shared.ctrl).record_event(format!(
                 "RTDE client {} says ({}): {}",
                 sess.id, t.source, t.message
             ));
@@ -718,7 +718,7 @@ fn for_each_line(
         }
         if line.len() > max {
             line.clear();
-            lock(&shared.ctrl).event_public(format!("input line over {max} bytes dropped"));
+            lock(&shared.ctrl).record_event(format!("input line over {max} bytes dropped"));
         }
     }
 }
@@ -747,7 +747,7 @@ fn serve_script(s: TcpStream, shared: Arc<Shared>) {
             None if starts_block => program = Some(text),
             None => {
                 if !text.trim().is_empty() {
-                    lock(&shared.ctrl).event_public(format!(
+                    lock(&shared.ctrl).record_event(format!(
                         "script line outside a program ignored: {:?}",
                         text.trim().chars().take(60).collect::<String>()
                     ));
@@ -761,7 +761,7 @@ fn serve_script(s: TcpStream, shared: Arc<Shared>) {
                     }
                 } else if p.len() > MAX_PROGRAM {
                     program = None;
-                    lock(&shared.ctrl).event_public("program over 4 MiB discarded".into());
+                    lock(&shared.ctrl).record_event("program over 4 MiB discarded".into());
                 }
             }
         }

@@ -442,6 +442,19 @@ fn count_symmetries(g: &MarkerGeometry, tol: f64) -> usize {
     count
 }
 
+/// A 5 cm square of four fiducials: the symmetric geometry the tests use.
+#[cfg(test)]
+pub(crate) fn square_5cm() -> MarkerGeometry {
+    let pts = [(0.0, 0.0), (0.05, 0.0), (0.05, 0.05), (0.0, 0.05)];
+    match MarkerGeometry::new(
+        "square",
+        pts.iter().map(|&(x, y)| Point3::new(x, y, 0.0)).collect(),
+    ) {
+        Ok(g) => g,
+        Err(e) => unreachable!("a valid square: {e}"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -564,16 +577,7 @@ mod tests {
 
     #[test]
     fn symmetric_and_near_symmetric_geometries_are_flagged() {
-        let square = MarkerGeometry::new(
-            "square",
-            vec![
-                Point3::new(0.0, 0.0, 0.0),
-                Point3::new(0.05, 0.0, 0.0),
-                Point3::new(0.05, 0.05, 0.0),
-                Point3::new(0.0, 0.05, 0.0),
-            ],
-        )
-        .unwrap();
+        let square = square_5cm();
         let r = square.analyze(0.002);
         assert_eq!(
             r.symmetries, 7,

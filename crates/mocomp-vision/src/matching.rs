@@ -200,16 +200,7 @@ mod tests {
 
     #[test]
     fn symmetric_geometries_give_a_runner_up() {
-        let sq = MarkerGeometry::new(
-            "square",
-            vec![
-                Point3::new(0.0, 0.0, 0.0),
-                Point3::new(0.05, 0.0, 0.0),
-                Point3::new(0.05, 0.05, 0.0),
-                Point3::new(0.0, 0.05, 0.0),
-            ],
-        )
-        .unwrap();
+        let sq = crate::geometry::square_5cm();
         let q = seen(&sq);
         let m = match_points(&sq, &q, 0.002, 0);
         assert_eq!(m.best.as_ref().unwrap().matched, 4);
