@@ -254,8 +254,12 @@ impl Compensator {
         for j in 0..6 {
             let vmax = self.arm.spec().max_speed[j] * speed_fraction;
             let delta = desired[j] - self.q_cmd[j];
-            // Largest speed from which the joint can still stop at the target.
-            let v_stop = (2.0 * a * delta.abs()).sqrt();
+            // Largest speed from which the joint can still stop at the target in whole cycles
+            // of deceleration a·dt each: n·a·dt with a·dt²·n(n+1)/2 ≤ |delta| (the continuous
+            // √(2a|delta|) overshoots by up to a cycle and chatters around a still target).
+            let adt2 = a * dt * dt;
+            let n = 0.5 * ((1.0 + 8.0 * delta.abs() / adt2).sqrt() - 1.0);
+            let v_stop = n * a * dt;
             let want = (delta / dt).clamp(-v_stop, v_stop).clamp(-vmax, vmax);
             v[j] = want.clamp(self.v_cmd[j] - a * dt, self.v_cmd[j] + a * dt);
             q[j] = self.q_cmd[j] + v[j] * dt;
@@ -314,7 +318,7 @@ impl Compensator {
         let nearest = self.coil_distance(&head_from_coil);
         // Too close, and closer than before: refused. Moving away is always allowed (the head
         // may come to the coil faster than the coil can leave).
-        if nearest < self.cfg.coil_min_distance_m
+        if nearest < self.cfg.coil_min_distance_m - self.cfg.coil_contact_tolerance_m
             && nearest < self.coil_distance(&head_from_coil_prev)
         {
             return Some(Reason::CoilCollision(nearest));

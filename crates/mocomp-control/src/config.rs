@@ -25,7 +25,7 @@ pub struct LoopConfig {
     pub joint_margin_rad: f64,
     /// Fraction of each joint's maximum speed the loop may command. [0.5]
     pub speed_fraction: f64,
-    /// Joint acceleration limit of the command, rad/s². [8]
+    /// Joint acceleration limit of the command, rad/s². [12]
     pub max_joint_accel: f64,
     /// TCP (coil) speed limit, m/s. [0.25]
     pub max_tcp_speed: f64,
@@ -33,7 +33,8 @@ pub struct LoopConfig {
     pub approach_speed_fraction: f64,
     /// Beyond this coil deviation from the goal (m) the loop re-approaches slowly. [0.02]
     pub servo_deviation_m: f64,
-    /// Tracker sample older than this (s, by its acquisition time) holds the robot. [0.05]
+    /// Tracker sample older than this (s, by its acquisition time) holds the robot: 75 ms lets a
+    /// 60 Hz tracker with 20 ms latency lose one sample. [0.075]
     pub tracker_stale_s: f64,
     /// This many identical consecutive samples mean a frozen tracker stream. [20]
     pub frozen_samples: u32,
@@ -62,6 +63,10 @@ pub struct LoopConfig {
     /// The coil's closest allowed distance to the scalp, m: 0 lets it touch, never enter.
     /// A goal closer than this is refused. [0]
     pub coil_min_distance_m: f64,
+    /// Below `coil_min_distance_m`, the depth the coil may still move within (the scalp's and
+    /// hair's give), m: a head that moves into a lagging coil must not lock it in place. Deeper
+    /// than this, motions that go deeper are refused. [0.002]
+    pub coil_contact_tolerance_m: f64,
     /// Closest distance any arm link may come to the head, m. [0.01]
     pub link_clearance_m: f64,
     /// Link capsule radius, m. [0.045]
@@ -94,11 +99,11 @@ impl LoopConfig {
             predictor: PredictorConfig::default(),
             joint_margin_rad: 0.05,
             speed_fraction: 0.5,
-            max_joint_accel: 8.0,
+            max_joint_accel: 12.0,
             max_tcp_speed: 0.25,
             approach_speed_fraction: 0.15,
             servo_deviation_m: 0.02,
-            tracker_stale_s: 0.05,
+            tracker_stale_s: 0.075,
             frozen_samples: 20,
             outlier_speed_m_s: 1.0,
             outlier_speed_rad_s: 10.0,
@@ -118,6 +123,7 @@ impl LoopConfig {
                 thickness: 0.03,
             },
             coil_min_distance_m: 0.0,
+            coil_contact_tolerance_m: 0.002,
             link_clearance_m: 0.01,
             link_radius_m: 0.045,
             approach_tolerance_m: 0.01,

@@ -24,7 +24,7 @@ pub struct PredictorConfig {
     /// Longest extrapolation, s (longer horizons are clamped: the error grows with its square).
     pub max_horizon_s: f64,
     /// How strongly velocities within their own uncertainty are shrunk before extrapolating
-    /// (0: never; 4: a velocity of 2σ is halved).
+    /// (0: never; 4: a velocity of 2σ is halved; 0.5: a velocity of 1σ keeps 2/3).
     pub velocity_shrink: f64,
 }
 
@@ -33,10 +33,10 @@ impl Default for PredictorConfig {
         Self {
             position_noise_m: 1e-4,
             rotation_noise_rad: 1e-3,
-            accel_noise: 0.01,
-            angular_accel_noise: 0.05,
+            accel_noise: 3e-4,
+            angular_accel_noise: 0.03,
             max_horizon_s: 0.15,
-            velocity_shrink: 4.0,
+            velocity_shrink: 0.5,
         }
     }
 }
