@@ -1,0 +1,211 @@
+//! The compensation cycle's compute time: tracker rules, prediction, goal, IK on the current
+//! branch, limits, collision check of the command. The robot here is in memory (it follows the
+//! command exactly and reports a healthy state), so the figure is the cycle's own work, without
+//! the socket write of the real client; `mocomp run` reports the live figure with it.
+//!
+//! Besides criterion's median, the bench times 20,000 consecutive cycles one by one on a nodding,
+//! noisy head and prints their median, p99 and max (the goal: p99 under 20 µs).
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // bench code
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use mocomp_control::{Compensator, LoopConfig, Mode};
+use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::{PoseSample, PoseSource};
+use mocomp_kin::{Arm, Model, Selection};
+use mocomp_ur::{Robot, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, UrError};
+use std::time::Instant;
+
+const PERIOD: f64 = 0.002;
+
+fn base_from_tracker() -> Isometry3<f64> {
+    Isometry3::new(Vector3::new(1.2, 0.3, 0.4), Vector3::new(0.1, -0.2, 2.8))
+}
+
+fn head_from_coil_goal() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.113),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+    )
+}
+
+fn base_from_head(t: f64) -> Isometry3<f64> {
+    // From rest, after the loop's start-up hold.
+    let s = (4.0 * (t - 0.5).max(0.0)).sin();
+    Isometry3::new(
+        Vector3::new(0.30, -0.12, -0.02),
+        Vector3::new(0.0, 0.0, 0.3),
+    ) * Isometry3::new(
+        Vector3::new(0.02 * s, 0.01 * s, 0.0),
+        Vector3::new(0.0, 0.05 * s, 0.15 * s),
+    )
+}
+
+/// A robot that is wherever it was last commanded.
+struct MemRobot {
+    state: RobotState,
+    seq: i32,
+}
+
+impl Robot for MemRobot {
+    fn state(&self) -> Option<RobotState> {
+        Some(self.state)
+    }
+    fn state_count(&self) -> u64 {
+        self.seq as u64
+    }
+    fn period_s(&self) -> f64 {
+        PERIOD
+    }
+    fn servo(&mut self, q: &[f64; 6], _: &ServoParams) -> Result<i32, UrError> {
+        self.seq += 1;
+        self.state.actual_q = *q;
+        self.state.target_q = *q;
+        self.state.acked_seq = self.seq;
+        Ok(self.seq)
+    }
+    fn move_joints(&mut self, _: &[f64; 6], _: f64, _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn speed_joints(&mut self, _: &[f64; 6], _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn stop(&mut self, _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn keep_alive(&mut self) -> Result<(), UrError> {
+        Ok(())
+    }
+}
+
+/// 60 Hz samples of the nodding head with 0.1 mm of deterministic noise, 20 ms old.
+struct MemTracker {
+    now: f64,
+    k: u64,
+    x: u64,
+}
+
+impl PoseSource for MemTracker {
+    fn latest(&mut self) -> Option<PoseSample> {
+        let t = self.k as f64 / 60.0;
+        if t + 0.02 > self.now {
+            return None;
+        }
+        self.k += 1;
+        self.x = self.x.wrapping_mul(6364136223846793005).wrapping_add(1);
+        let n = ((self.x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 3.5e-4;
+        let mut pose = base_from_tracker().inverse() * base_from_head(t);
+        pose.translation.vector += Vector3::new(n, -n, 0.5 * n);
+        Some(PoseSample {
+            tracker_from_marker: pose,
+            acquired_s: t,
+            valid: true,
+            error_m: f64::NAN,
+        })
+    }
+}
+
+struct World {
+    comp: Compensator,
+    robot: MemRobot,
+    tracker: MemTracker,
+}
+
+impl World {
+    fn new() -> Self {
+        let arm = Arm::new(Model::Ur3e);
+        let flange_from_coil = Isometry3::translation(0.0, 0.0, 0.05);
+        let start = base_from_head(0.0) * head_from_coil_goal() * flange_from_coil.inverse();
+        let q0 = arm
+            .ik_closest(
+                &start,
+                &[0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+                &Selection::tracking(0.05),
+            )
+            .unwrap()
+            .joints;
+        let cfg = LoopConfig::new(
+            base_from_tracker(),
+            flange_from_coil,
+            head_from_coil_goal(),
+            PERIOD,
+        );
+        let state = RobotState {
+            controller_s: 0.0,
+            received_s: 0.0,
+            actual_q: q0,
+            actual_qd: [0.0; 6],
+            target_q: q0,
+            base_from_tcp: arm.fk(&q0),
+            robot_mode: RobotMode::Running,
+            safety_mode: SafetyMode::Normal,
+            runtime_state: RuntimeState::Playing,
+            robot_status_bits: 0,
+            safety_status_bits: 0,
+            speed_scaling: 1.0,
+            program_mode: 1,
+            acked_seq: 0,
+            move_done_seq: 0,
+            program_ours: true,
+            connected: true,
+        };
+        let mut w = Self {
+            comp: Compensator::new(cfg, arm, PERIOD),
+            robot: MemRobot { state, seq: 0 },
+            tracker: MemTracker {
+                now: 0.0,
+                k: 0,
+                x: 42,
+            },
+        };
+        // Past the start-up hold, into tracking.
+        for _ in 0..1000 {
+            w.cycle();
+        }
+        assert_eq!(w.comp.mode(), Mode::Tracking, "{:?}", w.comp.mode());
+        w
+    }
+
+    fn cycle(&mut self) -> Mode {
+        let now = self.tracker.now;
+        self.robot.state.received_s = now;
+        let rec = self.comp.cycle(now, &mut self.robot, &mut self.tracker);
+        self.tracker.now += PERIOD;
+        rec.mode
+    }
+}
+
+fn percentiles() {
+    let mut w = World::new();
+    let mut ns: Vec<u64> = Vec::with_capacity(20_000);
+    let mut tracking = 0;
+    for _ in 0..20_000 {
+        let t0 = Instant::now();
+        let mode = std::hint::black_box(w.cycle());
+        ns.push(t0.elapsed().as_nanos() as u64);
+        tracking += usize::from(mode == Mode::Tracking);
+    }
+    ns.sort_unstable();
+    let at = |p: f64| ns[((ns.len() - 1) as f64 * p) as usize] as f64 / 1e3;
+    eprintln!(
+        "cycle, 20,000 consecutive (tracking {tracking}): median {:.2} µs, p99 {:.2} µs, max {:.2} µs",
+        at(0.5),
+        at(0.99),
+        at(1.0)
+    );
+}
+
+fn bench(c: &mut Criterion) {
+    percentiles();
+    let mut w = World::new();
+    c.bench_function("cycle (tracking a nodding head)", |b| {
+        b.iter(|| std::hint::black_box(w.cycle()))
+    });
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

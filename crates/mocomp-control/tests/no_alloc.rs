@@ -1,0 +1,154 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+//! The cycle allocates nothing: a counting global allocator (allocation-counter) counts the
+//! allocations made on the loop's thread while `Compensator::cycle` runs, with the real client (`UrRobot`) talking to a
+//! stepped simulator over TCP, and a tracker source that nods the head with noise and dropouts.
+
+use mocomp_control::{Compensator, LoopConfig, Mode};
+use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::{Clock, PoseSample, PoseSource, SteppedClock};
+use mocomp_kin::{Arm, Model, Selection};
+use mocomp_testkit::{SplitMix64, spin_until};
+use mocomp_ur::{Robot, UrRobot};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use std::sync::Arc;
+
+/// Runs `f`, counting the allocations it makes on this thread (`allocation-counter` replaces
+/// the global allocator in this test binary).
+fn counted<T>(f: impl FnOnce() -> T) -> (T, u64) {
+    let mut out = None;
+    let info = allocation_counter::measure(|| out = Some(f()));
+    (out.unwrap(), info.count_total)
+}
+
+const PERIOD: f64 = 0.002;
+
+fn base_from_tracker() -> Isometry3<f64> {
+    Isometry3::new(Vector3::new(1.2, 0.3, 0.4), Vector3::new(0.1, -0.2, 2.8))
+}
+
+fn head_from_coil_goal() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.113),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+    )
+}
+
+fn base_from_head(t: f64) -> Isometry3<f64> {
+    let s = (4.0 * t).sin();
+    Isometry3::new(
+        Vector3::new(0.30, -0.12, -0.02),
+        Vector3::new(0.0, 0.0, 0.3),
+    ) * Isometry3::new(
+        Vector3::new(0.01 * s, 0.005 * s, 0.0),
+        Vector3::new(0.0, 0.04 * s, 0.08 * s),
+    )
+}
+
+/// 60 Hz, 20 ms latency, 0.1 mm noise, a 200 ms dropout at 1 s, an outlier at 1.5 s.
+struct NoddingTracker {
+    clock: Arc<SteppedClock>,
+    k: u64,
+    rng: SplitMix64,
+}
+
+impl PoseSource for NoddingTracker {
+    fn latest(&mut self) -> Option<PoseSample> {
+        let mut newest = None;
+        loop {
+            let t = self.k as f64 / 60.0;
+            if t + 0.02 > self.clock.now_s() {
+                return newest;
+            }
+            self.k += 1;
+            if (1.0..1.2).contains(&t) {
+                continue;
+            }
+            let mut pose = base_from_tracker().inverse() * base_from_head(t);
+            let mut n = || (self.rng.next_f64() - 0.5) * 3.5e-4;
+            pose.translation.vector += Vector3::new(n(), n(), n());
+            if (t - 1.5).abs() < 0.008 {
+                pose.translation.vector.x += 0.05;
+            }
+            newest = Some(PoseSample {
+                tracker_from_marker: pose,
+                acquired_s: t,
+                valid: true,
+                error_m: f64::NAN,
+            });
+        }
+    }
+}
+
+#[test]
+fn the_cycle_allocates_nothing() {
+    let arm = Arm::new(Model::Ur3e);
+    let flange_from_coil = Isometry3::translation(0.0, 0.0, 0.05);
+    let start = base_from_head(0.0) * head_from_coil_goal() * flange_from_coil.inverse();
+    let q0 = arm
+        .ik_closest(
+            &start,
+            &[0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+            &Selection::tracking(0.05),
+        )
+        .unwrap()
+        .joints;
+    let mut ctrl = ControllerConfig::new(Model::Ur3e);
+    ctrl.initial_q = q0;
+    let sim = Sim::start(SimConfig::stepped_local(ctrl)).unwrap();
+    let clock = Arc::new(SteppedClock::new(0.0));
+    let ucfg = sim.ur_config();
+    let stepping = std::sync::atomic::AtomicBool::new(true);
+    let mut robot = std::thread::scope(|s| {
+        s.spawn(|| {
+            while stepping.load(std::sync::atomic::Ordering::Relaxed) {
+                sim.step();
+                std::thread::sleep(std::time::Duration::from_micros(300));
+            }
+        });
+        let r = UrRobot::connect(ucfg, clock.clone());
+        stepping.store(false, std::sync::atomic::Ordering::Relaxed);
+        r.unwrap()
+    });
+    let cfg = LoopConfig::new(
+        base_from_tracker(),
+        flange_from_coil,
+        head_from_coil_goal(),
+        PERIOD,
+    );
+    let mut comp = Compensator::new(cfg, arm, PERIOD);
+    let mut tracker = NoddingTracker {
+        clock: Arc::clone(&clock),
+        k: 0,
+        rng: SplitMix64(7),
+    };
+    let n = robot.state_count();
+    robot.keep_alive().unwrap();
+    sim.step();
+    spin_until("first state", || robot.state_count() > n);
+    let (mut allocations, mut tracking, mut holding, mut events) = (0, 0, 0, 0);
+    for _ in 0..1500 {
+        let inputs = sim.stats().inputs;
+        let now = clock.now_s();
+        let (rec, count) = counted(|| comp.cycle(now, &mut robot, &mut tracker));
+        allocations += count;
+        match rec.mode {
+            Mode::Tracking => tracking += 1,
+            Mode::Holding(_) => holding += 1,
+            _ => {}
+        }
+        events += usize::from(rec.event.is_some());
+        spin_until("command", || sim.stats().inputs > inputs);
+        let states = robot.state_count();
+        clock.advance(PERIOD);
+        sim.step();
+        spin_until("state", || robot.state_count() > states);
+    }
+    // The run went through tracking, holds (start-up, the dropout) and events (resume, outlier).
+    assert!(tracking > 1000, "{tracking}");
+    assert!(holding > 100, "{holding}");
+    assert!(events >= 4, "{events}");
+    assert_eq!(allocations, 0, "allocations in 1500 cycles");
+    // The counter works.
+    let (_, c) = counted(|| vec![1u8; 10]);
+    assert_eq!(c, 1);
+}
