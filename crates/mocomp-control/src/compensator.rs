@@ -5,6 +5,7 @@
 //! caller gets a [`CycleRecord`] (`Copy`) to queue for a logger.
 
 use crate::config::LoopConfig;
+use crate::planner::{PlanError, ShellPath};
 use crate::predict::PosePredictor;
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use mocomp_geom::{PoseSample, PoseSource};
@@ -40,6 +41,11 @@ pub enum Reason {
     CoilCollision(f64),
     /// The coil near the head but off its approach axis (lateral offset, m).
     OffApproachAxis(f64),
+    /// The goal's approach axis (+z of the coil) points out of the head.
+    GoalAxisOutward,
+    /// No safe path to the goal: unreachable, a branch change or a collision at this arc
+    /// length along it (m), or no retreat to the shell (NaN).
+    NoPath(f64),
 }
 
 /// What the loop is doing.
@@ -47,7 +53,8 @@ pub enum Reason {
 pub enum Mode {
     /// Following the goal with the servo.
     Tracking,
-    /// Moving slowly towards a goal far from the coil (after a hold).
+    /// Following a planned path (retreat, shell, approach along the axis) to a goal far from the
+    /// coil: at the start, after a hold, after a large head movement.
     Approaching,
     /// Holding the last safe command (decelerating to standstill) for a reason; resumes by
     /// itself when the reason has been clear for `resume_after_s`.
@@ -92,11 +99,18 @@ pub struct CycleRecord {
     pub goal: Option<Isometry3<f64>>,
     /// Estimated head speed, m/s and rad/s.
     pub head_speed: (f64, f64),
+    /// While approaching: arc length travelled and the path's length, m.
+    pub path: Option<(f64, f64)>,
     /// Compute time of the cycle, ns (filled by the caller that owns a clock for it).
     pub compute_ns: u64,
 }
 
 const ACK_RING: usize = 64;
+/// Samples along a planned path checked for reachability and collisions.
+const PATH_CHECKS: usize = 40;
+/// Largest joint change between neighbouring path samples before it counts as a branch change,
+/// rad.
+const MAX_PATH_JOINT_STEP: f64 = 0.35;
 
 /// The compensation loop's state.
 #[derive(Debug, Clone)]
@@ -119,6 +133,11 @@ pub struct Compensator {
     acks: [(i32, f64); ACK_RING],
     ack_head: usize,
     ack_len: usize,
+    path: Option<ShellPath>,
+    sigma: f64,
+    sigma_dot: f64,
+    replan: bool,
+    last_head: Option<Isometry3<f64>>,
 }
 
 impl Compensator {
@@ -145,6 +164,11 @@ impl Compensator {
             acks: [(0, 0.0); ACK_RING],
             ack_head: 0,
             ack_len: 0,
+            path: None,
+            sigma: 0.0,
+            sigma_dot: 0.0,
+            replan: false,
+            last_head: None,
         }
     }
 
@@ -279,32 +303,40 @@ impl Compensator {
         q
     }
 
-    /// Checks the motion from `q_prev` to `q` against the head at `base_from_head`: links keep
-    /// their clearance, the coil never enters the head, and near the head the coil may move
-    /// closer only along its approach axis (moving away or sideways is always allowed, so a
-    /// hold never locks itself in).
+    /// Checks the motion from `q_prev` (commanded while the head was at `head_prev`) to `q` (for
+    /// the head at `head_now`), both `base_from_head`: links keep their clearance, the coil never
+    /// enters the head, and near the head the coil may get closer only along its approach axis.
+    ///
+    /// "Closer" means closer than before in both head poses: following a head that moves away
+    /// is not approaching it, and a head that moves into a still coil is not the robot's doing.
+    /// Moving away or sideways is always allowed, so a hold never locks itself in.
     pub fn collision(
         &self,
         q_prev: &[f64; 6],
         q: &[f64; 6],
-        base_from_head: &Isometry3<f64>,
+        head_prev: &Isometry3<f64>,
+        head_now: &Isometry3<f64>,
     ) -> Option<Reason> {
-        let head_from_base = base_from_head.inverse();
+        let now_from_base = head_now.inverse();
+        let prev_from_base = head_prev.inverse();
         let frames = self.arm.link_frames(q);
         let prev_frames = self.arm.link_frames(q_prev);
+        let head = &self.cfg.head;
+        let point_at = |f: &[Isometry3<f64>; 7], i: usize, k: u32| {
+            let a = f[i - 1].translation.vector;
+            let b = f[i].translation.vector;
+            Point3::from(a + (b - a) * (f64::from(k) / 4.0))
+        };
         // Links up to wrist 2; wrist 3 and the flange are inside the coil's model.
         for i in 1..6 {
-            let a = frames[i - 1].translation.vector;
-            let b = frames[i].translation.vector;
             for k in 0..=4 {
-                let p = a + (b - a) * (f64::from(k) / 4.0);
-                let d = self.cfg.head.distance(&(head_from_base * Point3::from(p)))
-                    - self.cfg.link_radius_m;
+                let p = point_at(&frames, i, k);
+                let d = head.distance(&(now_from_base * p)) - self.cfg.link_radius_m;
                 if d < self.cfg.link_clearance_m {
-                    let a0 = prev_frames[i - 1].translation.vector;
-                    let b0 = prev_frames[i].translation.vector;
-                    let p0 = a0 + (b0 - a0) * (f64::from(k) / 4.0);
-                    let d0 = self.cfg.head.distance(&(head_from_base * Point3::from(p0)))
+                    let p0 = point_at(&prev_frames, i, k);
+                    let d0 = head
+                        .distance(&(now_from_base * p0))
+                        .min(head.distance(&(prev_from_base * p0)))
                         - self.cfg.link_radius_m;
                     if d < d0 {
                         return Some(Reason::LinkCollision(i, d));
@@ -312,31 +344,39 @@ impl Compensator {
                 }
             }
         }
-        let base_from_coil = frames[6] * self.cfg.flange_from_coil;
-        let head_from_coil = head_from_base * base_from_coil;
-        let head_from_coil_prev = head_from_base * prev_frames[6] * self.cfg.flange_from_coil;
-        let nearest = self.coil_distance(&head_from_coil);
-        // Too close, and closer than before: refused. Moving away is always allowed (the head
-        // may come to the coil faster than the coil can leave).
+        let coil_now = now_from_base * frames[6] * self.cfg.flange_from_coil;
+        let coil_prev_now = now_from_base * prev_frames[6] * self.cfg.flange_from_coil;
+        let coil_prev_prev = prev_from_base * prev_frames[6] * self.cfg.flange_from_coil;
+        let nearest = self.coil_distance(&coil_now);
         if nearest < self.cfg.coil_min_distance_m - self.cfg.coil_contact_tolerance_m
-            && nearest < self.coil_distance(&head_from_coil_prev)
+            && nearest
+                < self
+                    .coil_distance(&coil_prev_now)
+                    .min(self.coil_distance(&coil_prev_prev))
         {
             return Some(Reason::CoilCollision(nearest));
         }
-        let centre = head_from_coil.translation.vector;
-        let d = self.cfg.head.distance(&Point3::from(centre));
-        let prev = head_from_coil_prev.translation.vector;
-        let approaching = d < self.cfg.head.distance(&Point3::from(prev)) - 1e-6;
-        if d < self.cfg.approach_zone_m && approaching {
+        let centre = coil_now.translation.vector;
+        let d = head.distance(&Point3::from(centre));
+        let (p1, p2) = (
+            coil_prev_now.translation.vector,
+            coil_prev_prev.translation.vector,
+        );
+        let d_prev = head
+            .distance(&Point3::from(p1))
+            .min(head.distance(&Point3::from(p2)));
+        if d < self.cfg.approach_zone_m && d < d_prev - 1e-6 {
             let g = &self.cfg.head_from_coil_goal;
             let axis = g.rotation * Vector3::z();
             let lateral_of = |c: Vector3<f64>| {
                 let rel = c - g.translation.vector;
                 (rel - axis * rel.dot(&axis)).norm()
             };
-            let (lateral, lateral_prev) = (lateral_of(centre), lateral_of(prev));
+            let lateral = lateral_of(centre);
             // Closer to the head only on the approach axis, or while converging onto it.
-            if lateral > self.cfg.approach_tolerance_m && lateral >= lateral_prev {
+            if lateral > self.cfg.approach_tolerance_m
+                && lateral >= lateral_of(p1).max(lateral_of(p2))
+            {
                 return Some(Reason::OffApproachAxis(lateral));
             }
         }
@@ -359,6 +399,66 @@ impl Compensator {
             }
         }
         nearest
+    }
+
+    /// Plans a path from the commanded pose to the goal around the head at `base_from_head` and
+    /// checks it: every sample reachable on the current branch with no joint jump, and every
+    /// step between samples collision-free.
+    fn plan(&self, base_from_head: &Isometry3<f64>) -> Result<ShellPath, Reason> {
+        let head_from_base = base_from_head.inverse();
+        let start = head_from_base * self.arm.fk_flange(&self.q_cmd) * self.cfg.flange_from_coil;
+        let path = ShellPath::plan(
+            &self.cfg.head,
+            &start,
+            &self.cfg.head_from_coil_goal,
+            self.cfg.shell_distance_m,
+        )
+        .map_err(|e| match e {
+            PlanError::AxisOutward => Reason::GoalAxisOutward,
+            PlanError::NoRetreat(_) => Reason::NoPath(f64::NAN),
+        })?;
+        let mut q = self.q_cmd;
+        let n = PATH_CHECKS;
+        for k in 1..=n {
+            let sigma = path.length() * k as f64 / n as f64;
+            let flange = base_from_head * path.pose_at(sigma) * self.coil_from_flange;
+            let next = self
+                .arm
+                .ik_closest(&flange, &q, &Selection::tracking(self.cfg.joint_margin_rad))
+                .map_err(|_| Reason::NoPath(sigma))?
+                .joints;
+            let jump = (0..6).fold(0.0f64, |m, j| m.max((next[j] - q[j]).abs()));
+            if jump > MAX_PATH_JOINT_STEP
+                || self
+                    .collision(&q, &next, base_from_head, base_from_head)
+                    .is_some()
+            {
+                return Err(Reason::NoPath(sigma));
+            }
+            q = next;
+        }
+        Ok(path)
+    }
+
+    /// Advances along the path (a speed-limited, acceleration-limited arc-length profile that
+    /// waits for the command when it lags) and returns the flange target at the new arc length.
+    fn path_target(&mut self, path: &ShellPath, base_from_head: &Isometry3<f64>) -> Isometry3<f64> {
+        let dt = self.period;
+        let a = self.cfg.approach_accel_m_s2;
+        let here = base_from_head * path.pose_at(self.sigma) * self.coil_from_flange;
+        let lag =
+            (self.arm.fk_flange(&self.q_cmd).translation.vector - here.translation.vector).norm();
+        let remaining = (path.length() - self.sigma).max(0.0);
+        let want = if lag < self.cfg.path_lag_m {
+            self.cfg
+                .approach_speed_m_s
+                .min((2.0 * a * remaining).sqrt())
+        } else {
+            0.0
+        };
+        self.sigma_dot = want.clamp(self.sigma_dot - a * dt, self.sigma_dot + a * dt);
+        self.sigma = (self.sigma + self.sigma_dot * dt).min(path.length());
+        base_from_head * path.pose_at(self.sigma) * self.coil_from_flange
     }
 
     fn enter(&mut self, mode: Mode) -> Option<Event> {
@@ -403,6 +503,7 @@ impl Compensator {
             q_actual: [f64::NAN; 6],
             goal: None,
             head_speed: (0.0, 0.0),
+            path: None,
             compute_ns: 0,
         };
         // Tracker first: samples are taken even while the robot is faulted.
@@ -488,36 +589,78 @@ impl Compensator {
 
         // Mode.
         let mut speed_fraction = self.cfg.speed_fraction;
-        let desired = match (reason, goal_q) {
-            (None, Some((q, margin))) => {
+        let desired = match (reason, goal_q, base_from_head) {
+            (None, Some((q, margin)), Some(bh)) => {
                 let since = *self.clear_since.get_or_insert(now);
                 let ready = !matches!(self.mode, Mode::Holding(_) | Mode::Faulted(_))
                     || now - since >= self.cfg.resume_after_s;
-                if ready {
-                    let far = rec.goal.is_some_and(|g| {
-                        (self.arm.fk_flange(&self.q_cmd).translation.vector - g.translation.vector)
-                            .norm()
-                            > self.cfg.servo_deviation_m
-                    });
-                    let next = if far {
-                        Mode::Approaching
-                    } else {
-                        Mode::Tracking
-                    };
-                    event = event.or(self.enter(next));
-                    if self.mode == Mode::Approaching {
-                        speed_fraction = self.cfg.approach_speed_fraction;
-                    }
-                    if margin < self.cfg.singularity_slow {
-                        speed_fraction *= (margin / self.cfg.singularity_slow).max(0.1);
-                    }
-                    q
-                } else {
+                if !ready {
                     self.q_cmd
+                } else {
+                    if self.mode != Mode::Approaching {
+                        let cmd = self.arm.fk_flange(&self.q_cmd);
+                        let far = rec.goal.is_some_and(|g| {
+                            (cmd.translation.vector - g.translation.vector).norm()
+                                > self.cfg.servo_deviation_m
+                                || cmd.rotation.angle_to(&g.rotation) > self.cfg.plan_rotation_rad
+                        });
+                        if far || self.replan {
+                            match self.plan(&bh) {
+                                Ok(p) => {
+                                    self.path = Some(p);
+                                    (self.sigma, self.sigma_dot) = (0.0, 0.0);
+                                    self.replan = false;
+                                    event = event.or(self.enter(Mode::Approaching));
+                                }
+                                Err(r) => reason = Some(r),
+                            }
+                        } else {
+                            event = event.or(self.enter(Mode::Tracking));
+                        }
+                    }
+                    match (reason, self.mode, self.path) {
+                        (Some(r), _, _) => {
+                            self.clear_since = None;
+                            event = event.or(self.enter(Mode::Holding(r)));
+                            self.q_cmd
+                        }
+                        (None, Mode::Approaching, Some(path)) => {
+                            let target = self.path_target(&path, &bh);
+                            rec.path = Some((self.sigma, path.length()));
+                            let step = self.arm.ik_closest(
+                                &target,
+                                &self.q_cmd,
+                                &Selection::tracking(self.cfg.joint_margin_rad),
+                            );
+                            match step {
+                                Err(_) => {
+                                    self.path = None;
+                                    self.clear_since = None;
+                                    event =
+                                        event.or(self.enter(Mode::Holding(Reason::Unreachable)));
+                                    self.q_cmd
+                                }
+                                Ok(c) if self.sigma >= path.length() => {
+                                    // At the goal: hand over to tracking.
+                                    self.path = None;
+                                    event = event.or(self.enter(Mode::Tracking));
+                                    c.joints
+                                }
+                                Ok(c) => c.joints,
+                            }
+                        }
+                        _ => {
+                            if margin < self.cfg.singularity_slow {
+                                speed_fraction *= (margin / self.cfg.singularity_slow).max(0.1);
+                            }
+                            q
+                        }
+                    }
                 }
             }
-            (r, _) => {
+            (r, _, _) => {
                 self.clear_since = None;
+                self.path = None;
                 event = event.or(self.enter(Mode::Holding(r.unwrap_or(Reason::NoTracker))));
                 self.q_cmd
             }
@@ -526,13 +669,21 @@ impl Compensator {
         // Limits, then the collision check on the commanded motion.
         let saved = (self.q_cmd, self.v_cmd);
         let mut q_next = self.limit(&desired, speed_fraction);
-        if let Some(r) = base_from_head.and_then(|bh| self.collision(&saved.0, &q_next, &bh)) {
+        let refused = base_from_head.and_then(|bh| {
+            let prev = self.last_head.unwrap_or(bh);
+            self.last_head = Some(bh);
+            self.collision(&saved.0, &q_next, &prev, &bh)
+        });
+        if let Some(r) = refused {
             // Refuse: decelerate along the last command instead.
             (self.q_cmd, self.v_cmd) = saved;
             let hold = self.q_cmd;
             q_next = self.limit(&hold, speed_fraction);
             self.clear_since = None;
-            // A hold outranks a resume decided earlier in the same cycle.
+            // A hold outranks a resume decided earlier in the same cycle. A coil refused near
+            // the head goes round by the shell when it resumes, never straight on.
+            self.path = None;
+            self.replan |= matches!(r, Reason::CoilCollision(_) | Reason::OffApproachAxis(_));
             event = self.enter(Mode::Holding(r)).or(event);
         }
         self.q_cmd = q_next;

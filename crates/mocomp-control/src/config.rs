@@ -29,10 +29,19 @@ pub struct LoopConfig {
     pub max_joint_accel: f64,
     /// TCP (coil) speed limit, m/s. [0.25]
     pub max_tcp_speed: f64,
-    /// Speed fraction while re-approaching a far goal (after a hold). [0.15]
-    pub approach_speed_fraction: f64,
-    /// Beyond this coil deviation from the goal (m) the loop re-approaches slowly. [0.02]
+    /// Beyond this deviation of the flange from its goal (m) the loop plans a path instead of
+    /// servoing straight. [0.02]
     pub servo_deviation_m: f64,
+    /// Beyond this rotation from the goal (rad) the loop plans a path. [0.7, about 40°]
+    pub plan_rotation_rad: f64,
+    /// Distance from the head the planned path keeps while travelling around it, m. [0.05]
+    pub shell_distance_m: f64,
+    /// Coil speed along a planned path, m/s (rotation: 0.1 m per rad). [0.05]
+    pub approach_speed_m_s: f64,
+    /// Acceleration along a planned path, m/s². [0.2]
+    pub approach_accel_m_s2: f64,
+    /// The path waits while the command lags its point by more than this, m. [0.005]
+    pub path_lag_m: f64,
     /// Tracker sample older than this (s, by its acquisition time) holds the robot: 75 ms lets a
     /// 60 Hz tracker with 20 ms latency lose one sample. [0.075]
     pub tracker_stale_s: f64,
@@ -101,8 +110,12 @@ impl LoopConfig {
             speed_fraction: 0.5,
             max_joint_accel: 12.0,
             max_tcp_speed: 0.25,
-            approach_speed_fraction: 0.15,
             servo_deviation_m: 0.02,
+            plan_rotation_rad: 0.7,
+            shell_distance_m: 0.05,
+            approach_speed_m_s: 0.05,
+            approach_accel_m_s2: 0.2,
+            path_lag_m: 0.005,
             tracker_stale_s: 0.075,
             frozen_samples: 20,
             outlier_speed_m_s: 1.0,

@@ -9,9 +9,11 @@
 pub mod compensator;
 pub mod config;
 pub mod geometry;
+pub mod planner;
 pub mod predict;
 
 pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
 pub use config::LoopConfig;
 pub use geometry::{CoilModel, HeadModel};
+pub use planner::{PlanError, ShellPath};
 pub use predict::{PosePredictor, PredictorConfig};
