@@ -208,7 +208,7 @@ impl Compensator {
             let lin = (pred.translation.vector - s.tracker_from_marker.translation.vector).norm();
             let ang = (pred.rotation.inverse() * s.tracker_from_marker.rotation).angle();
             let (vl, va) = (lin / dt, ang / dt);
-            if vl > self.cfg.outlier_speed_m_s || va > self.cfg.outlier_speed_rad_s {
+            if vl > self.cfg.params.outlier_speed_m_s || va > self.cfg.params.outlier_speed_rad_s {
                 return Some(Event::Outlier(vl, va));
             }
         }
@@ -225,19 +225,21 @@ impl Compensator {
             return Some(Reason::MarkerInvalid);
         }
         let age = now - self.predictor.time_s();
-        if age > self.cfg.tracker_stale_s {
-            if age > 10.0 * self.cfg.tracker_stale_s {
+        if age > self.cfg.params.tracker_stale_s {
+            if age > 10.0 * self.cfg.params.tracker_stale_s {
                 // A long dropout: the velocity estimate means nothing any more.
                 self.predictor.reset();
                 self.last_raw = None;
             }
             return Some(Reason::TrackerStale(age));
         }
-        if self.identical >= self.cfg.frozen_samples {
+        if self.identical >= self.cfg.params.frozen_samples {
             return Some(Reason::TrackerFrozen);
         }
         let (v, w) = self.predictor.velocity();
-        if v.norm() > self.cfg.max_head_speed_m_s || w.norm() > self.cfg.max_head_speed_rad_s {
+        if v.norm() > self.cfg.params.max_head_speed_m_s
+            || w.norm() > self.cfg.params.max_head_speed_rad_s
+        {
             return Some(Reason::HeadTooFast(v.norm(), w.norm()));
         }
         None
@@ -272,7 +274,7 @@ impl Compensator {
     /// joint can still stop at `desired` within its acceleration.
     fn limit(&mut self, desired: &[f64; 6], speed_fraction: f64) -> [f64; 6] {
         let dt = self.period;
-        let a = self.cfg.max_joint_accel;
+        let a = self.cfg.params.max_joint_accel_rad_s2;
         let mut q = self.q_cmd;
         let mut v = self.v_cmd;
         for j in 0..6 {
@@ -292,8 +294,8 @@ impl Compensator {
         let p0 = self.arm.fk(&self.q_cmd).translation.vector;
         let p1 = self.arm.fk(&q).translation.vector;
         let speed = (p1 - p0).norm() / dt;
-        if speed > self.cfg.max_tcp_speed {
-            let k = self.cfg.max_tcp_speed / speed;
+        if speed > self.cfg.params.max_tcp_speed_m_s {
+            let k = self.cfg.params.max_tcp_speed_m_s / speed;
             for j in 0..6 {
                 v[j] *= k;
                 q[j] = self.q_cmd[j] + v[j] * dt;
@@ -331,13 +333,13 @@ impl Compensator {
         for i in 1..6 {
             for k in 0..=4 {
                 let p = point_at(&frames, i, k);
-                let d = head.distance(&(now_from_base * p)) - self.cfg.link_radius_m;
-                if d < self.cfg.link_clearance_m {
+                let d = head.distance(&(now_from_base * p)) - self.cfg.params.link_radius_m;
+                if d < self.cfg.params.link_clearance_m {
                     let p0 = point_at(&prev_frames, i, k);
                     let d0 = head
                         .distance(&(now_from_base * p0))
                         .min(head.distance(&(prev_from_base * p0)))
-                        - self.cfg.link_radius_m;
+                        - self.cfg.params.link_radius_m;
                     if d < d0 {
                         return Some(Reason::LinkCollision(i, d));
                     }
@@ -348,7 +350,7 @@ impl Compensator {
         let coil_prev_now = now_from_base * prev_frames[6] * self.cfg.flange_from_coil;
         let coil_prev_prev = prev_from_base * prev_frames[6] * self.cfg.flange_from_coil;
         let nearest = self.coil_distance(&coil_now);
-        if nearest < self.cfg.coil_min_distance_m - self.cfg.coil_contact_tolerance_m
+        if nearest < self.cfg.params.coil_min_distance_m - self.cfg.params.coil_contact_tolerance_m
             && nearest
                 < self
                     .coil_distance(&coil_prev_now)
@@ -365,7 +367,7 @@ impl Compensator {
         let d_prev = head
             .distance(&Point3::from(p1))
             .min(head.distance(&Point3::from(p2)));
-        if d < self.cfg.approach_zone_m && d < d_prev - 1e-6 {
+        if d < self.cfg.params.approach_zone_m && d < d_prev - 1e-6 {
             let g = &self.cfg.head_from_coil_goal;
             let axis = g.rotation * Vector3::z();
             let lateral_of = |c: Vector3<f64>| {
@@ -374,7 +376,7 @@ impl Compensator {
             };
             let lateral = lateral_of(centre);
             // Closer to the head only on the approach axis, or while converging onto it.
-            if lateral > self.cfg.approach_tolerance_m
+            if lateral > self.cfg.params.approach_tolerance_m
                 && lateral >= lateral_of(p1).max(lateral_of(p2))
             {
                 return Some(Reason::OffApproachAxis(lateral));
@@ -411,7 +413,7 @@ impl Compensator {
             &self.cfg.head,
             &start,
             &self.cfg.head_from_coil_goal,
-            self.cfg.shell_distance_m,
+            self.cfg.params.shell_distance_m,
         )
         .map_err(|e| match e {
             PlanError::AxisOutward => Reason::GoalAxisOutward,
@@ -424,7 +426,11 @@ impl Compensator {
             let flange = base_from_head * path.pose_at(sigma) * self.coil_from_flange;
             let next = self
                 .arm
-                .ik_closest(&flange, &q, &Selection::tracking(self.cfg.joint_margin_rad))
+                .ik_closest(
+                    &flange,
+                    &q,
+                    &Selection::tracking(self.cfg.params.joint_margin_rad),
+                )
                 .map_err(|_| Reason::NoPath(sigma))?
                 .joints;
             let jump = (0..6).fold(0.0f64, |m, j| m.max((next[j] - q[j]).abs()));
@@ -444,13 +450,14 @@ impl Compensator {
     /// waits for the command when it lags) and returns the flange target at the new arc length.
     fn path_target(&mut self, path: &ShellPath, base_from_head: &Isometry3<f64>) -> Isometry3<f64> {
         let dt = self.period;
-        let a = self.cfg.approach_accel_m_s2;
+        let a = self.cfg.params.approach_accel_m_s2;
         let here = base_from_head * path.pose_at(self.sigma) * self.coil_from_flange;
         let lag =
             (self.arm.fk_flange(&self.q_cmd).translation.vector - here.translation.vector).norm();
         let remaining = (path.length() - self.sigma).max(0.0);
-        let want = if lag < self.cfg.path_lag_m {
+        let want = if lag < self.cfg.params.path_lag_m {
             self.cfg
+                .params
                 .approach_speed_m_s
                 .min((2.0 * a * remaining).sqrt())
         } else {
@@ -513,7 +520,7 @@ impl Compensator {
         let state = robot.state();
         let robot_reason = match state {
             None => Some(Reason::RobotStale),
-            Some(s) if now - s.received_s > self.cfg.robot_stale_periods * self.period => {
+            Some(s) if now - s.received_s > self.cfg.params.robot_stale_periods * self.period => {
                 Some(Reason::RobotStale)
             }
             Some(s) => s.fault().map(Reason::Robot),
@@ -525,7 +532,7 @@ impl Compensator {
         if let Some(r) = robot_reason {
             if !self.stop_sent {
                 // Best effort: the robot may be unreachable.
-                let _ = robot.stop(self.cfg.stop_decel);
+                let _ = robot.stop(self.cfg.params.stop_decel_rad_s2);
                 self.stop_sent = true;
             }
             self.have_cmd = false;
@@ -551,7 +558,7 @@ impl Compensator {
         let mut goal_q = None;
         let mut base_from_head = None;
         if reason.is_none() {
-            let head = if self.cfg.predict {
+            let head = if self.cfg.params.predict {
                 let target_t = now + self.command_delay + self.cfg.servo.lookahead_s;
                 rec.horizon_s = target_t - self.predictor.time_s();
                 self.predictor.predict(target_t)
@@ -565,18 +572,18 @@ impl Compensator {
                 rec.goal = Some(goal);
                 let goal_coil = self.cfg.head_from_coil_goal.translation.vector;
                 let gd = self.cfg.head.distance(&Point3::from(goal_coil));
-                if gd < self.cfg.coil_min_distance_m {
+                if gd < self.cfg.params.coil_min_distance_m {
                     reason = Some(Reason::GoalInsideHead(gd));
                 } else {
                     match self.arm.ik_closest(
                         &goal,
                         &self.q_cmd,
-                        &Selection::tracking(self.cfg.joint_margin_rad),
+                        &Selection::tracking(self.cfg.params.joint_margin_rad),
                     ) {
                         Err(_) => reason = Some(Reason::Unreachable),
                         Ok(c) => {
                             let m = self.arm.singularity(&c.joints).margin(self.arm.geometry());
-                            if m < self.cfg.singularity_hold {
+                            if m < self.cfg.params.singularity_hold {
                                 reason = Some(Reason::Singular(m));
                             } else {
                                 goal_q = Some((c.joints, m));
@@ -588,12 +595,12 @@ impl Compensator {
         }
 
         // Mode.
-        let mut speed_fraction = self.cfg.speed_fraction;
+        let mut speed_fraction = self.cfg.params.speed_fraction;
         let desired = match (reason, goal_q, base_from_head) {
             (None, Some((q, margin)), Some(bh)) => {
                 let since = *self.clear_since.get_or_insert(now);
                 let ready = !matches!(self.mode, Mode::Holding(_) | Mode::Faulted(_))
-                    || now - since >= self.cfg.resume_after_s;
+                    || now - since >= self.cfg.params.resume_after_s;
                 if !ready {
                     self.q_cmd
                 } else {
@@ -601,8 +608,9 @@ impl Compensator {
                         let cmd = self.arm.fk_flange(&self.q_cmd);
                         let far = rec.goal.is_some_and(|g| {
                             (cmd.translation.vector - g.translation.vector).norm()
-                                > self.cfg.servo_deviation_m
-                                || cmd.rotation.angle_to(&g.rotation) > self.cfg.plan_rotation_rad
+                                > self.cfg.params.servo_deviation_m
+                                || cmd.rotation.angle_to(&g.rotation)
+                                    > self.cfg.params.plan_rotation_rad
                         });
                         if far || self.replan {
                             match self.plan(&bh) {
@@ -630,7 +638,7 @@ impl Compensator {
                             let step = self.arm.ik_closest(
                                 &target,
                                 &self.q_cmd,
-                                &Selection::tracking(self.cfg.joint_margin_rad),
+                                &Selection::tracking(self.cfg.params.joint_margin_rad),
                             );
                             match step {
                                 Err(_) => {
@@ -650,8 +658,9 @@ impl Compensator {
                             }
                         }
                         _ => {
-                            if margin < self.cfg.singularity_slow {
-                                speed_fraction *= (margin / self.cfg.singularity_slow).max(0.1);
+                            if margin < self.cfg.params.singularity_slow {
+                                speed_fraction *=
+                                    (margin / self.cfg.params.singularity_slow).max(0.1);
                             }
                             q
                         }

@@ -1,34 +1,40 @@
-//! The loop's parameters, with their defaults and units.
+//! The loop's parameters, with their defaults and units. [`LoopParams`] is what a configuration
+//! file sets (section `[loop]` of `mocomp run`'s TOML); every field has a default, unknown keys
+//! are rejected and [`LoopParams::validate`] names the key of any value out of range.
 
 use crate::geometry::{CoilModel, HeadModel};
 use crate::predict::PredictorConfig;
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_ur::ServoParams;
+use serde::{Deserialize, Serialize};
 
-/// Everything the compensation loop needs besides the robot and the tracker.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LoopConfig {
-    /// `Y`: base_from_tracker (from calibration).
-    pub base_from_tracker: Isometry3<f64>,
-    /// `X` for the coil: flange_from_coil (the coil's mounting on the flange).
-    pub flange_from_coil: Isometry3<f64>,
-    /// The goal: head_from_coil (taught or configured).
-    pub head_from_coil_goal: Isometry3<f64>,
-    /// servoj parameters (time = the controller period).
-    pub servo: ServoParams,
+/// A parameter out of its range, named by its key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key} = {value}: {problem}")]
+pub struct ParamError {
+    /// The key, as in the configuration file.
+    pub key: &'static str,
+    /// The value given.
+    pub value: f64,
+    /// What is wrong with it.
+    pub problem: &'static str,
+}
+
+/// The loop's scalar parameters (SI units: the unit is in each name).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LoopParams {
     /// Predict the head pose to the time the command acts (else use the newest sample as is,
     /// like the seed paper).
     pub predict: bool,
-    /// The predictor's noise model.
-    pub predictor: PredictorConfig,
     /// Keep this far inside every joint limit, rad. [0.05]
     pub joint_margin_rad: f64,
     /// Fraction of each joint's maximum speed the loop may command. [0.5]
     pub speed_fraction: f64,
     /// Joint acceleration limit of the command, rad/s². [12]
-    pub max_joint_accel: f64,
+    pub max_joint_accel_rad_s2: f64,
     /// TCP (coil) speed limit, m/s. [0.25]
-    pub max_tcp_speed: f64,
+    pub max_tcp_speed_m_s: f64,
     /// Beyond this deviation of the flange from its goal (m) the loop plans a path instead of
     /// servoing straight. [0.02]
     pub servo_deviation_m: f64,
@@ -64,11 +70,7 @@ pub struct LoopConfig {
     /// Singularity margin below which the loop holds. [0.02]
     pub singularity_hold: f64,
     /// Deceleration used when the robot is stopped by the loop, rad/s². [4]
-    pub stop_decel: f64,
-    /// The head's collision model.
-    pub head: HeadModel,
-    /// The coil's collision model.
-    pub coil: CoilModel,
+    pub stop_decel_rad_s2: f64,
     /// The coil's closest allowed distance to the scalp, m: 0 lets it touch, never enter.
     /// A goal closer than this is refused. [0]
     pub coil_min_distance_m: f64,
@@ -85,6 +87,285 @@ pub struct LoopConfig {
     pub approach_tolerance_m: f64,
     /// Thickness of the zone around the head where the approach rule applies, m. [0.03]
     pub approach_zone_m: f64,
+}
+
+impl Default for LoopParams {
+    fn default() -> Self {
+        Self {
+            predict: true,
+            joint_margin_rad: 0.05,
+            speed_fraction: 0.5,
+            max_joint_accel_rad_s2: 12.0,
+            max_tcp_speed_m_s: 0.25,
+            servo_deviation_m: 0.02,
+            plan_rotation_rad: 0.7,
+            shell_distance_m: 0.05,
+            approach_speed_m_s: 0.05,
+            approach_accel_m_s2: 0.2,
+            path_lag_m: 0.005,
+            tracker_stale_s: 0.075,
+            frozen_samples: 20,
+            outlier_speed_m_s: 1.0,
+            outlier_speed_rad_s: 10.0,
+            max_head_speed_m_s: 0.15,
+            max_head_speed_rad_s: 1.2,
+            resume_after_s: 0.2,
+            robot_stale_periods: 5.0,
+            singularity_slow: 0.1,
+            singularity_hold: 0.02,
+            stop_decel_rad_s2: 4.0,
+            coil_min_distance_m: 0.0,
+            coil_contact_tolerance_m: 0.002,
+            link_clearance_m: 0.01,
+            link_radius_m: 0.045,
+            approach_tolerance_m: 0.01,
+            approach_zone_m: 0.03,
+        }
+    }
+}
+
+impl LoopParams {
+    /// Checks every value's range; the error names the first key out of range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let err = |key, value, problem| {
+            Err(ParamError {
+                key,
+                value,
+                problem,
+            })
+        };
+        if !(self.joint_margin_rad.is_finite() && self.joint_margin_rad >= 0.0) {
+            return err(
+                "joint_margin_rad",
+                self.joint_margin_rad,
+                "must be finite and ≥ 0",
+            );
+        }
+        if !(self.speed_fraction > 0.0 && self.speed_fraction <= 1.0) {
+            return err("speed_fraction", self.speed_fraction, "must be in (0, 1]");
+        }
+        if !(self.max_joint_accel_rad_s2.is_finite() && self.max_joint_accel_rad_s2 > 0.0) {
+            return err(
+                "max_joint_accel_rad_s2",
+                self.max_joint_accel_rad_s2,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.max_tcp_speed_m_s.is_finite() && self.max_tcp_speed_m_s > 0.0) {
+            return err(
+                "max_tcp_speed_m_s",
+                self.max_tcp_speed_m_s,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.servo_deviation_m.is_finite() && self.servo_deviation_m > 0.0) {
+            return err(
+                "servo_deviation_m",
+                self.servo_deviation_m,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.plan_rotation_rad.is_finite() && self.plan_rotation_rad > 0.0) {
+            return err(
+                "plan_rotation_rad",
+                self.plan_rotation_rad,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.shell_distance_m.is_finite() && self.shell_distance_m > 0.0) {
+            return err(
+                "shell_distance_m",
+                self.shell_distance_m,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.approach_speed_m_s.is_finite() && self.approach_speed_m_s > 0.0) {
+            return err(
+                "approach_speed_m_s",
+                self.approach_speed_m_s,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.approach_accel_m_s2.is_finite() && self.approach_accel_m_s2 > 0.0) {
+            return err(
+                "approach_accel_m_s2",
+                self.approach_accel_m_s2,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.path_lag_m.is_finite() && self.path_lag_m > 0.0) {
+            return err("path_lag_m", self.path_lag_m, "must be finite and > 0");
+        }
+        if !(self.tracker_stale_s.is_finite() && self.tracker_stale_s > 0.0) {
+            return err(
+                "tracker_stale_s",
+                self.tracker_stale_s,
+                "must be finite and > 0",
+            );
+        }
+        if self.frozen_samples < 2 {
+            return err(
+                "frozen_samples",
+                f64::from(self.frozen_samples),
+                "must be at least 2",
+            );
+        }
+        if !(self.outlier_speed_m_s.is_finite() && self.outlier_speed_m_s > 0.0) {
+            return err(
+                "outlier_speed_m_s",
+                self.outlier_speed_m_s,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.outlier_speed_rad_s.is_finite() && self.outlier_speed_rad_s > 0.0) {
+            return err(
+                "outlier_speed_rad_s",
+                self.outlier_speed_rad_s,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.max_head_speed_m_s.is_finite() && self.max_head_speed_m_s > 0.0) {
+            return err(
+                "max_head_speed_m_s",
+                self.max_head_speed_m_s,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.max_head_speed_rad_s.is_finite() && self.max_head_speed_rad_s > 0.0) {
+            return err(
+                "max_head_speed_rad_s",
+                self.max_head_speed_rad_s,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.resume_after_s.is_finite() && self.resume_after_s > 0.0) {
+            return err(
+                "resume_after_s",
+                self.resume_after_s,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.robot_stale_periods.is_finite() && self.robot_stale_periods > 0.0) {
+            return err(
+                "robot_stale_periods",
+                self.robot_stale_periods,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.singularity_slow.is_finite() && self.singularity_slow > 0.0) {
+            return err(
+                "singularity_slow",
+                self.singularity_slow,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.singularity_hold.is_finite() && self.singularity_hold >= 0.0) {
+            return err(
+                "singularity_hold",
+                self.singularity_hold,
+                "must be finite and ≥ 0",
+            );
+        }
+        if !(self.stop_decel_rad_s2.is_finite() && self.stop_decel_rad_s2 > 0.0) {
+            return err(
+                "stop_decel_rad_s2",
+                self.stop_decel_rad_s2,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.coil_min_distance_m.is_finite() && self.coil_min_distance_m >= 0.0) {
+            return err(
+                "coil_min_distance_m",
+                self.coil_min_distance_m,
+                "must be finite and ≥ 0",
+            );
+        }
+        if !(self.coil_contact_tolerance_m.is_finite() && self.coil_contact_tolerance_m >= 0.0) {
+            return err(
+                "coil_contact_tolerance_m",
+                self.coil_contact_tolerance_m,
+                "must be finite and ≥ 0",
+            );
+        }
+        if !(self.link_clearance_m.is_finite() && self.link_clearance_m >= 0.0) {
+            return err(
+                "link_clearance_m",
+                self.link_clearance_m,
+                "must be finite and ≥ 0",
+            );
+        }
+        if !(self.link_radius_m.is_finite() && self.link_radius_m > 0.0) {
+            return err(
+                "link_radius_m",
+                self.link_radius_m,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.approach_tolerance_m.is_finite() && self.approach_tolerance_m > 0.0) {
+            return err(
+                "approach_tolerance_m",
+                self.approach_tolerance_m,
+                "must be finite and > 0",
+            );
+        }
+        if !(self.approach_zone_m.is_finite() && self.approach_zone_m > 0.0) {
+            return err(
+                "approach_zone_m",
+                self.approach_zone_m,
+                "must be finite and > 0",
+            );
+        }
+        if self.singularity_hold >= self.singularity_slow {
+            return err(
+                "singularity_hold",
+                self.singularity_hold,
+                "must be below singularity_slow",
+            );
+        }
+        if self.outlier_speed_m_s <= self.max_head_speed_m_s {
+            return err(
+                "outlier_speed_m_s",
+                self.outlier_speed_m_s,
+                "must be above max_head_speed_m_s",
+            );
+        }
+        if self.outlier_speed_rad_s <= self.max_head_speed_rad_s {
+            return err(
+                "outlier_speed_rad_s",
+                self.outlier_speed_rad_s,
+                "must be above max_head_speed_rad_s",
+            );
+        }
+        if self.shell_distance_m <= self.approach_zone_m {
+            return err(
+                "shell_distance_m",
+                self.shell_distance_m,
+                "must be above approach_zone_m (the shell is outside the approach zone)",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Everything the compensation loop needs besides the robot and the tracker.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopConfig {
+    /// `Y`: base_from_tracker (from calibration).
+    pub base_from_tracker: Isometry3<f64>,
+    /// `X` for the coil: flange_from_coil (the coil's mounting on the flange).
+    pub flange_from_coil: Isometry3<f64>,
+    /// The goal: head_from_coil (taught or configured).
+    pub head_from_coil_goal: Isometry3<f64>,
+    /// servoj parameters (time = the controller period).
+    pub servo: ServoParams,
+    /// The predictor's noise model.
+    pub predictor: PredictorConfig,
+    /// The head's collision model.
+    pub head: HeadModel,
+    /// The coil's collision model.
+    pub coil: CoilModel,
+    /// The scalar parameters.
+    pub params: LoopParams,
 }
 
 impl LoopConfig {
@@ -104,29 +385,7 @@ impl LoopConfig {
                 lookahead_s: 0.03,
                 gain: 1500.0,
             },
-            predict: true,
             predictor: PredictorConfig::default(),
-            joint_margin_rad: 0.05,
-            speed_fraction: 0.5,
-            max_joint_accel: 12.0,
-            max_tcp_speed: 0.25,
-            servo_deviation_m: 0.02,
-            plan_rotation_rad: 0.7,
-            shell_distance_m: 0.05,
-            approach_speed_m_s: 0.05,
-            approach_accel_m_s2: 0.2,
-            path_lag_m: 0.005,
-            tracker_stale_s: 0.075,
-            frozen_samples: 20,
-            outlier_speed_m_s: 1.0,
-            outlier_speed_rad_s: 10.0,
-            max_head_speed_m_s: 0.15,
-            max_head_speed_rad_s: 1.2,
-            resume_after_s: 0.2,
-            robot_stale_periods: 5.0,
-            singularity_slow: 0.1,
-            singularity_hold: 0.02,
-            stop_decel: 4.0,
             head: HeadModel {
                 head_from_ellipsoid: Isometry3::identity(),
                 radii: Vector3::new(0.075, 0.095, 0.11),
@@ -135,12 +394,7 @@ impl LoopConfig {
                 radius: 0.04,
                 thickness: 0.03,
             },
-            coil_min_distance_m: 0.0,
-            coil_contact_tolerance_m: 0.002,
-            link_clearance_m: 0.01,
-            link_radius_m: 0.045,
-            approach_tolerance_m: 0.01,
-            approach_zone_m: 0.03,
+            params: LoopParams::default(),
         }
     }
 }

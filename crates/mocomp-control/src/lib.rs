@@ -13,7 +13,7 @@ pub mod planner;
 pub mod predict;
 
 pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
-pub use config::LoopConfig;
+pub use config::{LoopConfig, LoopParams, ParamError};
 pub use geometry::{CoilModel, HeadModel};
 pub use planner::{PlanError, ShellPath};
 pub use predict::{PosePredictor, PredictorConfig};

@@ -253,8 +253,9 @@ mod tests {
     /// A coil pose at `p` (head frame) with its +z pointing at the head's centre.
     fn facing(p: Vector3<f64>) -> Isometry3<f64> {
         let z = -p.normalize();
-        let rot = UnitQuaternion::rotation_between(&Vector3::z(), &z)
-            .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        let rot = UnitQuaternion::rotation_between(&Vector3::z(), &z).unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+        });
         Isometry3::from_parts(Translation3::from(p), rot)
     }
 

@@ -10,8 +10,9 @@
 
 use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
-/// Filter settings.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Filter settings (section `[predictor]` of `mocomp run`'s configuration).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct PredictorConfig {
     /// Tracker position noise, 1σ per axis, m.
     pub position_noise_m: f64,

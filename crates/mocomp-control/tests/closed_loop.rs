@@ -236,7 +236,7 @@ fn run(sc: Scenario) -> Outcome {
         r
     });
     let mut cfg = cfg0;
-    cfg.predict = sc.predict;
+    cfg.params.predict = sc.predict;
     (sc.tune)(&mut cfg);
     let mut comp = Compensator::new(cfg, arm, PERIOD);
     let mut tracker = SimTracker {
