@@ -8,6 +8,7 @@ mod igtl_cmd;
 mod kin_cmd;
 mod print;
 mod robot_cmd;
+mod run_cmd;
 mod track_cmd;
 
 use clap::{Args, Parser, Subcommand};
@@ -133,6 +134,24 @@ enum Command {
         /// Stop after this many seconds (default: run until killed).
         #[arg(long)]
         seconds: Option<f64>,
+    },
+    /// Compensate head motion live: the configured robot (a UR, or a simulated one) keeps the
+    /// coil at its goal on the head seen by the configured tracker (OpenIGTLink, or simulated),
+    /// until Ctrl-C (which stops the robot) or `duration_s`. Prints a status line each second and
+    /// a summary; writes every cycle to a CSV log.
+    Run {
+        /// The configuration (TOML; see examples/run-sim.toml for every key, default and unit).
+        #[arg(long, value_name = "FILE")]
+        config: String,
+        /// Stop after this many seconds (overrides `duration_s`).
+        #[arg(long)]
+        seconds: Option<f64>,
+        /// Write every cycle to this CSV file (overrides `log_csv`).
+        #[arg(long, value_name = "FILE")]
+        log_csv: Option<String>,
+        /// No status line or event lines while running (the summary is still printed).
+        #[arg(long)]
+        quiet: bool,
     },
     /// Talk to a UR controller (a real one, or `mocomp ursim`) with mocomp's client.
     Robot {
@@ -401,6 +420,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             kin_cmd::ik(&mut out, &arm, &pose, &choice, json)?;
         }
         Command::Models { json } => kin_cmd::models(&mut out, json)?,
+        Command::Run {
+            config,
+            seconds,
+            log_csv,
+            quiet,
+        } => run_cmd::run(
+            &mut out,
+            &run_cmd::RunOptions {
+                config,
+                seconds,
+                log_csv,
+                status: !quiet,
+            },
+        )?,
         Command::Ursim {
             model,
             host,
@@ -662,7 +695,7 @@ fn calibrate(out: &mut impl Write, command: CalibrateCommand) -> anyhow::Result<
 
 /// An error in what the user gave (exit code 2).
 #[derive(Debug)]
-struct UsageError(String);
+pub(crate) struct UsageError(pub(crate) String);
 
 impl std::fmt::Display for UsageError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

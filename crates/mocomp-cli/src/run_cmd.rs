@@ -1,0 +1,879 @@
+//! `mocomp run --config FILE`: the compensation loop, live, until Ctrl-C or `duration_s`.
+//!
+//! The robot is a UR controller at an address, or an in-process simulated controller
+//! (`mocomp-ursim`, real time, real RTDE over loopback). The tracker is an OpenIGTLink server
+//! (PLUS, Slicer, a tracker), or an in-process simulated tracker that serves the moving head over
+//! OpenIGTLink on loopback, so the loop always reads poses through the real client. The loop runs
+//! on this thread at the robot's rate; each cycle's record goes through a bounded lock-free
+//! channel to a logger thread that writes the CSV, prints a status line each second and keeps the
+//! summary printed at the end. Ctrl-C stops the robot (stopj) before the program exits.
+
+use crate::UsageError;
+use anyhow::Context;
+use mocomp_control::{
+    CoilModel, Compensator, CycleRecord, Event, HeadModel, LoopConfig, LoopParams, Mode,
+    PredictorConfig,
+};
+use mocomp_geom::nalgebra::{Isometry3, Vector3};
+use mocomp_geom::{Clock, MonotonicClock, iso_from_ur_pose, rotation_error, translation_error};
+use mocomp_igtl::client::{Client, ClientConfig};
+use mocomp_igtl::server::{Server, ServerConfig};
+use mocomp_igtl::{Message, MetaEntry, Timestamp};
+use mocomp_kin::{Arm, Model, Selection};
+use mocomp_ur::{Robot, ServoParams, UrConfig, UrRobot};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use serde::Deserialize;
+use std::io::Write;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, TrySendError, sync_channel};
+use std::time::{Duration, Instant};
+
+/// The configuration file. Units: metres, seconds, radians; poses are UR pose vectors
+/// `[x, y, z, rx, ry, rz]` (metres, rotation vector in radians).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunFile {
+    /// Stop after this many seconds (0: until Ctrl-C).
+    #[serde(default)]
+    pub duration_s: f64,
+    /// Write every cycle to this CSV file.
+    #[serde(default)]
+    pub log_csv: Option<String>,
+    /// The robot.
+    pub robot: RobotSection,
+    /// The tracker.
+    pub tracker: TrackerSection,
+    /// The frames.
+    pub calibration: CalibrationSection,
+    /// The goal.
+    pub goal: GoalSection,
+    /// The head's collision model.
+    #[serde(default)]
+    pub head: HeadSection,
+    /// The coil's collision model.
+    #[serde(default)]
+    pub coil: CoilSection,
+    /// servoj settings.
+    #[serde(default)]
+    pub servo: ServoSection,
+    /// The head pose predictor.
+    #[serde(default)]
+    pub predictor: PredictorConfig,
+    /// The loop's parameters.
+    #[serde(default, rename = "loop")]
+    pub params: LoopParams,
+}
+
+/// `[robot]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSection {
+    /// ur3, ur5, ur10 (CB3), ur3e … ur30 (e-Series).
+    pub model: String,
+    /// The controller's address.
+    pub host: String,
+    /// Start an in-process simulated controller on `host` (a loopback address).
+    #[serde(default)]
+    pub simulate: bool,
+    /// The simulated robot's joints at start (default: the coil 15 cm out on the goal's axis).
+    #[serde(default)]
+    pub initial_joints_rad: Option<[f64; 6]>,
+}
+
+/// `[tracker]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackerSection {
+    /// "openigtlink" (a server at `igtl`) or "simulated".
+    pub source: String,
+    /// The OpenIGTLink server, host:port.
+    #[serde(default)]
+    pub igtl: Option<String>,
+    /// The head marker's device name (TRANSFORM device or TDATA tool).
+    #[serde(default = "default_device")]
+    pub device: String,
+    /// The simulated tracker.
+    #[serde(default)]
+    pub simulated: SimTrackerSection,
+}
+
+fn default_device() -> String {
+    "HeadToTracker".into()
+}
+
+/// `[tracker.simulated]`: the head's motion and the tracker's model.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimTrackerSection {
+    /// "still", "drift" (10 mm/s, 3°/s) or "nods" (peaks of 80 mm/s and 34°/s).
+    pub motion: String,
+    /// The head at rest, base_from_head.
+    pub base_from_head: [f64; 6],
+    /// Samples per second.
+    pub rate_hz: f64,
+    /// Acquisition to sending, s.
+    pub latency_s: f64,
+    /// Position noise per axis (1σ), m.
+    pub noise_m: f64,
+    /// Rotation noise per axis (1σ), rad.
+    pub noise_rad: f64,
+    /// Noise seed.
+    pub seed: u64,
+}
+
+impl Default for SimTrackerSection {
+    fn default() -> Self {
+        Self {
+            motion: "nods".into(),
+            base_from_head: [0.30, -0.12, -0.02, 0.0, 0.0, 0.3],
+            rate_hz: 60.0,
+            latency_s: 0.02,
+            noise_m: 1e-4,
+            noise_rad: 1e-3,
+            seed: 1,
+        }
+    }
+}
+
+/// `[calibration]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationSection {
+    /// A calibration result (`mocomp calibrate solve --out`): its Y is base_from_tracker.
+    #[serde(default)]
+    pub file: Option<String>,
+    /// base_from_tracker, when no file is given.
+    #[serde(default)]
+    pub base_from_tracker: Option<[f64; 6]>,
+    /// The coil's mounting, flange_from_coil.
+    pub flange_from_coil: [f64; 6],
+}
+
+/// `[goal]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GoalSection {
+    /// head_from_coil; +z of the coil points into the head.
+    pub head_from_coil: [f64; 6],
+}
+
+/// `[head]`: an ellipsoid in the head marker's frame.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HeadSection {
+    /// head_from_ellipsoid.
+    pub head_from_ellipsoid: [f64; 6],
+    /// Semi-axes, m.
+    pub radii_m: [f64; 3],
+}
+
+impl Default for HeadSection {
+    fn default() -> Self {
+        Self {
+            head_from_ellipsoid: [0.0; 6],
+            radii_m: [0.075, 0.095, 0.11],
+        }
+    }
+}
+
+/// `[coil]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CoilSection {
+    /// Radius seen from the head, m.
+    pub radius_m: f64,
+    /// Thickness behind the face, m.
+    pub thickness_m: f64,
+}
+
+impl Default for CoilSection {
+    fn default() -> Self {
+        Self {
+            radius_m: 0.04,
+            thickness_m: 0.03,
+        }
+    }
+}
+
+/// `[servo]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ServoSection {
+    /// servoj lookahead time, s (UR: 0.03–0.2).
+    pub lookahead_s: f64,
+    /// servoj gain (UR: 100–2000).
+    pub gain: f64,
+}
+
+impl Default for ServoSection {
+    fn default() -> Self {
+        Self {
+            lookahead_s: 0.03,
+            gain: 1500.0,
+        }
+    }
+}
+
+fn pose(key: &str, v: &[f64; 6]) -> anyhow::Result<Isometry3<f64>> {
+    iso_from_ur_pose(v).map_err(|e| UsageError(format!("{key}: {e}")).into())
+}
+
+fn positive(key: &str, v: f64) -> anyhow::Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(UsageError(format!("{key} = {v}: must be finite and > 0")).into())
+    }
+}
+
+impl RunFile {
+    /// Parses and checks a configuration; errors name the file and the key.
+    pub fn parse(path: &str, text: &str) -> anyhow::Result<Self> {
+        let f: Self = toml::from_str(text).map_err(|e| {
+            UsageError(format!(
+                "{path}: {}",
+                e.to_string().trim_end().replace('\n', " ")
+            ))
+        })?;
+        let ctx = |e: anyhow::Error| match e.downcast::<UsageError>() {
+            Ok(UsageError(m)) => anyhow::Error::from(UsageError(format!("{path}: {m}"))),
+            Err(e) => e,
+        };
+        f.check().map_err(ctx)?;
+        Ok(f)
+    }
+
+    fn check(&self) -> anyhow::Result<()> {
+        crate::args::model(&self.robot.model)
+            .map_err(|e| UsageError(format!("robot.model: {e}")))?;
+        self.params
+            .validate()
+            .map_err(|e| UsageError(format!("loop.{e}")))?;
+        match self.tracker.source.as_str() {
+            "openigtlink" if self.tracker.igtl.is_none() => {
+                return Err(UsageError(
+                    "tracker.igtl: needed (host:port) for source \"openigtlink\"".into(),
+                )
+                .into());
+            }
+            "openigtlink" | "simulated" => {}
+            other => {
+                return Err(UsageError(format!(
+                    "tracker.source = {other:?}: must be \"openigtlink\" or \"simulated\""
+                ))
+                .into());
+            }
+        }
+        let s = &self.tracker.simulated;
+        if !["still", "drift", "nods"].contains(&s.motion.as_str()) {
+            return Err(UsageError(format!(
+                "tracker.simulated.motion = {:?}: must be still, drift or nods",
+                s.motion
+            ))
+            .into());
+        }
+        positive("tracker.simulated.rate_hz", s.rate_hz)?;
+        for (k, v) in [
+            ("tracker.simulated.latency_s", s.latency_s),
+            ("tracker.simulated.noise_m", s.noise_m),
+            ("tracker.simulated.noise_rad", s.noise_rad),
+            ("duration_s", self.duration_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(UsageError(format!("{k} = {v}: must be finite and ≥ 0")).into());
+            }
+        }
+        for (i, r) in self.head.radii_m.iter().enumerate() {
+            positive(&format!("head.radii_m[{i}]"), *r)?;
+        }
+        positive("coil.radius_m", self.coil.radius_m)?;
+        positive("coil.thickness_m", self.coil.thickness_m)?;
+        if !(0.03..=0.2).contains(&self.servo.lookahead_s) {
+            return Err(UsageError(format!(
+                "servo.lookahead_s = {}: must be in [0.03, 0.2]",
+                self.servo.lookahead_s
+            ))
+            .into());
+        }
+        if !(100.0..=2000.0).contains(&self.servo.gain) {
+            return Err(UsageError(format!(
+                "servo.gain = {}: must be in [100, 2000]",
+                self.servo.gain
+            ))
+            .into());
+        }
+        if self.calibration.file.is_none() && self.calibration.base_from_tracker.is_none() {
+            return Err(UsageError(
+                "calibration: give `file` (a calibration result) or `base_from_tracker`".into(),
+            )
+            .into());
+        }
+        pose(
+            "calibration.flange_from_coil",
+            &self.calibration.flange_from_coil,
+        )?;
+        pose("goal.head_from_coil", &self.goal.head_from_coil)?;
+        pose("head.head_from_ellipsoid", &self.head.head_from_ellipsoid)?;
+        pose("tracker.simulated.base_from_head", &s.base_from_head)?;
+        if let Some(y) = &self.calibration.base_from_tracker {
+            pose("calibration.base_from_tracker", y)?;
+        }
+        Ok(())
+    }
+
+    /// base_from_tracker, from the calibration file (relative to `dir`) or the inline pose.
+    fn base_from_tracker(&self, dir: &std::path::Path) -> anyhow::Result<Isometry3<f64>> {
+        if let Some(file) = &self.calibration.file {
+            let path = dir.join(file);
+            let text = std::fs::read_to_string(&path)
+                .with_context(|| format!("calibration.file {}", path.display()))?;
+            let c = mocomp_calib::CalibrationFile::from_toml_str(&text)
+                .with_context(|| format!("calibration.file {}", path.display()))?;
+            Ok(c.transforms()?.1)
+        } else if let Some(y) = &self.calibration.base_from_tracker {
+            pose("calibration.base_from_tracker", y)
+        } else {
+            Err(UsageError("calibration: no base_from_tracker".into()).into())
+        }
+    }
+
+    fn loop_config(&self, y: Isometry3<f64>, period: f64) -> anyhow::Result<LoopConfig> {
+        let mut cfg = LoopConfig::new(
+            y,
+            pose(
+                "calibration.flange_from_coil",
+                &self.calibration.flange_from_coil,
+            )?,
+            pose("goal.head_from_coil", &self.goal.head_from_coil)?,
+            period,
+        );
+        cfg.servo = ServoParams {
+            time_s: period,
+            lookahead_s: self.servo.lookahead_s,
+            gain: self.servo.gain,
+        };
+        cfg.predictor = self.predictor;
+        cfg.head = HeadModel {
+            head_from_ellipsoid: pose("head.head_from_ellipsoid", &self.head.head_from_ellipsoid)?,
+            radii: Vector3::from(self.head.radii_m),
+        };
+        cfg.coil = CoilModel {
+            radius: self.coil.radius_m,
+            thickness: self.coil.thickness_m,
+        };
+        cfg.params = self.params;
+        Ok(cfg)
+    }
+}
+
+/// The simulated head: base_from_head at time t (s) for a motion.
+pub fn head_motion(motion: &str, rest: Isometry3<f64>, t: f64) -> Isometry3<f64> {
+    let t = (t - 1.0).max(0.0);
+    match motion {
+        "drift" => {
+            rest * Isometry3::new(
+                Vector3::new(0.01 * t, -0.005 * t, 0.0),
+                Vector3::new(0.0, 0.0, 0.05 * t),
+            )
+        }
+        "nods" => {
+            let ramp = (t / 0.5).min(1.0);
+            let w = 4.0;
+            let x = 0.02 * ramp * (w * t).sin();
+            let yaw = 0.15 * ramp * (w * t).sin();
+            let pitch = 0.08 * ramp * (0.7 * w * t).sin();
+            rest * Isometry3::new(Vector3::new(x, 0.5 * x, 0.0), Vector3::new(0.0, pitch, yaw))
+        }
+        _ => rest,
+    }
+}
+
+/// A seeded Gaussian (Box–Muller on SplitMix64), enough for tracker noise.
+struct Noise(u64, Option<f64>);
+
+impl Noise {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn gauss(&mut self) -> f64 {
+        if let Some(g) = self.1.take() {
+            return g;
+        }
+        let (u, v) = (self.uniform(), self.uniform());
+        let r = (-2.0 * u.ln()).sqrt();
+        let a = std::f64::consts::TAU * v;
+        self.1 = Some(r * a.sin());
+        r * a.cos()
+    }
+}
+
+/// The simulated tracker: an OpenIGTLink server on loopback sending the head marker's pose
+/// (tracker_from_head, with noise) at its rate, each `latency_s` after its acquisition time.
+struct SimTracker {
+    addr: String,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl SimTracker {
+    fn start(
+        s: &SimTrackerSection,
+        device: &str,
+        base_from_tracker: Isometry3<f64>,
+    ) -> anyhow::Result<Self> {
+        let server = Server::bind("127.0.0.1:0", ServerConfig::default())
+            .context("simulated tracker: cannot listen on 127.0.0.1")?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let (s, device, stop2) = (s.clone(), device.to_string(), Arc::clone(&stop));
+        let rest = pose("tracker.simulated.base_from_head", &s.base_from_head)?;
+        let addr = server.local_addr().to_string();
+        let start = Instant::now();
+        let wall0 = Timestamp::now().to_secs_f64();
+        let thread = std::thread::Builder::new()
+            .name("sim-tracker".into())
+            .spawn(move || {
+                let mut noise = Noise(s.seed, None);
+                let mut k: u64 = 0;
+                while !stop2.load(Ordering::Relaxed) {
+                    let t_acq = k as f64 / s.rate_hz;
+                    let due = Duration::from_secs_f64(t_acq + s.latency_s);
+                    let el = start.elapsed();
+                    if el < due {
+                        std::thread::sleep((due - el).min(Duration::from_millis(20)));
+                        continue;
+                    }
+                    k += 1;
+                    let truth = base_from_tracker.inverse() * head_motion(&s.motion, rest, t_acq);
+                    let mut g = || noise.gauss();
+                    let dp = Vector3::new(g(), g(), g()) * s.noise_m;
+                    let dr = Vector3::new(g(), g(), g()) * s.noise_rad;
+                    let mut seen = truth;
+                    seen.translation.vector += dp;
+                    seen.rotation =
+                        mocomp_geom::nalgebra::UnitQuaternion::from_scaled_axis(dr) * seen.rotation;
+                    let ts = Timestamp::from_secs_f64(wall0 + t_acq);
+                    if let Ok(m) = Message::transform(&device, &seen, ts) {
+                        server
+                            .send(&m.with_metadata(vec![MetaEntry::text("TransformStatus", "OK")]));
+                    }
+                }
+                server.stop();
+            })
+            .context("simulated tracker thread")?;
+        Ok(Self {
+            addr,
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    fn addr(&self) -> String {
+        self.addr.clone()
+    }
+}
+
+impl Drop for SimTracker {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// What the logger keeps for the summary.
+#[derive(Debug, Default)]
+struct Summary {
+    cycles: u64,
+    dropped: u64,
+    first_t: Option<f64>,
+    last_t: f64,
+    missed: u64,
+    compute_us: Vec<f64>,
+    delay_ms: Vec<f64>,
+    deviation_mm: Vec<f64>,
+    deviation_deg: Vec<f64>,
+    by_mode: [u64; 4],
+    events: Vec<(f64, Event)>,
+}
+
+fn mode_index(m: &Mode) -> usize {
+    match m {
+        Mode::Tracking => 0,
+        Mode::Approaching => 1,
+        Mode::Holding(_) => 2,
+        Mode::Faulted(_) => 3,
+    }
+}
+
+fn mode_name(m: &Mode) -> String {
+    match m {
+        Mode::Tracking => "tracking".into(),
+        Mode::Approaching => "approaching".into(),
+        Mode::Holding(r) => format!("holding ({r:?})"),
+        Mode::Faulted(r) => format!("faulted ({r:?})"),
+    }
+}
+
+fn percentile(v: &mut [f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * p).round() as usize]
+}
+
+fn logger(
+    rx: Receiver<CycleRecord>,
+    arm: Arm,
+    period: f64,
+    csv: Option<std::fs::File>,
+    status: bool,
+) -> Summary {
+    let mut s = Summary::default();
+    let mut w = csv.map(std::io::BufWriter::new);
+    if let Some(w) = w.as_mut() {
+        let _ = writeln!(
+            w,
+            "t_s,mode,event,sample_age_ms,horizon_ms,command_delay_ms,head_speed_mm_s,head_speed_deg_s,deviation_mm,deviation_deg,path_m,compute_us,q1_cmd,q2_cmd,q3_cmd,q4_cmd,q5_cmd,q6_cmd,q1,q2,q3,q4,q5,q6"
+        );
+    }
+    let mut last_status = Instant::now();
+    let mut window = (0u64, 0.0f64);
+    for r in rx {
+        s.cycles += 1;
+        if s.first_t.is_none() {
+            s.first_t = Some(r.t);
+        } else if r.t - s.last_t > 1.5 * period {
+            s.missed += ((r.t - s.last_t) / period).round() as u64 - 1;
+        }
+        s.last_t = r.t;
+        s.by_mode[mode_index(&r.mode)] += 1;
+        s.compute_us.push(r.compute_ns as f64 / 1e3);
+        s.delay_ms.push(r.command_delay_s * 1e3);
+        let (dev_mm, dev_deg) = match (r.goal, r.q_actual[0].is_finite()) {
+            (Some(g), true) => {
+                let f = arm.fk_flange(&r.q_actual);
+                (
+                    translation_error(&f, &g) * 1e3,
+                    rotation_error(&f, &g).to_degrees(),
+                )
+            }
+            _ => (f64::NAN, f64::NAN),
+        };
+        if r.mode == Mode::Tracking && dev_mm.is_finite() {
+            s.deviation_mm.push(dev_mm);
+            s.deviation_deg.push(dev_deg);
+            window.0 += 1;
+            window.1 = window.1.max(dev_mm);
+        }
+        if let Some(e) = r.event {
+            s.events.push((r.t, e));
+            if status {
+                eprintln!("{:9.3} s  event {e:?}", r.t);
+            }
+        }
+        if let Some(w) = w.as_mut() {
+            let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
+            let _ = write!(
+                w,
+                "{:.6},{},{},{:.3},{:.3},{:.3},{:.2},{:.2},{:.4},{:.4},{:.4},{:.2}",
+                r.t,
+                mode_name(&r.mode).replace(',', ";"),
+                r.event
+                    .map(|e| format!("{e:?}").replace(',', ";"))
+                    .unwrap_or_default(),
+                r.sample_age_s * 1e3,
+                r.horizon_s * 1e3,
+                r.command_delay_s * 1e3,
+                r.head_speed.0 * 1e3,
+                r.head_speed.1.to_degrees(),
+                dev_mm,
+                dev_deg,
+                path,
+                r.compute_ns as f64 / 1e3
+            );
+            for q in r.q_command.iter().chain(r.q_actual.iter()) {
+                let _ = write!(w, ",{q:.6}");
+            }
+            let _ = writeln!(w);
+        }
+        if status && last_status.elapsed() >= Duration::from_secs(1) {
+            let rate = window_rate(&s, last_status.elapsed());
+            eprintln!(
+                "{:9.3} s  {:.0} Hz  latency {:.1} ms (sample {:.1} + command {:.1})  deviation max {:.2} mm  {}",
+                r.t,
+                rate,
+                r.horizon_s * 1e3,
+                r.sample_age_s * 1e3,
+                r.command_delay_s * 1e3,
+                window.1,
+                mode_name(&r.mode)
+            );
+            last_status = Instant::now();
+            window = (0, 0.0);
+            s.dropped = s.cycles; // marks the window start for the rate
+        }
+    }
+    if let Some(w) = w.as_mut() {
+        let _ = w.flush();
+    }
+    s
+}
+
+fn window_rate(s: &Summary, over: Duration) -> f64 {
+    (s.cycles - s.dropped) as f64 / over.as_secs_f64()
+}
+
+/// Options from the command line.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// The configuration file.
+    pub config: String,
+    /// Overrides `duration_s`.
+    pub seconds: Option<f64>,
+    /// Overrides `log_csv`.
+    pub log_csv: Option<String>,
+    /// Print the status line and events.
+    pub status: bool,
+}
+
+fn initial_joints(
+    file: &RunFile,
+    arm: &Arm,
+    y: &Isometry3<f64>,
+    cfg: &LoopConfig,
+) -> anyhow::Result<[f64; 6]> {
+    if let Some(q) = file.robot.initial_joints_rad {
+        return Ok(q);
+    }
+    // The coil 15 cm out on the goal's axis, for the head at rest.
+    let rest = pose(
+        "tracker.simulated.base_from_head",
+        &file.tracker.simulated.base_from_head,
+    )?;
+    let _ = y;
+    let out = rest
+        * cfg.head_from_coil_goal
+        * Isometry3::translation(0.0, 0.0, -0.15)
+        * cfg.flange_from_coil.inverse();
+    let seeds = [
+        [0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+        [0.0, -1.57, 1.57, -1.57, -1.57, 0.0],
+        [1.57, -1.3, 1.6, -1.87, -1.57, 0.0],
+    ];
+    for seed in seeds {
+        if let Ok(c) = arm.ik_closest(&out, &seed, &Selection::tracking(0.1)) {
+            return Ok(c.joints);
+        }
+    }
+    Err(UsageError(
+        "robot.initial_joints_rad: needed, the default start (15 cm out on the goal's axis) is \
+         out of reach"
+            .into(),
+    )
+    .into())
+}
+
+/// Runs the loop; returns the summary text.
+pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(&opts.config)
+        .with_context(|| format!("--config {}", opts.config))?;
+    let mut file = RunFile::parse(&opts.config, &text)?;
+    if let Some(s) = opts.seconds {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(UsageError(format!("--seconds {s}: must be a positive number")).into());
+        }
+        file.duration_s = s;
+    }
+    if opts.log_csv.is_some() {
+        file.log_csv.clone_from(&opts.log_csv);
+    }
+    let dir = std::path::Path::new(&opts.config)
+        .parent()
+        .map(std::path::Path::to_path_buf)
+        .unwrap_or_default();
+    let model: Model = crate::args::model(&file.robot.model).map_err(UsageError)?;
+    let arm = Arm::new(model);
+    let period = model.spec().series.period_s();
+    let y = file.base_from_tracker(&dir)?;
+    let cfg = file.loop_config(y, period)?;
+    let clock: Arc<dyn Clock> = Arc::new(MonotonicClock::new());
+
+    // The robot.
+    let host: std::net::IpAddr = file
+        .robot
+        .host
+        .parse()
+        .map_err(|e| UsageError(format!("robot.host {:?}: {e}", file.robot.host)))?;
+    let (sim, ucfg) = if file.robot.simulate {
+        let mut ctrl = ControllerConfig::new(model);
+        ctrl.initial_q = initial_joints(&file, &arm, &y, &cfg)?;
+        let sim = Sim::start(SimConfig::new(ctrl, host))
+            .with_context(|| format!("simulated robot on {host}"))?;
+        let u = sim.ur_config();
+        writeln!(out, "simulated {} on {host}", file.robot.model)?;
+        (Some(sim), u)
+    } else {
+        (None, UrConfig::new(host))
+    };
+    let mut robot =
+        UrRobot::connect(ucfg, Arc::clone(&clock)).with_context(|| format!("robot at {host}"))?;
+
+    // The tracker.
+    let sim_tracker = if file.tracker.source == "simulated" {
+        Some(SimTracker::start(
+            &file.tracker.simulated,
+            &file.tracker.device,
+            y,
+        )?)
+    } else {
+        None
+    };
+    let addr = match (&sim_tracker, &file.tracker.igtl) {
+        (Some(t), _) => t.addr(),
+        (None, Some(a)) => a.clone(),
+        (None, None) => return Err(UsageError("tracker.igtl: needed".into()).into()),
+    };
+    let mut icfg = ClientConfig::new(&addr);
+    icfg.device = Some(file.tracker.device.clone());
+    let client = Client::start(icfg, Arc::clone(&clock));
+    let mut source = client.pose_source();
+    writeln!(
+        out,
+        "tracker {} ({}), device {}",
+        addr, file.tracker.source, file.tracker.device
+    )?;
+    out.flush()?;
+
+    // Logger.
+    let csv = match &file.log_csv {
+        Some(p) => Some(std::fs::File::create(p).with_context(|| format!("log_csv {p}"))?),
+        None => None,
+    };
+    let (tx, rx) = sync_channel::<CycleRecord>(8192);
+    let status = opts.status;
+    let log_thread = std::thread::Builder::new()
+        .name("mocomp-log".into())
+        .spawn(move || logger(rx, arm, period, csv, status))
+        .context("logger thread")?;
+
+    // Ctrl-C.
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = Arc::clone(&stop);
+        ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))
+            .context("installing the Ctrl-C handler")?;
+    }
+
+    // The loop, at the robot's rate: one cycle per new state.
+    let mut comp = Compensator::new(cfg, arm, period);
+    let t_end = if file.duration_s > 0.0 {
+        clock.now_s() + file.duration_s
+    } else {
+        f64::INFINITY
+    };
+    let mut seen = robot.state_count();
+    let mut dropped = 0u64;
+    while !stop.load(Ordering::Relaxed) && clock.now_s() < t_end {
+        // Wait for the next state; after three periods without one, cycle anyway (the loop's
+        // stale-state rule stops the robot).
+        let wait_until = clock.now_s() + 3.0 * period;
+        while robot.state_count() == seen && clock.now_s() < wait_until {
+            std::hint::spin_loop();
+            std::thread::yield_now();
+        }
+        seen = robot.state_count();
+        let t0 = Instant::now();
+        let mut rec = comp.cycle(clock.now_s(), &mut robot, &mut source);
+        rec.compute_ns = t0.elapsed().as_nanos() as u64;
+        if let Err(TrySendError::Full(_)) = tx.try_send(rec) {
+            dropped += 1;
+        }
+    }
+    // Stop the robot in a defined way, and wait for standstill.
+    let decel = comp.config().params.stop_decel_rad_s2;
+    let _ = robot.stop(decel);
+    let t_stop = Instant::now();
+    while t_stop.elapsed() < Duration::from_secs(3) {
+        let still = robot
+            .state()
+            .is_some_and(|s| s.actual_qd.iter().all(|v| v.abs() < 1e-3));
+        if still {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let final_mode = comp.mode();
+    drop(tx);
+    let mut s = log_thread
+        .join()
+        .map_err(|_| anyhow::anyhow!("the logger thread panicked"))?;
+    s.dropped = dropped;
+    let _ = robot.close();
+    drop(client);
+    drop(sim_tracker);
+    drop(sim);
+
+    // Summary.
+    let span = s.last_t - s.first_t.unwrap_or(s.last_t);
+    writeln!(out, "\nsummary")?;
+    writeln!(
+        out,
+        "  cycles            {} in {:.2} s ({:.1} Hz); missed {}; log records dropped {}",
+        s.cycles,
+        span,
+        s.cycles.saturating_sub(1) as f64 / span.max(1e-9),
+        s.missed,
+        s.dropped
+    )?;
+    let n = s.cycles.max(1) as f64;
+    writeln!(
+        out,
+        "  modes             tracking {:.1} %, approaching {:.1} %, holding {:.1} %, faulted {:.1} %",
+        100.0 * s.by_mode[0] as f64 / n,
+        100.0 * s.by_mode[1] as f64 / n,
+        100.0 * s.by_mode[2] as f64 / n,
+        100.0 * s.by_mode[3] as f64 / n
+    )?;
+    writeln!(
+        out,
+        "  cycle compute     median {:.1} µs, p99 {:.1} µs, max {:.1} µs",
+        percentile(&mut s.compute_us, 0.5),
+        percentile(&mut s.compute_us, 0.99),
+        percentile(&mut s.compute_us, 1.0)
+    )?;
+    writeln!(
+        out,
+        "  command delay     median {:.2} ms",
+        percentile(&mut s.delay_ms, 0.5)
+    )?;
+    let rms = (s.deviation_mm.iter().map(|d| d * d).sum::<f64>()
+        / s.deviation_mm.len().max(1) as f64)
+        .sqrt();
+    writeln!(
+        out,
+        "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
+        rms,
+        percentile(&mut s.deviation_mm, 0.95),
+        percentile(&mut s.deviation_mm, 1.0),
+        percentile(&mut s.deviation_deg, 0.95)
+    )?;
+    writeln!(out, "  events            {}", s.events.len())?;
+    for (t, e) in &s.events {
+        writeln!(out, "    {t:9.3} s  {e:?}")?;
+    }
+    writeln!(out, "  final mode        {}", mode_name(&final_mode))?;
+    writeln!(out, "  robot stopped     stopj sent")?;
+    if let Some(p) = &file.log_csv {
+        writeln!(out, "  log               {p}")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,98 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+//! `mocomp run`: the example configuration runs the loop on the simulated UR3e and simulated
+//! tracker (real RTDE and OpenIGTLink on loopback), writes its CSV and summary, and stops; bad
+//! configurations are refused with the key named.
+
+mod common;
+use common::{assert_success, mocomp};
+use mocomp_testkit::{TempDir, workspace_root};
+
+fn example() -> String {
+    std::fs::read_to_string(workspace_root().join("examples/run-sim.toml")).unwrap()
+}
+
+#[test]
+fn the_example_config_compensates_on_the_simulated_robot() {
+    let dir = TempDir::new("mocomp-run");
+    // Its own loopback address, so tests in parallel do not share the UR ports.
+    let cfg = example().replace("host = \"127.0.0.2\"", "host = \"127.0.0.41\"");
+    let path = dir.path("run.toml");
+    std::fs::write(&path, cfg).unwrap();
+    let csv = dir.path("run.csv");
+    let out = mocomp(&[
+        "run",
+        "--config",
+        &path,
+        "--seconds",
+        "6",
+        "--log-csv",
+        &csv,
+        "--quiet",
+    ]);
+    assert_success(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("summary"), "{text}");
+    // The planned approach reached the goal, then the loop tracked the nodding head.
+    assert!(text.contains("Reached"), "{text}");
+    assert!(text.contains("final mode        tracking"), "{text}");
+    let rows: Vec<String> = std::fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .map(str::to_string)
+        .collect();
+    assert!(rows[0].starts_with("t_s,mode,event"));
+    // 500 Hz for 6 s; a loaded CI machine may lose a few cycles, not many.
+    assert!(rows.len() > 2700 && rows.len() < 3100, "{}", rows.len());
+    let tracking = rows.iter().filter(|r| r.contains(",tracking,")).count();
+    assert!(tracking > 500, "{tracking}");
+    // Deviation from the loop's goal while tracking (column 9) stays within a centimetre.
+    for r in rows.iter().filter(|r| r.contains(",tracking,")) {
+        let dev: f64 = r.split(',').nth(8).unwrap().parse().unwrap();
+        assert!(dev < 10.0, "{r}");
+    }
+}
+
+#[test]
+fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
+    let dir = TempDir::new("mocomp-run-bad");
+    for (from, to, named) in [
+        (
+            "tracker_stale_s = 0.075",
+            "tracker_stale = 0.075",
+            "tracker_stale",
+        ),
+        (
+            "speed_fraction = 0.5",
+            "speed_fraction = 2.0",
+            "speed_fraction",
+        ),
+        (
+            "motion = \"nods\"",
+            "motion = \"dance\"",
+            "tracker.simulated.motion",
+        ),
+        ("gain = 1500.0", "gain = 5000.0", "servo.gain"),
+        ("model = \"ur3e\"", "model = \"ur4\"", "robot.model"),
+        (
+            "radii_m = [0.075, 0.095, 0.11]",
+            "radii_m = [0.075, -0.095, 0.11]",
+            "head.radii_m[1]",
+        ),
+    ] {
+        let cfg = example();
+        assert!(cfg.contains(from), "{from}");
+        let path = dir.path("bad.toml");
+        std::fs::write(&path, cfg.replace(from, to)).unwrap();
+        let out = mocomp(&["run", "--config", &path, "--seconds", "1"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{to}: {err}");
+        assert!(
+            err.contains(named) && err.contains("bad.toml"),
+            "{to}: {err}"
+        );
+    }
+    let out = mocomp(&["run", "--config", &dir.path("missing.toml")]);
+    // A missing file is the user's argument: exit 2, the file named.
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.toml"));
+}
