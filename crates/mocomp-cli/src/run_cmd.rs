@@ -645,12 +645,7 @@ pub struct RunOptions {
     pub status: bool,
 }
 
-fn initial_joints(
-    file: &RunFile,
-    arm: &Arm,
-    y: &Isometry3<f64>,
-    cfg: &LoopConfig,
-) -> anyhow::Result<[f64; 6]> {
+fn initial_joints(file: &RunFile, arm: &Arm, cfg: &LoopConfig) -> anyhow::Result<[f64; 6]> {
     if let Some(q) = file.robot.initial_joints_rad {
         return Ok(q);
     }
@@ -659,7 +654,6 @@ fn initial_joints(
         "tracker.simulated.base_from_head",
         &file.tracker.simulated.base_from_head,
     )?;
-    let _ = y;
     let out = rest
         * cfg.head_from_coil_goal
         * Isometry3::translation(0.0, 0.0, -0.15)
@@ -682,7 +676,7 @@ fn initial_joints(
     .into())
 }
 
-/// Runs the loop; returns the summary text.
+/// Runs the loop until Ctrl-C or the configured duration, then prints the summary to `out`.
 pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(&opts.config)
         .with_context(|| format!("--config {}", opts.config))?;
@@ -715,7 +709,7 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
         .map_err(|e| UsageError(format!("robot.host {:?}: {e}", file.robot.host)))?;
     let (sim, ucfg) = if file.robot.simulate {
         let mut ctrl = ControllerConfig::new(model);
-        ctrl.initial_q = initial_joints(&file, &arm, &y, &cfg)?;
+        ctrl.initial_q = initial_joints(&file, &arm, &cfg)?;
         let sim = Sim::start(SimConfig::new(ctrl, host))
             .with_context(|| format!("simulated robot on {host}"))?;
         let u = sim.ur_config();
