@@ -14,35 +14,24 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use mocomp_control::{Compensator, LoopConfig, Mode};
-use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, Model, Selection};
 use mocomp_ur::{Robot, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, UrError};
 use std::time::Instant;
 
+use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
+
 const PERIOD: f64 = 0.002;
-
-fn base_from_tracker() -> Isometry3<f64> {
-    Isometry3::new(Vector3::new(1.2, 0.3, 0.4), Vector3::new(0.1, -0.2, 2.8))
-}
-
-fn head_from_coil_goal() -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::new(0.0, 0.0, 0.113),
-        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
-    )
-}
 
 fn base_from_head(t: f64) -> Isometry3<f64> {
     // From rest, after the loop's start-up hold.
     let s = (4.0 * (t - 0.5).max(0.0)).sin();
-    Isometry3::new(
-        Vector3::new(0.30, -0.12, -0.02),
-        Vector3::new(0.0, 0.0, 0.3),
-    ) * Isometry3::new(
-        Vector3::new(0.02 * s, 0.01 * s, 0.0),
-        Vector3::new(0.0, 0.05 * s, 0.15 * s),
-    )
+    head_rest()
+        * Isometry3::new(
+            Vector3::new(0.02 * s, 0.01 * s, 0.0),
+            Vector3::new(0.0, 0.05 * s, 0.15 * s),
+        )
 }
 
 /// A robot that is wherever it was last commanded.
@@ -118,7 +107,7 @@ struct World {
 impl World {
     fn new() -> Self {
         let arm = Arm::new(Model::Ur3e);
-        let flange_from_coil = Isometry3::translation(0.0, 0.0, 0.05);
+        let flange_from_coil = flange_from_coil();
         let start = base_from_head(0.0) * head_from_coil_goal() * flange_from_coil.inverse();
         let q0 = arm
             .ik_closest(

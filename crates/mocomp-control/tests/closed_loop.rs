@@ -20,32 +20,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
+
 const PERIOD: f64 = 0.002;
-
-fn base_from_tracker() -> Isometry3<f64> {
-    Isometry3::new(Vector3::new(1.2, 0.3, 0.4), Vector3::new(0.1, -0.2, 2.8))
-}
-
-/// The coil 5 cm below the flange, along the flange's z axis.
-fn flange_from_coil() -> Isometry3<f64> {
-    Isometry3::translation(0.0, 0.0, 0.05)
-}
-
-/// On top of the head, 3 mm above the scalp, the coil's z axis pointing into the head.
-fn head_from_coil_goal() -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::new(0.0, 0.0, 0.113),
-        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
-    )
-}
-
-/// The head at rest: in front of the UR3e.
-fn head_rest() -> Isometry3<f64> {
-    Isometry3::new(
-        Vector3::new(0.30, -0.12, -0.02),
-        Vector3::new(0.0, 0.0, 0.3),
-    )
-}
 
 /// A head trajectory: base_from_head at time t.
 type Motion = Box<dyn Fn(f64) -> Isometry3<f64> + Send + Sync>;

@@ -4,7 +4,7 @@
 //! stepped simulator over TCP, and a tracker source that nods the head with noise and dropouts.
 
 use mocomp_control::{Compensator, LoopConfig, Mode};
-use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{Clock, PoseSample, PoseSource, SteppedClock};
 use mocomp_kin::{Arm, Model, Selection};
 use mocomp_testkit::{SplitMix64, spin_until};
@@ -20,28 +20,17 @@ fn counted<T>(f: impl FnOnce() -> T) -> (T, u64) {
     (out.unwrap(), info.count_total)
 }
 
+use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
+
 const PERIOD: f64 = 0.002;
-
-fn base_from_tracker() -> Isometry3<f64> {
-    Isometry3::new(Vector3::new(1.2, 0.3, 0.4), Vector3::new(0.1, -0.2, 2.8))
-}
-
-fn head_from_coil_goal() -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::new(0.0, 0.0, 0.113),
-        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
-    )
-}
 
 fn base_from_head(t: f64) -> Isometry3<f64> {
     let s = (4.0 * t).sin();
-    Isometry3::new(
-        Vector3::new(0.30, -0.12, -0.02),
-        Vector3::new(0.0, 0.0, 0.3),
-    ) * Isometry3::new(
-        Vector3::new(0.01 * s, 0.005 * s, 0.0),
-        Vector3::new(0.0, 0.04 * s, 0.08 * s),
-    )
+    head_rest()
+        * Isometry3::new(
+            Vector3::new(0.01 * s, 0.005 * s, 0.0),
+            Vector3::new(0.0, 0.04 * s, 0.08 * s),
+        )
 }
 
 /// 60 Hz, 20 ms latency, 0.1 mm noise, a 200 ms dropout at 1 s, an outlier at 1.5 s.
@@ -82,7 +71,7 @@ impl PoseSource for NoddingTracker {
 #[test]
 fn the_cycle_allocates_nothing() {
     let arm = Arm::new(Model::Ur3e);
-    let flange_from_coil = Isometry3::translation(0.0, 0.0, 0.05);
+    let flange_from_coil = flange_from_coil();
     let start = base_from_head(0.0) * head_from_coil_goal() * flange_from_coil.inverse();
     let q0 = arm
         .ik_closest(

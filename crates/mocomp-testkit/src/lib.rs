@@ -212,3 +212,36 @@ impl SplitMix64 {
         std::array::from_fn(|_| self.angle())
     }
 }
+
+/// The compensation scene shared by the loop's tests and benchmarks: a UR3e at the origin, the
+/// tracker across the room, the head in front of the robot, the coil on top of it.
+pub mod scene {
+    use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+    /// The tracker's pose in the robot base frame (`Y`).
+    pub fn base_from_tracker() -> Isometry3<f64> {
+        Isometry3::new(Vector3::new(1.2, 0.3, 0.4), Vector3::new(0.1, -0.2, 2.8))
+    }
+
+    /// The coil 5 cm below the flange, along the flange's z axis.
+    pub fn flange_from_coil() -> Isometry3<f64> {
+        Isometry3::translation(0.0, 0.0, 0.05)
+    }
+
+    /// On top of the head, 3 mm above the scalp (ellipsoid semi-axis 0.11 m), the coil's z axis
+    /// pointing into the head.
+    pub fn head_from_coil_goal() -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 0.113),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+        )
+    }
+
+    /// The head at rest, in front of the UR3e (`base_from_head`).
+    pub fn head_rest() -> Isometry3<f64> {
+        Isometry3::new(
+            Vector3::new(0.30, -0.12, -0.02),
+            Vector3::new(0.0, 0.0, 0.3),
+        )
+    }
+}
