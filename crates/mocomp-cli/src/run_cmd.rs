@@ -492,6 +492,7 @@ impl Drop for SimTracker {
 #[derive(Debug, Default)]
 struct Summary {
     cycles: u64,
+    /// Records the loop could not queue (the logger fell behind).
     dropped: u64,
     first_t: Option<f64>,
     last_t: f64,
@@ -546,9 +547,11 @@ fn logger(
         );
     }
     let mut last_status = Instant::now();
-    let mut window = (0u64, 0.0f64);
+    // Since the last status line: cycles and the largest deviation while tracking (mm).
+    let (mut window_cycles, mut window_max) = (0u64, 0.0f64);
     for r in rx {
         s.cycles += 1;
+        window_cycles += 1;
         if s.first_t.is_none() {
             s.first_t = Some(r.t);
         } else if r.t - s.last_t > 1.5 * period {
@@ -571,8 +574,7 @@ fn logger(
         if r.mode == Mode::Tracking && dev_mm.is_finite() {
             s.deviation_mm.push(dev_mm);
             s.deviation_deg.push(dev_deg);
-            window.0 += 1;
-            window.1 = window.1.max(dev_mm);
+            window_max = window_max.max(dev_mm);
         }
         if let Some(e) = r.event {
             s.events.push((r.t, e));
@@ -606,30 +608,25 @@ fn logger(
             let _ = writeln!(w);
         }
         if status && last_status.elapsed() >= Duration::from_secs(1) {
-            let rate = window_rate(&s, last_status.elapsed());
+            let rate = window_cycles as f64 / last_status.elapsed().as_secs_f64();
             eprintln!(
-                "{:9.3} s  {:.0} Hz  latency {:.1} ms (sample {:.1} + command {:.1})  deviation max {:.2} mm  {}",
+                "{:9.3} s  {:.0} Hz  horizon {:.1} ms (sample age {:.1} + command delay {:.1} + lookahead)  deviation max {:.2} mm  {}",
                 r.t,
                 rate,
                 r.horizon_s * 1e3,
                 r.sample_age_s * 1e3,
                 r.command_delay_s * 1e3,
-                window.1,
+                window_max,
                 mode_name(&r.mode)
             );
             last_status = Instant::now();
-            window = (0, 0.0);
-            s.dropped = s.cycles; // marks the window start for the rate
+            (window_cycles, window_max) = (0, 0.0);
         }
     }
     if let Some(w) = w.as_mut() {
         let _ = w.flush();
     }
     s
-}
-
-fn window_rate(s: &Summary, over: Duration) -> f64 {
-    (s.cycles - s.dropped) as f64 / over.as_secs_f64()
 }
 
 /// Options from the command line.
