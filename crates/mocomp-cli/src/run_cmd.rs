@@ -16,7 +16,7 @@ use mocomp_control::{
 };
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{Clock, MonotonicClock, iso_from_ur_pose, rotation_error, translation_error};
-use mocomp_igtl::client::{Client, ClientConfig};
+use mocomp_igtl::client::{Client, ClientConfig, TimestampMode};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use mocomp_kin::{Arm, Model, Selection};
@@ -93,9 +93,22 @@ pub struct TrackerSection {
     /// The head marker's device name (TRANSFORM device or TDATA tool).
     #[serde(default = "default_device")]
     pub device: String,
+    /// How the sender's timestamps map onto our clock: "estimated" (unsynchronised clocks: the
+    /// offset is estimated from the smallest delay, which hides the sender's constant latency;
+    /// give it as `fixed_latency_s`) or "synchronized" (same host, or PTP/NTP). The simulated
+    /// tracker runs on this host and is always read as synchronized.
+    #[serde(default = "default_timestamps")]
+    pub timestamps: String,
+    /// The sender's constant latency from acquisition to sending, s (with "estimated").
+    #[serde(default)]
+    pub fixed_latency_s: f64,
     /// The simulated tracker.
     #[serde(default)]
     pub simulated: SimTrackerSection,
+}
+
+fn default_timestamps() -> String {
+    "estimated".into()
 }
 
 fn default_device() -> String {
@@ -264,6 +277,22 @@ impl RunFile {
                 ))
                 .into());
             }
+        }
+        if !["estimated", "synchronized"].contains(&self.tracker.timestamps.as_str()) {
+            return Err(UsageError(format!(
+                "tracker.timestamps = {:?}: must be \"estimated\" or \"synchronized\"",
+                self.tracker.timestamps
+            ))
+            .into());
+        }
+        if !(self.tracker.fixed_latency_s.is_finite()
+            && (0.0..=1.0).contains(&self.tracker.fixed_latency_s))
+        {
+            return Err(UsageError(format!(
+                "tracker.fixed_latency_s = {}: must be in [0, 1] s",
+                self.tracker.fixed_latency_s
+            ))
+            .into());
         }
         let s = &self.tracker.simulated;
         if !["still", "drift", "nods"].contains(&s.motion.as_str()) {
@@ -735,6 +764,12 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     };
     let mut icfg = ClientConfig::new(&addr);
     icfg.device = Some(file.tracker.device.clone());
+    icfg.fixed_latency_s = file.tracker.fixed_latency_s;
+    icfg.timestamps = if sim_tracker.is_some() || file.tracker.timestamps == "synchronized" {
+        TimestampMode::Synchronized
+    } else {
+        TimestampMode::Estimated
+    };
     let client = Client::start(icfg, Arc::clone(&clock));
     let mut source = client.pose_source();
     writeln!(

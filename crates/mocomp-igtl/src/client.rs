@@ -2,11 +2,19 @@
 //! decodes the stream, counts everything, maps message timestamps onto our monotonic clock, and
 //! publishes the newest pose of one device for the control loop.
 //!
-//! Timestamps: a message's timestamp is the sender's wall clock at acquisition. The offset to our
-//! monotonic clock is estimated as the smallest `receive time − message time` seen (network delay
-//! only adds), adapting slowly upwards for clock drift and reset on every reconnect; the
-//! acquisition time on our clock is `message time + offset`. A timestamp of 0 (unused), or one
-//! going backwards for its device, is counted and replaced by the receive time.
+//! Timestamps: a message's timestamp is the sender's wall clock at acquisition. How it maps onto
+//! our monotonic clock is [`TimestampMode`]:
+//! - `Estimated` (default, for a sender whose clock is not synchronised with ours): the offset is
+//!   the smallest `receive time − message time` seen (network delay only adds), adapting slowly
+//!   upwards for clock drift and reset on every reconnect. That minimum also absorbs the sender's
+//!   constant latency (acquisition to sending), which no receiver can observe; give it as
+//!   [`ClientConfig::fixed_latency_s`] and it is subtracted.
+//! - `Synchronized` (a sender on this host, or clocks kept together by PTP/NTP): the message time
+//!   is taken at its word, mapped through our own wall clock, so the whole latency is seen.
+//!
+//! Either way the acquisition time on our clock is never later than the receive time. A timestamp
+//! of 0 (unused), or one going backwards for its device, is counted and replaced by the receive
+//! time.
 
 use crate::codec::{DEFAULT_MAX_BODY, Decoder, encode};
 use crate::latest::LatestCell;
@@ -45,6 +53,21 @@ pub struct ClientConfig {
     /// Keep every decoded message in a channel of this capacity (0: none); when the consumer
     /// falls behind, the overflow is counted.
     pub keep_messages: usize,
+    /// How message timestamps map onto our clock.
+    pub timestamps: TimestampMode,
+    /// The sender's constant latency from acquisition to sending, s, which `Estimated` cannot see
+    /// (ignored with `Synchronized`, which sees it).
+    pub fixed_latency_s: f64,
+}
+
+/// How a message's timestamp (the sender's wall clock) maps onto our monotonic clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TimestampMode {
+    /// The clocks are unrelated: estimate the offset from the smallest observed delay.
+    #[default]
+    Estimated,
+    /// The sender's wall clock is ours (same host, or synchronised): trust it.
+    Synchronized,
 }
 
 impl ClientConfig {
@@ -58,6 +81,8 @@ impl ClientConfig {
             reconnect_max: Duration::from_secs(2),
             max_body: DEFAULT_MAX_BODY,
             keep_messages: 0,
+            timestamps: TimestampMode::Estimated,
+            fixed_latency_s: 0.0,
         }
     }
 }
@@ -431,13 +456,22 @@ impl Worker {
             return now;
         }
         let wall = m.timestamp.to_secs_f64();
-        let est = now - wall;
-        let offset = match self.offset {
-            Some(o) if est >= o => o + (est - o) * 1e-3,
-            _ => est,
-        };
-        self.offset = Some(offset);
-        (wall + offset).min(now)
+        match self.config.timestamps {
+            TimestampMode::Synchronized => {
+                // Our wall clock now, against our monotonic clock now.
+                let ours = Timestamp::now().to_secs_f64();
+                (wall + (now - ours)).min(now)
+            }
+            TimestampMode::Estimated => {
+                let est = now - wall;
+                let offset = match self.offset {
+                    Some(o) if est >= o => o + (est - o) * 1e-3,
+                    _ => est,
+                };
+                self.offset = Some(offset);
+                (wall + offset - self.config.fixed_latency_s.max(0.0)).min(now)
+            }
+        }
     }
 
     fn handle(&mut self, m: Message) {

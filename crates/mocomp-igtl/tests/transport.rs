@@ -5,8 +5,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
-use mocomp_geom::{PoseSource, rotation_error, translation_error};
-use mocomp_igtl::client::{Client, ClientConfig, MonotonicClock};
+use mocomp_geom::{Clock, PoseSource, rotation_error, translation_error};
+use mocomp_igtl::client::{Client, ClientConfig, MonotonicClock, TimestampMode};
 use mocomp_igtl::message::{Body, MetaEntry, TDataElement, transform_floats};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{DeviceName, Message, Timestamp, encode};
@@ -290,4 +290,47 @@ fn the_client_backs_off_while_nothing_listens() {
     let failures = c.counters().connect_failures;
     // 50, 100, 200, 400 ms … : a handful of attempts, not hundreds.
     assert!((2..=8).contains(&failures), "{failures}");
+}
+
+/// Sends poses stamped `latency` before their sending time and returns the sample age the client
+/// reports for the last one (receive-side clock minus the acquisition time it inferred).
+fn observed_age(mode: TimestampMode, fixed_latency_s: f64, latency: f64) -> f64 {
+    let s = server();
+    let mut cfg = ClientConfig::new(&s.local_addr().to_string());
+    cfg.device = Some("HeadToTracker".into());
+    cfg.timestamps = mode;
+    cfg.fixed_latency_s = fixed_latency_s;
+    let clock = Arc::new(MonotonicClock::new());
+    let c = Client::start(cfg, clock.clone());
+    let mut src = c.pose_source();
+    wait_until("connection", || s.client_count() == 1);
+    for k in 0..20 {
+        let ts = Timestamp::from_secs_f64(Timestamp::now().to_secs_f64() - latency);
+        s.send(&Message::transform("HeadToTracker", &pose(f64::from(k)), ts).unwrap());
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    wait_until("20 poses", || c.counters().poses == 20);
+    let sample = src.latest().unwrap();
+    let received = clock.now_s();
+    received - sample.acquired_s
+}
+
+#[test]
+fn timestamps_synchronized_see_the_senders_latency_estimated_needs_it_given() {
+    let latency = 0.040;
+    // Same host: the 40 ms from acquisition to sending is seen (plus loopback and polling).
+    let sync = observed_age(TimestampMode::Synchronized, 0.0, latency);
+    assert!(
+        (latency..latency + 0.030).contains(&sync),
+        "synchronized: {sync}"
+    );
+    // Unsynchronised clocks: the minimum-delay offset absorbs the constant latency …
+    let est = observed_age(TimestampMode::Estimated, 0.0, latency);
+    assert!(est < 0.030, "estimated, no fixed latency: {est}");
+    // … unless it is configured.
+    let given = observed_age(TimestampMode::Estimated, latency, latency);
+    assert!(
+        (latency..latency + 0.030).contains(&given),
+        "estimated with the fixed latency given: {given}"
+    );
 }
