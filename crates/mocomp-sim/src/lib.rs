@@ -1,0 +1,14 @@
+//! The simulated world mocomp runs on without hardware:
+//! - [`motion`]: head-motion generators (still, drift, nods and turns, smooth random motion),
+//!   deterministic functions of time.
+//! - [`tracker`]: a tracker model (rate, latency, noise in position and rotation, dropouts,
+//!   outliers), pure and steppable, and [`tracker::TrackerServer`], which runs it in real time
+//!   and serves the markers over OpenIGTLink as a PLUS server would.
+
+pub mod motion;
+pub mod tracker;
+
+pub use motion::{HeadMotion, MotionError};
+pub use tracker::{
+    Observation, TrackedMarker, TrackerError, TrackerModel, TrackerServer, TrackerSim,
+};
