@@ -118,7 +118,7 @@ pub fn solve_cmd(out: &mut impl Write, args: &SolveArgs<'_>) -> Result<()> {
     Ok(())
 }
 
-fn print_report(out: &mut impl Write, c: &Calibration, n: usize) -> Result<()> {
+pub(crate) fn print_report(out: &mut impl Write, c: &Calibration, n: usize) -> Result<()> {
     writeln!(
         out,
         "method {}, {n} pairs ({} nonlinear iterations)",

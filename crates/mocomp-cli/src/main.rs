@@ -2,14 +2,24 @@
 //! moving head. This binary wires the mocomp crates into subcommands; it computes nothing itself.
 #![allow(clippy::print_stdout, clippy::print_stderr)]
 
+/// Returns a [`Refused`] error (exit code 1) with a formatted message.
+macro_rules! refuse {
+    ($($arg:tt)*) => {
+        return Err($crate::Refused(format!($($arg)*)).into())
+    };
+}
+
 mod args;
 mod calib_cmd;
+mod collect_cmd;
 mod igtl_cmd;
 mod kin_cmd;
 mod print;
 mod robot_cmd;
 mod run_cmd;
+mod teach_cmd;
 mod track_cmd;
+mod world;
 
 use clap::{Args, Parser, Subcommand};
 use mocomp_kin::{KinError, Model};
@@ -153,6 +163,20 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Store the coil's current pose relative to the head as the goal: averages the head
+    /// marker while the robot holds still, checks the goal against the head model, and writes
+    /// `[goal] head_from_coil` into the configuration file in place (comments kept).
+    TeachGoal {
+        /// The configuration (as for `run`).
+        #[arg(long, value_name = "FILE")]
+        config: String,
+        /// Head marker samples to average.
+        #[arg(long, default_value_t = 30)]
+        samples: usize,
+        /// Print the goal, do not write it.
+        #[arg(long)]
+        dry_run: bool,
+    },
     /// Talk to a UR controller (a real one, or `mocomp ursim`) with mocomp's client.
     Robot {
         #[command(subcommand)]
@@ -221,6 +245,21 @@ enum TrackCommand {
 
 #[derive(Debug, Subcommand)]
 enum CalibrateCommand {
+    /// Run the planned calibration poses on the configured robot, measure the flange's marker
+    /// with the configured tracker at each (progress bar), solve, and save the calibration and
+    /// the pairs. Settings: the configuration's `[calibrate]` section. The arm moves: clear the
+    /// space.
+    Collect {
+        /// The configuration (as for `run`).
+        #[arg(long, value_name = "FILE")]
+        config: String,
+        /// Write the calibration here (default: `calibrate.out`, beside the configuration).
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Solve for X and Y from a pairs file (CSV; see README.md for its columns).
     Solve {
         /// The pairs file.
@@ -444,6 +483,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             robot_cmd::ursim(&mut out, model, host, seconds)?;
         }
+        Command::TeachGoal {
+            config,
+            samples,
+            dry_run,
+        } => teach_cmd::run(
+            &mut out,
+            &teach_cmd::TeachOptions {
+                config,
+                samples,
+                dry_run,
+            },
+        )?,
         Command::Robot { command } => robot(&mut out, command)?,
         Command::Calibrate { command } => calibrate(&mut out, command)?,
         Command::Track(t) => track(&mut out, t)?,
@@ -600,6 +651,18 @@ fn calibrate(out: &mut impl Write, command: CalibrateCommand) -> anyhow::Result<
     use mocomp_calib::NoiseModel;
     let noise = |t: [f64; 2], r: [f64; 2]| NoiseModel::from_mm_deg(t[0], t[1], r[0], r[1]);
     match command {
+        CalibrateCommand::Collect {
+            config,
+            out: file,
+            quiet,
+        } => collect_cmd::collect(
+            out,
+            &collect_cmd::CollectOptions {
+                config,
+                out: file,
+                quiet,
+            },
+        ),
         CalibrateCommand::Solve {
             pairs,
             method,
@@ -705,9 +768,24 @@ impl std::fmt::Display for UsageError {
 
 impl std::error::Error for UsageError {}
 
+/// A well-formed request the world refused (an unsafe goal, a robot that stopped): exit code 1.
+#[derive(Debug)]
+pub(crate) struct Refused(pub(crate) String);
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Refused {}
+
 fn exit_code(err: &anyhow::Error) -> u8 {
     if err.downcast_ref::<UsageError>().is_some() {
         return EXIT_USAGE;
+    }
+    if err.downcast_ref::<Refused>().is_some() {
+        return EXIT_FAILURE;
     }
     if err.downcast_ref::<igtl_cmd::NothingReceived>().is_some() {
         return EXIT_FAILURE;

@@ -9,19 +9,18 @@
 //! summary printed at the end. Ctrl-C stops the robot (stopj) before the program exits.
 
 use crate::UsageError;
+use crate::collect_cmd::CollectSection;
+use crate::world::{Setup, World};
 use anyhow::Context;
 use mocomp_control::{
     CoilModel, Compensator, CycleRecord, Event, HeadModel, LoopConfig, LoopParams, Mode,
     PredictorConfig,
 };
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
-use mocomp_geom::{Clock, MonotonicClock, iso_from_ur_pose, rotation_error, translation_error};
-use mocomp_igtl::client::{Client, ClientConfig, TimestampMode};
-use mocomp_igtl::server::{Server, ServerConfig};
-use mocomp_igtl::{Message, MetaEntry, Timestamp};
-use mocomp_kin::{Arm, Model, Selection};
-use mocomp_ur::{Robot, ServoParams, UrConfig, UrRobot};
-use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use mocomp_geom::{iso_from_ur_pose, rotation_error, translation_error};
+use mocomp_kin::{Arm, Selection};
+use mocomp_sim::{HeadMotion, TrackerModel};
+use mocomp_ur::{Robot, ServoParams};
 use serde::Deserialize;
 use std::io::Write;
 use std::sync::Arc;
@@ -63,6 +62,9 @@ pub struct RunFile {
     /// The loop's parameters.
     #[serde(default, rename = "loop")]
     pub params: LoopParams,
+    /// `calibrate collect`.
+    #[serde(default)]
+    pub calibrate: CollectSection,
 }
 
 /// `[robot]`.
@@ -115,36 +117,31 @@ fn default_device() -> String {
     "HeadToTracker".into()
 }
 
-/// `[tracker.simulated]`: the head's motion and the tracker's model.
+/// `[tracker.simulated]`: the world the simulated tracker sees, its motion and its model.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SimTrackerSection {
-    /// "still", "drift" (10 mm/s, 3°/s) or "nods" (peaks of 80 mm/s and 34°/s).
-    pub motion: String,
     /// The head at rest, base_from_head.
     pub base_from_head: [f64; 6],
-    /// Samples per second.
-    pub rate_hz: f64,
-    /// Acquisition to sending, s.
-    pub latency_s: f64,
-    /// Position noise per axis (1σ), m.
-    pub noise_m: f64,
-    /// Rotation noise per axis (1σ), rad.
-    pub noise_rad: f64,
-    /// Noise seed.
-    pub seed: u64,
+    /// Where the tracker truly is, base_from_tracker (default: the configured calibration's, so
+    /// the calibration is exact; set it to see a calibration error's effect).
+    pub base_from_tracker: Option<[f64; 6]>,
+    /// The calibration marker on the flange, flange_from_marker (for `calibrate collect`).
+    pub flange_from_marker: [f64; 6],
+    /// The head's motion.
+    pub motion: HeadMotion,
+    /// The tracker's model.
+    pub model: TrackerModel,
 }
 
 impl Default for SimTrackerSection {
     fn default() -> Self {
         Self {
-            motion: "nods".into(),
             base_from_head: [0.30, -0.12, -0.02, 0.0, 0.0, 0.3],
-            rate_hz: 60.0,
-            latency_s: 0.02,
-            noise_m: 1e-4,
-            noise_rad: 1e-3,
-            seed: 1,
+            base_from_tracker: None,
+            flange_from_marker: [0.0, 0.06, 0.02, std::f64::consts::PI, 0.0, 0.0],
+            motion: HeadMotion::named("nods").unwrap_or(HeadMotion::Still),
+            model: TrackerModel::default(),
         }
     }
 }
@@ -228,7 +225,7 @@ impl Default for ServoSection {
     }
 }
 
-fn pose(key: &str, v: &[f64; 6]) -> anyhow::Result<Isometry3<f64>> {
+pub(crate) fn pose(key: &str, v: &[f64; 6]) -> anyhow::Result<Isometry3<f64>> {
     iso_from_ur_pose(v).map_err(|e| UsageError(format!("{key}: {e}")).into())
 }
 
@@ -260,6 +257,7 @@ impl RunFile {
     fn check(&self) -> anyhow::Result<()> {
         crate::args::model(&self.robot.model)
             .map_err(|e| UsageError(format!("robot.model: {e}")))?;
+        self.calibrate.check()?;
         self.params
             .validate()
             .map_err(|e| UsageError(format!("loop.{e}")))?;
@@ -295,23 +293,18 @@ impl RunFile {
             .into());
         }
         let s = &self.tracker.simulated;
-        if !["still", "drift", "nods"].contains(&s.motion.as_str()) {
+        s.motion
+            .validate()
+            .map_err(|e| UsageError(format!("tracker.simulated.motion.{e}")))?;
+        s.model
+            .validate()
+            .map_err(|e| UsageError(format!("tracker.simulated.model.{e}")))?;
+        if !(self.duration_s.is_finite() && self.duration_s >= 0.0) {
             return Err(UsageError(format!(
-                "tracker.simulated.motion = {:?}: must be still, drift or nods",
-                s.motion
+                "duration_s = {}: must be finite and ≥ 0",
+                self.duration_s
             ))
             .into());
-        }
-        positive("tracker.simulated.rate_hz", s.rate_hz)?;
-        for (k, v) in [
-            ("tracker.simulated.latency_s", s.latency_s),
-            ("tracker.simulated.noise_m", s.noise_m),
-            ("tracker.simulated.noise_rad", s.noise_rad),
-            ("duration_s", self.duration_s),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(UsageError(format!("{k} = {v}: must be finite and ≥ 0")).into());
-            }
         }
         for (i, r) in self.head.radii_m.iter().enumerate() {
             positive(&format!("head.radii_m[{i}]"), *r)?;
@@ -345,6 +338,13 @@ impl RunFile {
         pose("goal.head_from_coil", &self.goal.head_from_coil)?;
         pose("head.head_from_ellipsoid", &self.head.head_from_ellipsoid)?;
         pose("tracker.simulated.base_from_head", &s.base_from_head)?;
+        pose(
+            "tracker.simulated.flange_from_marker",
+            &s.flange_from_marker,
+        )?;
+        if let Some(y) = &s.base_from_tracker {
+            pose("tracker.simulated.base_from_tracker", y)?;
+        }
         if let Some(y) = &self.calibration.base_from_tracker {
             pose("calibration.base_from_tracker", y)?;
         }
@@ -352,7 +352,10 @@ impl RunFile {
     }
 
     /// base_from_tracker, from the calibration file (relative to `dir`) or the inline pose.
-    fn base_from_tracker(&self, dir: &std::path::Path) -> anyhow::Result<Isometry3<f64>> {
+    pub(crate) fn base_from_tracker(
+        &self,
+        dir: &std::path::Path,
+    ) -> anyhow::Result<Isometry3<f64>> {
         if let Some(file) = &self.calibration.file {
             let path = dir.join(file);
             let text = std::fs::read_to_string(&path)
@@ -367,7 +370,7 @@ impl RunFile {
         }
     }
 
-    fn loop_config(&self, y: Isometry3<f64>, period: f64) -> anyhow::Result<LoopConfig> {
+    pub(crate) fn loop_config(&self, y: Isometry3<f64>, period: f64) -> anyhow::Result<LoopConfig> {
         let mut cfg = LoopConfig::new(
             y,
             pose(
@@ -393,127 +396,6 @@ impl RunFile {
         };
         cfg.params = self.params;
         Ok(cfg)
-    }
-}
-
-/// The simulated head: base_from_head at time t (s) for a motion.
-pub fn head_motion(motion: &str, rest: Isometry3<f64>, t: f64) -> Isometry3<f64> {
-    let t = (t - 1.0).max(0.0);
-    match motion {
-        "drift" => {
-            rest * Isometry3::new(
-                Vector3::new(0.01 * t, -0.005 * t, 0.0),
-                Vector3::new(0.0, 0.0, 0.05 * t),
-            )
-        }
-        "nods" => {
-            let ramp = (t / 0.5).min(1.0);
-            let w = 4.0;
-            let x = 0.02 * ramp * (w * t).sin();
-            let yaw = 0.15 * ramp * (w * t).sin();
-            let pitch = 0.08 * ramp * (0.7 * w * t).sin();
-            rest * Isometry3::new(Vector3::new(x, 0.5 * x, 0.0), Vector3::new(0.0, pitch, yaw))
-        }
-        _ => rest,
-    }
-}
-
-/// A seeded Gaussian (Box–Muller on SplitMix64), enough for tracker noise.
-struct Noise(u64, Option<f64>);
-
-impl Noise {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn gauss(&mut self) -> f64 {
-        if let Some(g) = self.1.take() {
-            return g;
-        }
-        let (u, v) = (self.uniform(), self.uniform());
-        let r = (-2.0 * u.ln()).sqrt();
-        let a = std::f64::consts::TAU * v;
-        self.1 = Some(r * a.sin());
-        r * a.cos()
-    }
-}
-
-/// The simulated tracker: an OpenIGTLink server on loopback sending the head marker's pose
-/// (tracker_from_head, with noise) at its rate, each `latency_s` after its acquisition time.
-struct SimTracker {
-    addr: String,
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl SimTracker {
-    fn start(
-        s: &SimTrackerSection,
-        device: &str,
-        base_from_tracker: Isometry3<f64>,
-    ) -> anyhow::Result<Self> {
-        let server = Server::bind("127.0.0.1:0", ServerConfig::default())
-            .context("simulated tracker: cannot listen on 127.0.0.1")?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let (s, device, stop2) = (s.clone(), device.to_string(), Arc::clone(&stop));
-        let rest = pose("tracker.simulated.base_from_head", &s.base_from_head)?;
-        let addr = server.local_addr().to_string();
-        let start = Instant::now();
-        let wall0 = Timestamp::now().to_secs_f64();
-        let thread = std::thread::Builder::new()
-            .name("sim-tracker".into())
-            .spawn(move || {
-                let mut noise = Noise(s.seed, None);
-                let mut k: u64 = 0;
-                while !stop2.load(Ordering::Relaxed) {
-                    let t_acq = k as f64 / s.rate_hz;
-                    let due = Duration::from_secs_f64(t_acq + s.latency_s);
-                    let el = start.elapsed();
-                    if el < due {
-                        std::thread::sleep((due - el).min(Duration::from_millis(20)));
-                        continue;
-                    }
-                    k += 1;
-                    let truth = base_from_tracker.inverse() * head_motion(&s.motion, rest, t_acq);
-                    let mut g = || noise.gauss();
-                    let dp = Vector3::new(g(), g(), g()) * s.noise_m;
-                    let dr = Vector3::new(g(), g(), g()) * s.noise_rad;
-                    let mut seen = truth;
-                    seen.translation.vector += dp;
-                    seen.rotation =
-                        mocomp_geom::nalgebra::UnitQuaternion::from_scaled_axis(dr) * seen.rotation;
-                    let ts = Timestamp::from_secs_f64(wall0 + t_acq);
-                    if let Ok(m) = Message::transform(&device, &seen, ts) {
-                        server
-                            .send(&m.with_metadata(vec![MetaEntry::text("TransformStatus", "OK")]));
-                    }
-                }
-                server.stop();
-            })
-            .context("simulated tracker thread")?;
-        Ok(Self {
-            addr,
-            stop,
-            thread: Some(thread),
-        })
-    }
-
-    fn addr(&self) -> String {
-        self.addr.clone()
-    }
-}
-
-impl Drop for SimTracker {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 
@@ -671,7 +553,11 @@ pub struct RunOptions {
     pub status: bool,
 }
 
-fn initial_joints(file: &RunFile, arm: &Arm, cfg: &LoopConfig) -> anyhow::Result<[f64; 6]> {
+pub(crate) fn initial_joints(
+    file: &RunFile,
+    arm: &Arm,
+    cfg: &LoopConfig,
+) -> anyhow::Result<[f64; 6]> {
     if let Some(q) = file.robot.initial_joints_rad {
         return Ok(q);
     }
@@ -704,79 +590,27 @@ fn initial_joints(file: &RunFile, arm: &Arm, cfg: &LoopConfig) -> anyhow::Result
 
 /// Runs the loop until Ctrl-C or the configured duration, then prints the summary to `out`.
 pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(&opts.config)
-        .with_context(|| format!("--config {}", opts.config))?;
-    let mut file = RunFile::parse(&opts.config, &text)?;
+    let mut setup = Setup::load(&opts.config)?;
     if let Some(s) = opts.seconds {
         if !(s.is_finite() && s > 0.0) {
             return Err(UsageError(format!("--seconds {s}: must be a positive number")).into());
         }
-        file.duration_s = s;
+        setup.file.duration_s = s;
     }
     if opts.log_csv.is_some() {
-        file.log_csv.clone_from(&opts.log_csv);
+        setup.file.log_csv.clone_from(&opts.log_csv);
     }
-    let dir = std::path::Path::new(&opts.config)
-        .parent()
-        .map(std::path::Path::to_path_buf)
-        .unwrap_or_default();
-    let model: Model = crate::args::model(&file.robot.model).map_err(UsageError)?;
-    let arm = Arm::new(model);
+    let (model, arm) = (setup.model, setup.arm);
     let period = model.spec().series.period_s();
-    let y = file.base_from_tracker(&dir)?;
-    let cfg = file.loop_config(y, period)?;
-    let clock: Arc<dyn Clock> = Arc::new(MonotonicClock::new());
-
-    // The robot.
-    let host: std::net::IpAddr = file
-        .robot
-        .host
-        .parse()
-        .map_err(|e| UsageError(format!("robot.host {:?}: {e}", file.robot.host)))?;
-    let (sim, ucfg) = if file.robot.simulate {
-        let mut ctrl = ControllerConfig::new(model);
-        ctrl.initial_q = initial_joints(&file, &arm, &cfg)?;
-        let sim = Sim::start(SimConfig::new(ctrl, host))
-            .with_context(|| format!("simulated robot on {host}"))?;
-        let u = sim.ur_config();
-        writeln!(out, "simulated {} on {host}", file.robot.model)?;
-        (Some(sim), u)
-    } else {
-        (None, UrConfig::new(host))
-    };
-    let mut robot =
-        UrRobot::connect(ucfg, Arc::clone(&clock)).with_context(|| format!("robot at {host}"))?;
-
-    // The tracker.
-    let sim_tracker = if file.tracker.source == "simulated" {
-        Some(SimTracker::start(
-            &file.tracker.simulated,
-            &file.tracker.device,
-            y,
-        )?)
-    } else {
-        None
-    };
-    let addr = match (&sim_tracker, &file.tracker.igtl) {
-        (Some(t), _) => t.addr(),
-        (None, Some(a)) => a.clone(),
-        (None, None) => return Err(UsageError("tracker.igtl: needed".into()).into()),
-    };
-    let mut icfg = ClientConfig::new(&addr);
-    icfg.device = Some(file.tracker.device.clone());
-    icfg.fixed_latency_s = file.tracker.fixed_latency_s;
-    icfg.timestamps = if sim_tracker.is_some() || file.tracker.timestamps == "synchronized" {
-        TimestampMode::Synchronized
-    } else {
-        TimestampMode::Estimated
-    };
-    let client = Client::start(icfg, Arc::clone(&clock));
+    let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
+    let q0 = initial_joints(&setup.file, &arm, &cfg)?;
+    let world = World::connect(&setup, q0, out)?;
+    let file = &setup.file;
+    let clock = Arc::clone(&world.clock);
+    let client = world.client(&setup, &file.tracker.device);
+    // The simulators (the rest of `world`) stay up until the end of this function.
+    let mut robot = world.robot;
     let mut source = client.pose_source();
-    writeln!(
-        out,
-        "tracker {} ({}), device {}",
-        addr, file.tracker.source, file.tracker.device
-    )?;
     out.flush()?;
 
     // Logger.
@@ -845,8 +679,6 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     s.dropped = dropped;
     let _ = robot.close();
     drop(client);
-    drop(sim_tracker);
-    drop(sim);
 
     // Summary.
     let span = s.last_t - s.first_t.unwrap_or(s.last_t);

@@ -1,0 +1,469 @@
+//! `mocomp calibrate collect --config FILE`: runs the calibration planner's poses on the robot,
+//! records the tracker's measurement of the flange's marker at each (with a progress bar),
+//! solves `AX = YB`, prints the report and saves the calibration (and the pairs, for
+//! `calibrate solve`).
+
+use crate::UsageError;
+use crate::run_cmd::{initial_joints, pose};
+use crate::world::{Setup, World};
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use mocomp_calib::plan::{PlanOptions, TrackerView, plan};
+use mocomp_calib::{NoiseModel, Pair, PairsFormat, SolveOptions, solve, write_pairs_csv};
+use mocomp_geom::nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::{PoseSource, rotation_error, translation_error};
+use mocomp_ur::{Robot, UrRobot};
+use serde::Deserialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// `[calibrate]`: how `calibrate collect` runs. Units: metres, radians, seconds.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CollectSection {
+    /// The flange marker's device name (TRANSFORM device or TDATA tool).
+    pub device: String,
+    /// Number of poses.
+    pub poses: usize,
+    /// Smallest rotation from the centre pose, rad.
+    pub min_rotation_rad: f64,
+    /// Largest rotation from the centre pose, rad.
+    pub max_rotation_rad: f64,
+    /// Shift of the flange per axis, up to ±this, m.
+    pub spread_m: f64,
+    /// The centre flange pose, base_from_flange (default: where the robot is).
+    pub center: Option<[f64; 6]>,
+    /// A rough flange_from_marker: the poses turn about the marker's centre (default: 5 cm off
+    /// the flange's axis, facing back along it).
+    pub flange_from_marker_guess: [f64; 6],
+    /// Keep the marker in the tracker's view, judged with the configured base_from_tracker.
+    pub check_view: bool,
+    /// Tracker samples averaged at each pose.
+    pub samples_per_pose: usize,
+    /// Wait this long after each move before measuring, s.
+    pub settle_s: f64,
+    /// Joint speed of the moves, rad/s.
+    pub joint_speed_rad_s: f64,
+    /// Joint acceleration of the moves, rad/s².
+    pub joint_accel_rad_s2: f64,
+    /// Give up on a move after this long, s.
+    pub move_timeout_s: f64,
+    /// Solver: li, shah or refined.
+    pub method: String,
+    /// Expected tracker noise per axis (1σ), m.
+    pub tracker_noise_m: f64,
+    /// Expected tracker rotation noise per axis (1σ), rad.
+    pub tracker_noise_rad: f64,
+    /// Expected robot noise per axis (1σ), m.
+    pub robot_noise_m: f64,
+    /// Expected robot rotation noise per axis (1σ), rad.
+    pub robot_noise_rad: f64,
+    /// Where to save the calibration (relative to the configuration file's directory).
+    pub out: String,
+    /// Where to save the measured pairs (relative to the configuration file's directory).
+    pub pairs_csv: Option<String>,
+}
+
+impl Default for CollectSection {
+    fn default() -> Self {
+        Self {
+            device: "MarkerToTracker".into(),
+            poses: 15,
+            min_rotation_rad: 15f64.to_radians(),
+            max_rotation_rad: 35f64.to_radians(),
+            spread_m: 0.06,
+            center: None,
+            flange_from_marker_guess: [0.0, 0.05, 0.0, std::f64::consts::PI, 0.0, 0.0],
+            check_view: true,
+            samples_per_pose: 10,
+            settle_s: 0.3,
+            joint_speed_rad_s: 0.8,
+            joint_accel_rad_s2: 1.5,
+            move_timeout_s: 20.0,
+            method: "refined".into(),
+            tracker_noise_m: 1e-4,
+            tracker_noise_rad: 1e-3,
+            robot_noise_m: 3e-5,
+            robot_noise_rad: 2e-4,
+            out: "calibration.toml".into(),
+            pairs_csv: Some("calibration-pairs.csv".into()),
+        }
+    }
+}
+
+impl CollectSection {
+    /// Checks every value; errors name the key.
+    pub fn check(&self) -> Result<(), UsageError> {
+        let bad = |k: &str, v: f64, what: &str| UsageError(format!("calibrate.{k} = {v}: {what}"));
+        if self.poses < 3 {
+            return Err(bad("poses", self.poses as f64, "must be at least 3"));
+        }
+        if self.samples_per_pose == 0 {
+            return Err(bad("samples_per_pose", 0.0, "must be at least 1"));
+        }
+        for (k, v) in [
+            ("min_rotation_rad", self.min_rotation_rad),
+            ("spread_m", self.spread_m),
+            ("settle_s", self.settle_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(k, v, "must be finite and ≥ 0"));
+            }
+        }
+        // Zero noise would weight the solver's residuals infinitely.
+        for (k, v) in [
+            ("tracker_noise_m", self.tracker_noise_m),
+            ("tracker_noise_rad", self.tracker_noise_rad),
+            ("robot_noise_m", self.robot_noise_m),
+            ("robot_noise_rad", self.robot_noise_rad),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(k, v, "must be finite and > 0"));
+            }
+        }
+        if !(self.max_rotation_rad.is_finite()
+            && self.max_rotation_rad > self.min_rotation_rad
+            && self.max_rotation_rad <= std::f64::consts::PI)
+        {
+            return Err(bad(
+                "max_rotation_rad",
+                self.max_rotation_rad,
+                "must be above min_rotation_rad and at most π",
+            ));
+        }
+        for (k, v, hi) in [
+            ("joint_speed_rad_s", self.joint_speed_rad_s, 3.0),
+            ("joint_accel_rad_s2", self.joint_accel_rad_s2, 40.0),
+            ("move_timeout_s", self.move_timeout_s, 600.0),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= hi) {
+                return Err(bad(k, v, &format!("must be in (0, {hi}]")));
+            }
+        }
+        if !["li", "shah", "refined"].contains(&self.method.as_str()) {
+            return Err(UsageError(format!(
+                "calibrate.method = {:?}: must be li, shah or refined",
+                self.method
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Options from the command line.
+#[derive(Debug, Clone)]
+pub struct CollectOptions {
+    /// The configuration file.
+    pub config: String,
+    /// Overrides `calibrate.out` (relative to the current directory).
+    pub out: Option<PathBuf>,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+/// The mean of rigid poses: translations averaged, rotations by the normalised mean of
+/// sign-aligned quaternions (exact enough for the small spread of repeated measurements).
+pub(crate) fn mean_pose(poses: &[Isometry3<f64>]) -> Option<Isometry3<f64>> {
+    let first = poses.first()?;
+    let n = poses.len() as f64;
+    let t = poses
+        .iter()
+        .map(|p| p.translation.vector)
+        .sum::<Vector3<f64>>()
+        / n;
+    let q0 = first.rotation.into_inner().coords;
+    let mut acc = Vector3::zeros().push(0.0);
+    for p in poses {
+        let q = p.rotation.into_inner().coords;
+        acc += if q.dot(&q0) < 0.0 { -q } else { q };
+    }
+    let rotation = UnitQuaternion::try_new(Quaternion::from(acc), 1e-9)?;
+    Some(Isometry3::from_parts(Translation3::from(t), rotation))
+}
+
+/// Keeps the watchdog fed for `d`.
+fn keep_fed(robot: &mut UrRobot, d: Duration) -> anyhow::Result<()> {
+    let end = Instant::now() + d;
+    while Instant::now() < end {
+        robot.keep_alive()?;
+        std::thread::sleep(Duration::from_millis(8));
+    }
+    Ok(())
+}
+
+/// Moves to `q` and waits (keeping the watchdog fed) until the robot is there and still.
+fn move_to(robot: &mut UrRobot, q: &[f64; 6], c: &CollectSection) -> anyhow::Result<()> {
+    let seq = robot.move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)?;
+    let start = Instant::now();
+    loop {
+        if let Some(s) = robot.state() {
+            if let Some(f) = s.fault() {
+                refuse!("the robot stopped during a calibration move: {f}");
+            }
+            let there = s.actual_q.iter().zip(q).all(|(a, b)| (a - b).abs() < 2e-3);
+            let still = s.actual_qd.iter().all(|v| v.abs() < 2e-3);
+            if there && still {
+                return Ok(());
+            }
+            if s.move_done_seq >= seq && still {
+                refuse!("a calibration move ended away from its target");
+            }
+        }
+        if start.elapsed().as_secs_f64() > c.move_timeout_s {
+            refuse!(
+                "a calibration move did not arrive within calibrate.move_timeout_s = {} s",
+                c.move_timeout_s
+            );
+        }
+        robot.keep_alive()?;
+        std::thread::sleep(Duration::from_millis(4));
+    }
+}
+
+/// One measurement: the mean of `n` valid samples acquired after `after` (on the world's clock),
+/// with the robot's joints averaged over the same time. `None` when the marker is not seen.
+fn measure(
+    world: &mut World,
+    source: &mut dyn PoseSource,
+    n: usize,
+    after: f64,
+) -> anyhow::Result<Option<([f64; 6], Isometry3<f64>)>> {
+    let start = Instant::now();
+    let mut samples = Vec::with_capacity(n);
+    let mut qs = Vec::new();
+    while samples.len() < n {
+        if start.elapsed() > Duration::from_secs(3) {
+            return Ok(None);
+        }
+        if let Some(s) = source.latest()
+            && s.valid
+            && s.acquired_s > after
+        {
+            samples.push(s.tracker_from_marker);
+            if let Some(r) = world.robot.state() {
+                qs.push(r.actual_q);
+            }
+        }
+        world.robot.keep_alive()?;
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let mut q = [0.0; 6];
+    for qi in &qs {
+        for (a, b) in q.iter_mut().zip(qi) {
+            *a += b / qs.len().max(1) as f64;
+        }
+    }
+    Ok(mean_pose(&samples).map(|p| (q, p)))
+}
+
+/// Runs the collection, solves and saves.
+pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()> {
+    let setup = Setup::load(&opts.config)?;
+    let c = setup.file.calibrate.clone();
+    let arm = setup.arm;
+    let period = setup.model.spec().series.period_s();
+    let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
+    let q0 = initial_joints(&setup.file, &arm, &cfg)?;
+    let mut world = World::connect(&setup, q0, out)?;
+    let client = world.client(&setup, &c.device);
+    let mut source = client.pose_source();
+
+    // Where the robot is: the run starts and ends here.
+    let t0 = Instant::now();
+    let current = loop {
+        if let Some(s) = world.robot.state() {
+            break s.actual_q;
+        }
+        if t0.elapsed() > Duration::from_secs(5) {
+            refuse!("no robot state within 5 s");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let center = match &c.center {
+        Some(p) => pose("calibrate.center", p)?,
+        None => arm.fk_flange(&current),
+    };
+    let mut o = PlanOptions::new(c.poses, center, current);
+    o.rotation_range_rad = (c.min_rotation_rad, c.max_rotation_rad);
+    o.translation_spread_m = c.spread_m;
+    o.flange_from_marker = pose(
+        "calibrate.flange_from_marker_guess",
+        &c.flange_from_marker_guess,
+    )?;
+    o.tracker = c
+        .check_view
+        .then(|| TrackerView::typical(setup.base_from_tracker));
+    let poses = plan(&arm, &o)?;
+    writeln!(
+        out,
+        "{} calibration poses around the flange at [{}]; the arm will move: keep the space clear",
+        poses.len(),
+        crate::print::row(&mocomp_geom::ur_pose_from_iso(&center))
+    )?;
+    out.flush()?;
+
+    let bar = if opts.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(poses.len() as u64)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} poses, {elapsed} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_prefix("collecting");
+    let mut pairs = Vec::new();
+    let mut missed = Vec::new();
+    let result = (|| -> anyhow::Result<()> {
+        for (i, p) in poses.iter().enumerate() {
+            move_to(&mut world.robot, &p.joints, &c)?;
+            keep_fed(&mut world.robot, Duration::from_secs_f64(c.settle_s))?;
+            let after = world.clock.now_s();
+            match measure(&mut world, &mut source, c.samples_per_pose, after)? {
+                Some((q, tracker_from_marker)) => {
+                    let mut pair = Pair::new(arm.fk_flange(&q), tracker_from_marker);
+                    pair.joints = Some(q);
+                    pairs.push(pair);
+                }
+                None => {
+                    missed.push(i + 1);
+                    bar.set_message(format!("marker not seen at pose {}", i + 1));
+                }
+            }
+            bar.inc(1);
+        }
+        move_to(&mut world.robot, &current, &c)
+    })();
+    bar.finish_and_clear();
+    if let Err(e) = result {
+        let _ = world.robot.stop(4.0);
+        return Err(e.context("calibrate collect stopped the robot"));
+    }
+    let simulated_robot = world.simulated_robot();
+    let _ = world.robot.close();
+    drop(client);
+    writeln!(
+        out,
+        "measured {} of {} poses{}",
+        pairs.len(),
+        poses.len(),
+        if missed.is_empty() {
+            String::new()
+        } else {
+            format!("; marker not seen at pose(s) {missed:?}")
+        }
+    )?;
+    if pairs.len() < 3 {
+        refuse!(
+            "only {} poses measured: check that the tracker sees calibrate.device {:?}",
+            pairs.len(),
+            c.device
+        );
+    }
+
+    let noise = NoiseModel {
+        tracker_translation_m: c.tracker_noise_m,
+        tracker_rotation_rad: c.tracker_noise_rad,
+        robot_translation_m: c.robot_noise_m,
+        robot_rotation_rad: c.robot_noise_rad,
+    };
+    let method = c
+        .method
+        .parse()
+        .map_err(|e| UsageError(format!("calibrate.method: {e}")))?;
+    let solved = solve(
+        &pairs,
+        &SolveOptions {
+            method,
+            noise,
+            reject_outliers: true,
+        },
+    )
+    .context("solving the calibration")?;
+    crate::calib_cmd::print_report(&mut &mut *out, &solved, pairs.len())?;
+
+    let out_path = match &opts.out {
+        Some(p) => p.clone(),
+        None => setup.dir.join(&c.out),
+    };
+    std::fs::write(&out_path, solved.to_file().to_toml_string()?)
+        .with_context(|| format!("writing {}", out_path.display()))?;
+    writeln!(out, "wrote {}", out_path.display())?;
+    if let Some(p) = &c.pairs_csv {
+        let path = out_path
+            .parent()
+            .unwrap_or(Path::new(""))
+            .join(Path::new(p).file_name().unwrap_or_default());
+        std::fs::write(&path, write_pairs_csv(&pairs, PairsFormat::Joints)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+        writeln!(
+            out,
+            "wrote {} (re-solve with: mocomp calibrate solve --pairs {} --robot {})",
+            path.display(),
+            path.display(),
+            setup.file.robot.model
+        )?;
+    }
+    let y_old = setup.base_from_tracker;
+    writeln!(
+        out,
+        "Y against the configured base_from_tracker: {:.2} mm, {:.3}°",
+        translation_error(&solved.base_from_tracker, &y_old) * 1e3,
+        rotation_error(&solved.base_from_tracker, &y_old).to_degrees()
+    )?;
+    let s = &setup.file.tracker.simulated;
+    if setup.file.tracker.source == "simulated" && simulated_robot {
+        let true_y = match &s.base_from_tracker {
+            Some(y) => pose("tracker.simulated.base_from_tracker", y)?,
+            None => y_old,
+        };
+        let true_x = pose(
+            "tracker.simulated.flange_from_marker",
+            &s.flange_from_marker,
+        )?;
+        writeln!(
+            out,
+            "against the simulation's truth: Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}°",
+            translation_error(&solved.base_from_tracker, &true_y) * 1e3,
+            rotation_error(&solved.base_from_tracker, &true_y).to_degrees(),
+            translation_error(&solved.flange_from_marker, &true_x) * 1e3,
+            rotation_error(&solved.flange_from_marker, &true_x).to_degrees()
+        )?;
+    }
+    writeln!(
+        out,
+        "to use it: set calibration.file = {:?} in the configuration",
+        c.out
+    )?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::*;
+
+    #[test]
+    fn the_mean_pose_of_symmetric_perturbations_is_the_centre() {
+        let c = Isometry3::new(Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.5, -0.2, 3.0));
+        let mut ps = Vec::new();
+        for s in [-1.0, 1.0] {
+            for k in 0..3 {
+                let mut d = Vector3::zeros();
+                d[k] = 0.01 * s;
+                ps.push(c * Isometry3::new(d, d));
+            }
+        }
+        let m = mean_pose(&ps).unwrap();
+        assert!(translation_error(&m, &c) < 1e-12);
+        assert!(rotation_error(&m, &c) < 1e-4);
+        // Near rotation angle π, quaternion signs flip: they are aligned first.
+        let a = Isometry3::new(Vector3::zeros(), Vector3::new(0.0, 0.0, std::f64::consts::PI - 1e-3));
+        let b = Isometry3::new(Vector3::zeros(), Vector3::new(0.0, 0.0, -(std::f64::consts::PI - 1e-3)));
+        let m = mean_pose(&[a, b]).unwrap();
+        assert!((m.rotation.angle() - std::f64::consts::PI).abs() < 1e-6);
+        assert!(mean_pose(&[]).is_none());
+    }
+}

@@ -1,0 +1,182 @@
+//! What `run`, `teach-goal` and `calibrate collect` connect to, from the configuration file: the
+//! robot (a UR at an address, or an in-process simulated controller serving real RTDE on
+//! loopback) and the tracker (an OpenIGTLink server, or the simulated tracker serving the head
+//! marker and the flange's calibration marker over OpenIGTLink on loopback).
+
+use crate::UsageError;
+use crate::run_cmd::{RunFile, pose};
+use anyhow::Context;
+use mocomp_geom::nalgebra::Isometry3;
+use mocomp_geom::{Clock, MonotonicClock};
+use mocomp_igtl::client::{Client, ClientConfig, TimestampMode};
+use mocomp_kin::{Arm, Model};
+use mocomp_sim::{TrackedMarker, TrackerServer};
+use mocomp_ur::{UrConfig, UrRobot};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The configuration file, read and checked, with what follows from it.
+#[derive(Debug)]
+pub struct Setup {
+    /// The file.
+    pub file: RunFile,
+    /// Its directory (relative paths in it are relative to this).
+    pub dir: PathBuf,
+    /// The robot model.
+    pub model: Model,
+    /// Its kinematics (flange).
+    pub arm: Arm,
+    /// The configured base_from_tracker (the calibration).
+    pub base_from_tracker: Isometry3<f64>,
+}
+
+impl Setup {
+    /// Reads and checks `path`.
+    pub fn load(path: &str) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("--config {path}"))?;
+        let file = RunFile::parse(path, &text)?;
+        let dir = Path::new(path)
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let model: Model = crate::args::model(&file.robot.model).map_err(UsageError)?;
+        let base_from_tracker = file.base_from_tracker(&dir)?;
+        Ok(Self {
+            file,
+            dir,
+            model,
+            arm: Arm::new(model),
+            base_from_tracker,
+        })
+    }
+}
+
+/// The robot and tracker, connected. Dropping it stops the simulators.
+pub struct World {
+    /// The clock every part uses.
+    pub clock: Arc<dyn Clock>,
+    /// The robot client.
+    pub robot: UrRobot,
+    /// The tracker's address.
+    pub tracker_addr: String,
+    // Dropped after the robot client (field order): the simulators.
+    tracker: Option<TrackerServer>,
+    sim: Option<Arc<Sim>>,
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("tracker_addr", &self.tracker_addr)
+            .field("simulated_robot", &self.sim.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+impl World {
+    /// Starts what is simulated and connects the robot. `initial_q`: the simulated robot's joints
+    /// at start.
+    pub fn connect(
+        setup: &Setup,
+        initial_q: [f64; 6],
+        out: &mut dyn Write,
+    ) -> anyhow::Result<Self> {
+        let file = &setup.file;
+        let clock: Arc<dyn Clock> = Arc::new(MonotonicClock::new());
+        let host: std::net::IpAddr = file
+            .robot
+            .host
+            .parse()
+            .map_err(|e| UsageError(format!("robot.host {:?}: {e}", file.robot.host)))?;
+        let (sim, ucfg) = if file.robot.simulate {
+            let mut ctrl = ControllerConfig::new(setup.model);
+            ctrl.initial_q = initial_q;
+            let sim = Sim::start(SimConfig::new(ctrl, host))
+                .with_context(|| format!("simulated robot on {host}"))?;
+            let u = sim.ur_config();
+            writeln!(out, "simulated {} on {host}", file.robot.model)?;
+            (Some(Arc::new(sim)), u)
+        } else {
+            (None, UrConfig::new(host))
+        };
+        let tracker = if file.tracker.source == "simulated" {
+            Some(start_tracker(setup, sim.clone())?)
+        } else {
+            None
+        };
+        let tracker_addr = match (&tracker, &file.tracker.igtl) {
+            (Some(t), _) => t.addr().to_string(),
+            (None, Some(a)) => a.clone(),
+            (None, None) => return Err(UsageError("tracker.igtl: needed".into()).into()),
+        };
+        let robot = UrRobot::connect(ucfg, Arc::clone(&clock))
+            .with_context(|| format!("robot at {host}"))?;
+        writeln!(
+            out,
+            "tracker {tracker_addr} ({}), device {}",
+            file.tracker.source, file.tracker.device
+        )?;
+        Ok(Self {
+            clock,
+            robot,
+            tracker_addr,
+            tracker,
+            sim,
+        })
+    }
+
+    /// An OpenIGTLink client for `device`, with the configured timestamp handling (a simulated
+    /// tracker on this host is read as synchronized).
+    pub fn client(&self, setup: &Setup, device: &str) -> Client {
+        let t = &setup.file.tracker;
+        let mut icfg = ClientConfig::new(&self.tracker_addr);
+        icfg.device = Some(device.to_string());
+        icfg.fixed_latency_s = t.fixed_latency_s;
+        icfg.timestamps = if self.tracker.is_some() || t.timestamps == "synchronized" {
+            TimestampMode::Synchronized
+        } else {
+            TimestampMode::Estimated
+        };
+        Client::start(icfg, Arc::clone(&self.clock))
+    }
+
+    /// Whether the robot is simulated.
+    pub fn simulated_robot(&self) -> bool {
+        self.sim.is_some()
+    }
+}
+
+/// The simulated tracker: the head marker (moving as configured) and, when the robot is
+/// simulated, the calibration marker on its flange (at the simulated robot's joints).
+fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> anyhow::Result<TrackerServer> {
+    let file = &setup.file;
+    let s = &file.tracker.simulated;
+    let tracker_from_base = match &s.base_from_tracker {
+        Some(y) => pose("tracker.simulated.base_from_tracker", y)?,
+        None => setup.base_from_tracker,
+    }
+    .inverse();
+    let rest = pose("tracker.simulated.base_from_head", &s.base_from_head)?;
+    let trajectory = s.motion.trajectory();
+    let mut markers = vec![TrackedMarker {
+        device: file.tracker.device.clone(),
+        truth: Box::new(move |t| Some(tracker_from_base * rest * trajectory.rest_from_head(t))),
+    }];
+    if let Some(sim) = sim {
+        let flange_from_marker = pose(
+            "tracker.simulated.flange_from_marker",
+            &s.flange_from_marker,
+        )?;
+        let arm = setup.arm;
+        markers.push(TrackedMarker {
+            device: file.calibrate.device.clone(),
+            truth: Box::new(move |_| {
+                let q = sim.with(|c| c.q());
+                Some(tracker_from_base * arm.fk_flange(&q) * flange_from_marker)
+            }),
+        });
+    }
+    Ok(TrackerServer::start("127.0.0.1:0", s.model, markers)?)
+}
