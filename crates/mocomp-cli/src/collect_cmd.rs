@@ -460,8 +460,14 @@ mod tests {
         assert!(translation_error(&m, &c) < 1e-12);
         assert!(rotation_error(&m, &c) < 1e-4);
         // Near rotation angle π, quaternion signs flip: they are aligned first.
-        let a = Isometry3::new(Vector3::zeros(), Vector3::new(0.0, 0.0, std::f64::consts::PI - 1e-3));
-        let b = Isometry3::new(Vector3::zeros(), Vector3::new(0.0, 0.0, -(std::f64::consts::PI - 1e-3)));
+        let a = Isometry3::new(
+            Vector3::zeros(),
+            Vector3::new(0.0, 0.0, std::f64::consts::PI - 1e-3),
+        );
+        let b = Isometry3::new(
+            Vector3::zeros(),
+            Vector3::new(0.0, 0.0, -(std::f64::consts::PI - 1e-3)),
+        );
         let m = mean_pose(&[a, b]).unwrap();
         assert!((m.rotation.angle() - std::f64::consts::PI).abs() < 1e-6);
         assert!(mean_pose(&[]).is_none());
