@@ -10,7 +10,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use mocomp_calib::plan::{PlanOptions, TrackerView, plan};
 use mocomp_calib::{NoiseModel, Pair, PairsFormat, SolveOptions, solve, write_pairs_csv};
-use mocomp_geom::nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSource, rotation_error, translation_error};
 use mocomp_ur::{Robot, UrRobot};
 use serde::Deserialize;
@@ -162,26 +162,6 @@ pub struct CollectOptions {
     pub quiet: bool,
 }
 
-/// The mean of rigid poses: translations averaged, rotations by the normalised mean of
-/// sign-aligned quaternions (exact enough for the small spread of repeated measurements).
-pub(crate) fn mean_pose(poses: &[Isometry3<f64>]) -> Option<Isometry3<f64>> {
-    let first = poses.first()?;
-    let n = poses.len() as f64;
-    let t = poses
-        .iter()
-        .map(|p| p.translation.vector)
-        .sum::<Vector3<f64>>()
-        / n;
-    let q0 = first.rotation.into_inner().coords;
-    let mut acc = Vector3::zeros().push(0.0);
-    for p in poses {
-        let q = p.rotation.into_inner().coords;
-        acc += if q.dot(&q0) < 0.0 { -q } else { q };
-    }
-    let rotation = UnitQuaternion::try_new(Quaternion::from(acc), 1e-9)?;
-    Some(Isometry3::from_parts(Translation3::from(t), rotation))
-}
-
 /// Keeps the watchdog fed for `d`.
 fn keep_fed(robot: &mut UrRobot, d: Duration) -> anyhow::Result<()> {
     let end = Instant::now() + d;
@@ -254,7 +234,7 @@ fn measure(
             *a += b / qs.len().max(1) as f64;
         }
     }
-    Ok(mean_pose(&samples).map(|p| (q, p)))
+    Ok(mocomp_geom::average(&samples, None).ok().map(|p| (q, p)))
 }
 
 /// Runs the collection, solves and saves.
@@ -438,38 +418,4 @@ pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()>
         c.out
     )?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
-    use super::*;
-
-    #[test]
-    fn the_mean_pose_of_symmetric_perturbations_is_the_centre() {
-        let c = Isometry3::new(Vector3::new(0.1, 0.2, 0.3), Vector3::new(0.5, -0.2, 3.0));
-        let mut ps = Vec::new();
-        for s in [-1.0, 1.0] {
-            for k in 0..3 {
-                let mut d = Vector3::zeros();
-                d[k] = 0.01 * s;
-                ps.push(c * Isometry3::new(d, d));
-            }
-        }
-        let m = mean_pose(&ps).unwrap();
-        assert!(translation_error(&m, &c) < 1e-12);
-        assert!(rotation_error(&m, &c) < 1e-4);
-        // Near rotation angle π, quaternion signs flip: they are aligned first.
-        let a = Isometry3::new(
-            Vector3::zeros(),
-            Vector3::new(0.0, 0.0, std::f64::consts::PI - 1e-3),
-        );
-        let b = Isometry3::new(
-            Vector3::zeros(),
-            Vector3::new(0.0, 0.0, -(std::f64::consts::PI - 1e-3)),
-        );
-        let m = mean_pose(&[a, b]).unwrap();
-        assert!((m.rotation.angle() - std::f64::consts::PI).abs() < 1e-6);
-        assert!(mean_pose(&[]).is_none());
-    }
 }

@@ -103,7 +103,7 @@ fn teach(setup: &Setup, world: &mut World, samples: usize) -> anyhow::Result<Tau
     let Some(q) = q else {
         refuse!("no robot state");
     };
-    let mean = crate::collect_cmd::mean_pose(&heads).context("averaging the head samples")?;
+    let mean = mocomp_geom::average(&heads, None).context("averaging the head samples")?;
     let n = heads.len() as f64;
     let spread = (
         (heads

@@ -11,8 +11,9 @@
 //!   [`ClientConfig::fixed_latency_s`] and it is subtracted.
 //! - `Synchronized` (a sender on this host, or clocks kept together by PTP/NTP): the message time
 //!   is taken at its word, mapped through our own wall clock, so the whole latency is seen.
+//! - `Known(offset)`: a simulator stamping with the receiver's own (stepped) clock.
 //!
-//! Either way the acquisition time on our clock is never later than the receive time. A timestamp
+//! Every way, the acquisition time on our clock is never later than the receive time. A timestamp
 //! of 0 (unused), or one going backwards for its device, is counted and replaced by the receive
 //! time.
 
@@ -61,13 +62,16 @@ pub struct ClientConfig {
 }
 
 /// How a message's timestamp (the sender's wall clock) maps onto our monotonic clock.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum TimestampMode {
     /// The clocks are unrelated: estimate the offset from the smallest observed delay.
     #[default]
     Estimated,
     /// The sender's wall clock is ours (same host, or synchronised): trust it.
     Synchronized,
+    /// The sender's clock plus this offset (s) is our clock: a simulator stamping with the
+    /// receiver's own (for instance stepped) clock.
+    Known(f64),
 }
 
 impl ClientConfig {
@@ -462,6 +466,7 @@ impl Worker {
                 let ours = Timestamp::now().to_secs_f64();
                 (wall + (now - ours)).min(now)
             }
+            TimestampMode::Known(offset) => (wall + offset).min(now),
             TimestampMode::Estimated => {
                 let est = now - wall;
                 let offset = match self.offset {

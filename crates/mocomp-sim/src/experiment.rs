@@ -1,0 +1,1156 @@
+//! The paper's two-robot experiment (its section VI), on the simulated world, in lockstep.
+//!
+//! A head robot U2 (UR5 by default) carries a head phantom whose marker the tracker sees; it
+//! moves the phantom on a trajectory the controller does not know. A coil robot U1 (UR3) carries
+//! the coil, which also carries a marker. Both are `mocomp-ursim` controllers on their own
+//! loopback addresses, driven through mocomp's real RTDE client; the tracker model serves both
+//! markers over real OpenIGTLink (TCP on loopback) to mocomp's real client. Everything runs on
+//! one stepped clock: each tick the tracker acquires and sends, the controllers command, then both
+//! simulators step, and every message is waited for, so a run is deterministic for its seed and
+//! much faster than real time.
+//!
+//! As in the paper, the run starts with the initialisation: both robots are hand-eye calibrated
+//! with the tracker (U1 gives `X1 = flange_from_coil`, `Y1 = base1_from_tracker`; U2 gives
+//! `X2 = flange_from_head`), so calibration error is part of the result, and the goal is set from
+//! the paper's `E2_T_E1,g` through those estimates:
+//! `head_from_coil_goal = X2⁻¹ · E2_T_E1,g · X1`.
+//! Then each controller compensates the same head trajectory with the same tracker noise:
+//! - `paper`: a model of the original MATLAB pipeline. Every `period_s` it takes the newest
+//!   tracker sample, computes the IK solution nearest by angle sum, and `compute_delay_s` later
+//!   sends a point-to-point joint move (movej) to it. No prediction, no servoing.
+//! - `mocomp`: the compensation loop of `mocomp-control` at the robot's rate.
+//!
+//! The score is the paper's `d(t) = ‖E2_T_E1,g − E2_T_E1‖_F` (translation in mm), computed from the
+//! simulators' true joints, with the translation and rotation errors of `E2_T_E1`.
+
+use crate::motion::HeadMotion;
+use crate::tracker::{TrackerModel, TrackerSim};
+use mocomp_calib::plan::{PlanOptions, plan};
+use mocomp_calib::{Method, NoiseModel, Pair, SolveOptions, solve};
+use mocomp_control::{Compensator, Event, LoopConfig, Mode};
+use mocomp_geom::nalgebra::{Isometry3, Matrix4, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::{
+    Clock, LengthUnit, PoseSource, SteppedClock, frobenius_deviation, iso_from_matrix_mm,
+    rotation_error, translation_error,
+};
+use mocomp_igtl::client::{Client, ClientConfig, IgtlPoseSource, TimestampMode};
+use mocomp_igtl::server::{Server, ServerConfig};
+use mocomp_igtl::{Message, MetaEntry, Timestamp};
+use mocomp_kin::{Arm, BranchPolicy, Metric, Model, Selection};
+use mocomp_ur::{Robot, ServoParams, UrRobot};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use std::net::IpAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// The paper's goal between the end-effectors, `E2_T_E1,g` (translation in mm).
+pub const PAPER_GOAL_E2_FROM_E1_MM: [[f64; 4]; 4] = [
+    [0.8725, 0.159, 0.4619, 9.5626],
+    [-0.4253, -0.2179, 0.8784, -160.5035],
+    [0.2404, -0.9629, -0.1225, 412.4959],
+    [0.0, 0.0, 0.0, 1.0],
+];
+
+/// Sender timestamps are the stepped clock plus this (a timestamp of 0 means "unset").
+const EPOCH_S: f64 = 1_000.0;
+
+/// Device names.
+const HEAD_DEVICE: &str = "HeadToTracker";
+const COIL_DEVICE: &str = "CoilToTracker";
+
+/// Something went wrong running the experiment.
+#[derive(Debug, thiserror::Error)]
+pub enum ExperimentError {
+    /// A configuration value out of range.
+    #[error("{0}")]
+    Config(String),
+    /// The paper's goal matrix is not a rigid transform.
+    #[error("the goal E2_T_E1,g: {0}")]
+    Goal(String),
+    /// No placement of the robots reaches the goal.
+    #[error("cannot place the robots: {0}")]
+    Scene(String),
+    /// A simulator or connection failed.
+    #[error("{what}: {detail}")]
+    Io {
+        /// What was being done.
+        what: &'static str,
+        /// Why it failed.
+        detail: String,
+    },
+    /// Something did not happen in time (a message, a state).
+    #[error("timed out waiting for {0}")]
+    Timeout(&'static str),
+    /// The calibration failed.
+    #[error("calibration of {robot}: {detail}")]
+    Calibration {
+        /// Which robot.
+        robot: &'static str,
+        /// Why.
+        detail: String,
+    },
+}
+
+fn io(what: &'static str, e: impl std::fmt::Display) -> ExperimentError {
+    ExperimentError::Io {
+        what,
+        detail: e.to_string(),
+    }
+}
+
+/// The `paper` controller's model of the original pipeline.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PaperController {
+    /// Loop period, s (tracking, IK and communication in MATLAB).
+    pub period_s: f64,
+    /// From taking a sample to sending the move, s.
+    pub compute_delay_s: f64,
+    /// movej joint speed, rad/s.
+    pub joint_speed_rad_s: f64,
+    /// movej joint acceleration, rad/s².
+    pub joint_accel_rad_s2: f64,
+}
+
+impl Default for PaperController {
+    /// A 10 Hz loop with 80 ms of computation, and URScript's default movej (1.05 rad/s,
+    /// 1.4 rad/s²).
+    fn default() -> Self {
+        Self {
+            period_s: 0.1,
+            compute_delay_s: 0.08,
+            joint_speed_rad_s: 1.05,
+            joint_accel_rad_s2: 1.4,
+        }
+    }
+}
+
+/// Which controller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Controller {
+    /// The model of the paper's pipeline.
+    Paper,
+    /// mocomp's compensation loop.
+    Mocomp,
+}
+
+impl Controller {
+    /// Its name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Paper => "paper",
+            Self::Mocomp => "mocomp",
+        }
+    }
+}
+
+/// The experiment's settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExperimentConfig {
+    /// The coil robot U1.
+    pub coil_robot: Model,
+    /// The head robot U2.
+    pub head_robot: Model,
+    /// U1's loopback address.
+    pub coil_host: IpAddr,
+    /// U2's loopback address.
+    pub head_host: IpAddr,
+    /// Compensation time per controller, s.
+    pub duration_s: f64,
+    /// The head's motion (unknown to the controllers).
+    pub motion: HeadMotion,
+    /// The tracker.
+    pub tracker: TrackerModel,
+    /// The `paper` controller.
+    pub paper: PaperController,
+    /// Calibration poses per robot.
+    pub calibration_poses: usize,
+    /// Tracker samples averaged per calibration pose.
+    pub calibration_samples: usize,
+    /// The goal between the end-effectors, `E2_T_E1,g` (metres).
+    pub goal_e2_from_e1: Isometry3<f64>,
+    /// Changes to the `mocomp` loop's defaults.
+    pub loop_params: mocomp_control::LoopParams,
+    /// The `mocomp` loop's predictor.
+    pub predictor: mocomp_control::PredictorConfig,
+}
+
+/// The paper's goal as a rigid transform (metres).
+pub fn paper_goal() -> Result<Isometry3<f64>, ExperimentError> {
+    let rows = PAPER_GOAL_E2_FROM_E1_MM;
+    let m = Matrix4::from_fn(|r, c| rows[r][c]);
+    // Four decimals in the paper: the rotation is orthonormal to about 1e-3.
+    iso_from_matrix_mm(&m, 5e-3).map_err(|e| ExperimentError::Goal(e.to_string()))
+}
+
+impl ExperimentConfig {
+    /// The defaults: UR3 and UR5 (CB3, 125 Hz) on 127.0.0.2 and 127.0.0.3, 30 s of smooth random
+    /// motion up to 20 mm/s and 10°/s, a 60 Hz tracker with 20 ms latency and 0.1 mm / 1 mrad
+    /// noise per axis, 15 calibration poses per robot (10 samples averaged at each), the paper's goal.
+    pub fn new() -> Result<Self, ExperimentError> {
+        Ok(Self {
+            coil_robot: Model::Ur3,
+            head_robot: Model::Ur5,
+            coil_host: IpAddr::from([127, 0, 0, 2]),
+            head_host: IpAddr::from([127, 0, 0, 3]),
+            duration_s: 30.0,
+            motion: HeadMotion::named("random").unwrap_or(HeadMotion::Still),
+            tracker: TrackerModel::default(),
+            paper: PaperController::default(),
+            calibration_poses: 15,
+            calibration_samples: 10,
+            goal_e2_from_e1: paper_goal()?,
+            loop_params: mocomp_control::LoopParams::default(),
+            predictor: mocomp_control::PredictorConfig::default(),
+        })
+    }
+
+    /// Checks the values the components do not check themselves.
+    pub fn validate(&self) -> Result<(), ExperimentError> {
+        let bad = |m: String| Err(ExperimentError::Config(m));
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0 && self.duration_s <= 3600.0) {
+            return bad(format!(
+                "duration_s = {}: must be in (0, 3600]",
+                self.duration_s
+            ));
+        }
+        if self.coil_host == self.head_host {
+            return bad("the two robots need their own addresses".into());
+        }
+        if !(3..=100).contains(&self.calibration_poses) {
+            return bad(format!(
+                "calibration_poses = {}: must be in [3, 100]",
+                self.calibration_poses
+            ));
+        }
+        if !(1..=100).contains(&self.calibration_samples) {
+            return bad(format!(
+                "calibration_samples = {}: must be in [1, 100]",
+                self.calibration_samples
+            ));
+        }
+        let p = &self.paper;
+        for (k, v, lo, hi) in [
+            ("paper.period_s", p.period_s, 0.001, 10.0),
+            ("paper.compute_delay_s", p.compute_delay_s, 0.0, 10.0),
+            ("paper.joint_speed_rad_s", p.joint_speed_rad_s, 0.01, 3.0),
+            ("paper.joint_accel_rad_s2", p.joint_accel_rad_s2, 0.01, 40.0),
+        ] {
+            if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                return bad(format!("{k} = {v}: must be in [{lo}, {hi}]"));
+            }
+        }
+        self.motion
+            .validate()
+            .map_err(|e| ExperimentError::Config(format!("motion.{e}")))?;
+        self.tracker
+            .validate()
+            .map_err(|e| ExperimentError::Config(format!("tracker.{e}")))?;
+        self.loop_params
+            .validate()
+            .map_err(|e| ExperimentError::Config(format!("loop.{e}")))?;
+        Ok(())
+    }
+}
+
+/// Where everything is (world = the head robot's base).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scene {
+    /// The coil robot's base.
+    pub world_from_base1: Isometry3<f64>,
+    /// The tracker.
+    pub world_from_tracker: Isometry3<f64>,
+    /// The phantom's marker on U2's flange (true).
+    pub e2_from_head: Isometry3<f64>,
+    /// The coil (and its marker) on U1's flange (true).
+    pub e1_from_coil: Isometry3<f64>,
+    /// U1's joints at the goal, at the start.
+    pub q1_start: [f64; 6],
+    /// U2's joints at the head's rest pose.
+    pub q2_start: [f64; 6],
+    /// The head at rest, world_from_head.
+    pub world_from_head_rest: Isometry3<f64>,
+}
+
+/// The head model's goal: the coil on top of the head (semi-axis 0.11 m), 3 mm off, +z into it.
+fn head_from_coil_design() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.113),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+    )
+}
+
+/// An upright frame at `p` turned by `yaw` about the vertical.
+fn upright(p: Vector3<f64>, yaw: f64) -> Isometry3<f64> {
+    Isometry3::new(p, Vector3::z() * yaw)
+}
+
+/// A frame at `from` looking at `to` along +z.
+fn look_at(from: Vector3<f64>, to: Vector3<f64>) -> Isometry3<f64> {
+    let z = (to - from).normalize();
+    let x = Vector3::z().cross(&z);
+    let x = if x.norm() < 1e-6 {
+        Vector3::x()
+    } else {
+        x.normalize()
+    };
+    let y = z.cross(&x);
+    let r = mocomp_geom::nalgebra::Rotation3::from_basis_unchecked(&[x, y, z]);
+    Isometry3::from_parts(
+        Translation3::from(from),
+        UnitQuaternion::from_rotation_matrix(&r),
+    )
+}
+
+/// How well a configuration can move: its singularity margin, less for joints near their limits.
+fn score(arm: &Arm, q: &[f64; 6]) -> f64 {
+    arm.singularity(q).margin(arm.geometry())
+}
+
+/// Chooses the phantom's mounting from the paper's goal and the coil's design pose, then places
+/// the head and both robots so that the start is well inside both arms' workspaces.
+pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
+    let arm1 = Arm::new(cfg.coil_robot);
+    let arm2 = Arm::new(cfg.head_robot);
+    // The coil 8 cm out along U1's flange axis; the phantom mounted so that the paper's goal puts
+    // the coil on top of the head.
+    let e1_from_coil = Isometry3::translation(0.0, 0.0, 0.08);
+    let e2_from_head = cfg.goal_e2_from_e1 * e1_from_coil * head_from_coil_design().inverse();
+    let seed = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0];
+    let select = Selection {
+        limit_margin: 0.3,
+        ..Selection::default()
+    };
+    // The head upright in front of U2: search its yaw and place for U2's best start.
+    let mut best: Option<(f64, Isometry3<f64>, [f64; 6])> = None;
+    for yaw_step in 0..24 {
+        let yaw = f64::from(yaw_step) * std::f64::consts::TAU / 24.0;
+        for (x, z) in [
+            (0.35, 0.55),
+            (0.45, 0.45),
+            (0.3, 0.7),
+            (0.5, 0.6),
+            (0.25, 0.85),
+        ] {
+            let head = upright(Vector3::new(x, 0.0, z), yaw);
+            let e2 = head * e2_from_head.inverse();
+            if let Ok(c) = arm2.ik_closest(&e2, &seed, &select) {
+                let s = score(&arm2, &c.joints);
+                if best.as_ref().is_none_or(|b| s > b.0) {
+                    best = Some((s, head, c.joints));
+                }
+            }
+        }
+    }
+    let Some((s2, world_from_head_rest, q2_start)) = best else {
+        return Err(ExperimentError::Scene(format!(
+            "the {} cannot hold the phantom anywhere tried",
+            cfg.head_robot
+        )));
+    };
+    if s2 < 0.05 {
+        return Err(ExperimentError::Scene(format!(
+            "the {} holds the phantom only near a singularity",
+            cfg.head_robot
+        )));
+    }
+    // U1 upright, beside the head: search its yaw, distance and height.
+    let world_from_e1 = world_from_head_rest * e2_from_head.inverse() * cfg.goal_e2_from_e1;
+    let target = world_from_e1.translation.vector;
+    let mut best: Option<(f64, Isometry3<f64>, [f64; 6])> = None;
+    for yaw_step in 0..24 {
+        let yaw = f64::from(yaw_step) * std::f64::consts::TAU / 24.0;
+        let g = arm1.geometry();
+        let reach = g.a2.abs() + g.a3.abs();
+        for r in [0.45, 0.6, 0.75] {
+            for h in [-0.3, -0.15, 0.0, 0.15] {
+                let offset = Vector3::new(yaw.cos(), yaw.sin(), 0.0) * r * reach;
+                let base = upright(target - offset + Vector3::z() * h, yaw);
+                let e1 = base.inverse() * world_from_e1;
+                if let Ok(c) = arm1.ik_closest(&e1, &seed, &select) {
+                    let s = score(&arm1, &c.joints);
+                    if best.as_ref().is_none_or(|b| s > b.0) {
+                        best = Some((s, base, c.joints));
+                    }
+                }
+            }
+        }
+    }
+    let Some((s1, world_from_base1, q1_start)) = best else {
+        return Err(ExperimentError::Scene(format!(
+            "the {} cannot reach the goal from anywhere tried",
+            cfg.coil_robot
+        )));
+    };
+    if s1 < 0.05 {
+        return Err(ExperimentError::Scene(format!(
+            "the {} reaches the goal only near a singularity",
+            cfg.coil_robot
+        )));
+    }
+    // The tracker 1.3 m from the head, above and in front, looking at it.
+    let h = world_from_head_rest.translation.vector;
+    let world_from_tracker = look_at(h + Vector3::new(0.9, 0.5, 0.8), h);
+    Ok(Scene {
+        world_from_base1,
+        world_from_tracker,
+        e2_from_head,
+        e1_from_coil,
+        q1_start,
+        q2_start,
+        world_from_head_rest,
+    })
+}
+
+/// One tick of one controller's run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Record {
+    /// Time since the controller started, s.
+    pub t: f64,
+    /// The paper's d, with translation in mm.
+    pub d: f64,
+    /// Translation error of E2_T_E1, m.
+    pub translation_m: f64,
+    /// Rotation error of E2_T_E1, rad.
+    pub rotation_rad: f64,
+    /// The head's true speed, m/s and rad/s.
+    pub head_speed: (f64, f64),
+    /// Age of the newest tracker sample the controller used, s (NaN before the first).
+    pub sample_age_s: f64,
+    /// Time from the newest sample to when the command takes effect, as the controller
+    /// predicted (mocomp) or as built into the pipeline (paper), s.
+    pub horizon_s: f64,
+    /// The controller's mode (paper: always tracking).
+    pub mode: Mode,
+    /// A safety event in this tick.
+    pub event: Option<Event>,
+}
+
+/// Summary statistics of a series.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Stats {
+    /// Root mean square.
+    pub rms: f64,
+    /// 95th percentile.
+    pub p95: f64,
+    /// Maximum.
+    pub max: f64,
+}
+
+impl Stats {
+    /// Of `v` (NaN-free).
+    pub fn of(v: &[f64]) -> Self {
+        if v.is_empty() {
+            return Self {
+                rms: f64::NAN,
+                p95: f64::NAN,
+                max: f64::NAN,
+            };
+        }
+        let mut s = v.to_vec();
+        s.sort_by(f64::total_cmp);
+        let rms = (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let p95 = s[((s.len() - 1) as f64 * 0.95).round() as usize];
+        Self {
+            rms,
+            p95,
+            max: s[s.len() - 1],
+        }
+    }
+}
+
+/// One controller's result.
+#[derive(Debug, Clone)]
+pub struct Run {
+    /// Which controller.
+    pub controller: Controller,
+    /// Every tick.
+    pub records: Vec<Record>,
+    /// d (translation in mm).
+    pub d: Stats,
+    /// Translation error, mm.
+    pub translation_mm: Stats,
+    /// Rotation error, degrees.
+    pub rotation_deg: Stats,
+}
+
+impl Run {
+    fn new(controller: Controller, records: Vec<Record>) -> Self {
+        let col = |f: &dyn Fn(&Record) -> f64| records.iter().map(f).collect::<Vec<f64>>();
+        Self {
+            controller,
+            d: Stats::of(&col(&|r| r.d)),
+            translation_mm: Stats::of(&col(&|r| r.translation_m * 1e3)),
+            rotation_deg: Stats::of(&col(&|r| r.rotation_rad.to_degrees())),
+            records,
+        }
+    }
+}
+
+/// The calibration of one robot against the tracker.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibrationResult {
+    /// Estimated flange_from_marker.
+    pub flange_from_marker: Isometry3<f64>,
+    /// Estimated base_from_tracker.
+    pub base_from_tracker: Isometry3<f64>,
+    /// Residual RMS, m and rad.
+    pub residual: (f64, f64),
+    /// Error of X against the truth, m and rad.
+    pub x_error: (f64, f64),
+    /// Error of Y against the truth, m and rad.
+    pub y_error: (f64, f64),
+    /// Pairs measured.
+    pub pairs: usize,
+}
+
+/// The whole experiment's result.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// Where everything was.
+    pub scene: Scene,
+    /// U1's calibration (coil robot).
+    pub coil_calibration: CalibrationResult,
+    /// U2's calibration (head robot).
+    pub head_calibration: CalibrationResult,
+    /// The goal the controllers used, head_from_coil (from the estimates).
+    pub head_from_coil_goal: Isometry3<f64>,
+    /// The head's peak speeds over the run, m/s and rad/s.
+    pub head_peak_speed: (f64, f64),
+    /// One run per controller, in the order run.
+    pub runs: Vec<Run>,
+}
+
+/// What the experiment is doing, for a progress display.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Starting the simulators and connecting.
+    Connecting,
+    /// Calibrating the coil robot.
+    CalibratingCoilRobot,
+    /// Calibrating the head robot.
+    CalibratingHeadRobot,
+    /// Running a controller.
+    Compensating(Controller),
+}
+
+/// Spins until `f` holds or `limit` passes.
+fn spin(
+    limit: Duration,
+    what: &'static str,
+    mut f: impl FnMut() -> bool,
+) -> Result<(), ExperimentError> {
+    let end = Instant::now() + limit;
+    while !f() {
+        if Instant::now() > end {
+            return Err(ExperimentError::Timeout(what));
+        }
+        std::thread::yield_now();
+    }
+    Ok(())
+}
+
+/// The simulated world in lockstep.
+struct World {
+    clock: Arc<SteppedClock>,
+    period: f64,
+    sim1: Sim,
+    sim2: Sim,
+    robot1: UrRobot,
+    robot2: UrRobot,
+    arm1: Arm,
+    arm2: Arm,
+    scene: Scene,
+    tracker: TrackerSim,
+    server: Server,
+    /// The head marker's client (the loop's source).
+    head_client: Client,
+    /// The coil marker's client (calibration).
+    coil_client: Client,
+    /// Their pose sources.
+    head_source: IgtlPoseSource,
+    coil_source: IgtlPoseSource,
+    /// The tracker's time 0 on the clock (each controller's run restarts the tracker).
+    t_base: f64,
+    /// Joints at the previous and this tick (for the tracker's acquisition times between).
+    q_prev: ([f64; 6], [f64; 6]),
+    q_now: ([f64; 6], [f64; 6]),
+    t_prev: f64,
+}
+
+impl World {
+    fn start(cfg: &ExperimentConfig, scene: Scene) -> Result<Self, ExperimentError> {
+        let mut c1 = ControllerConfig::new(cfg.coil_robot);
+        c1.initial_q = scene.q1_start;
+        let mut c2 = ControllerConfig::new(cfg.head_robot);
+        c2.initial_q = scene.q2_start;
+        let mut s1 = SimConfig::new(c1, cfg.coil_host);
+        s1.clock = mocomp_ursim::SimClock::Stepped;
+        let mut s2 = SimConfig::new(c2, cfg.head_host);
+        s2.clock = mocomp_ursim::SimClock::Stepped;
+        let sim1 = Sim::start(s1).map_err(|e| io("starting the coil robot's simulator", e))?;
+        let sim2 = Sim::start(s2).map_err(|e| io("starting the head robot's simulator", e))?;
+        let period = cfg.coil_robot.spec().series.period_s();
+        let clock = Arc::new(SteppedClock::new(0.0));
+        // Connect both while stepping the simulators at about 4× real time (the client feeds the
+        // program's watchdog on the machine's clock; the clock stays at 0 meanwhile).
+        // Both at once, and a simulator stops stepping once its robot is connected: a connected
+        // robot whose program is not fed would stop on its watchdog.
+        let done = [AtomicBool::new(false), AtomicBool::new(false)];
+        let slowest = period.max(cfg.head_robot.spec().series.period_s());
+        let (r1, r2) = std::thread::scope(|s| {
+            s.spawn(|| {
+                while !(done[0].load(Ordering::Relaxed) && done[1].load(Ordering::Relaxed)) {
+                    if !done[0].load(Ordering::Relaxed) {
+                        sim1.step();
+                    }
+                    if !done[1].load(Ordering::Relaxed) {
+                        sim2.step();
+                    }
+                    std::thread::sleep(Duration::from_secs_f64(slowest / 4.0));
+                }
+            });
+            let c: Arc<dyn Clock> = clock.clone();
+            let c2 = Arc::clone(&c);
+            let h2 = s.spawn(|| {
+                let r = UrRobot::connect(sim2.ur_config(), c2);
+                done[1].store(true, Ordering::Relaxed);
+                r
+            });
+            let r1 = UrRobot::connect(sim1.ur_config(), c);
+            done[0].store(true, Ordering::Relaxed);
+            let r2 = h2.join();
+            done[1].store(true, Ordering::Relaxed);
+            (r1, r2)
+        });
+        // A failed connection says what the simulator saw.
+        let events = |sim: &Sim| {
+            let (ev, _) = sim.with(|c| c.events());
+            ev.iter()
+                .map(|e| format!("{:.3} s {}", e.time_s, e.text))
+                .collect::<Vec<_>>()
+                .join("; ")
+        };
+        let robot1 = r1.map_err(|e| {
+            io(
+                "connecting to the coil robot",
+                format!("{e} (simulator: {})", events(&sim1)),
+            )
+        })?;
+        let r2 = r2.map_err(|_| io("connecting to the head robot", "the thread panicked"))?;
+        let robot2 = r2.map_err(|e| {
+            io(
+                "connecting to the head robot",
+                format!("{e} (simulator: {})", events(&sim2)),
+            )
+        })?;
+        let server = Server::bind("127.0.0.1:0", ServerConfig::default())
+            .map_err(|e| io("starting the tracker's OpenIGTLink server", e))?;
+        let client = |device: &str| {
+            let mut c = ClientConfig::new(&server.local_addr().to_string());
+            c.device = Some(device.to_string());
+            c.timestamps = TimestampMode::Known(-EPOCH_S);
+            Client::start(c, clock.clone())
+        };
+        let head_client = client(HEAD_DEVICE);
+        let coil_client = client(COIL_DEVICE);
+        spin(
+            Duration::from_secs(5),
+            "the tracker clients to connect",
+            || server.client_count() == 2,
+        )?;
+        let q = (scene.q1_start, scene.q2_start);
+        let mut w = Self {
+            clock,
+            period,
+            sim1,
+            sim2,
+            robot1,
+            robot2,
+            arm1: Arm::new(cfg.coil_robot),
+            arm2: Arm::new(cfg.head_robot),
+            scene,
+            tracker: TrackerSim::new(cfg.tracker, 2),
+            server,
+            head_source: head_client.pose_source(),
+            coil_source: coil_client.pose_source(),
+            head_client,
+            coil_client,
+            t_base: 0.0,
+            q_prev: q,
+            q_now: q,
+            t_prev: 0.0,
+        };
+        // One step so the states carry the stepped clock's time.
+        w.advance()?;
+        Ok(w)
+    }
+
+    fn world_from_e1(&self, q1: &[f64; 6]) -> Isometry3<f64> {
+        self.scene.world_from_base1 * self.arm1.fk_flange(q1)
+    }
+
+    fn world_from_e2(&self, q2: &[f64; 6]) -> Isometry3<f64> {
+        self.arm2.fk_flange(q2)
+    }
+
+    /// The tracker acquires what is due and sends what its latency releases; returns when both
+    /// clients have received it.
+    fn track(&mut self) -> Result<(), ExperimentError> {
+        let now = self.clock.now_s();
+        let base = self.t_base;
+        let (t0, t1) = (self.t_prev - base, now - base);
+        let (qa, qb) = (self.q_prev, self.q_now);
+        let lerp = |a: &[f64; 6], b: &[f64; 6], t: f64| {
+            let s = if t1 > t0 {
+                ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            let mut q = [0.0; 6];
+            for i in 0..6 {
+                q[i] = a[i] + (b[i] - a[i]) * s;
+            }
+            q
+        };
+        let tracker_from_world = self.scene.world_from_tracker.inverse();
+        let (arm1, arm2, scene) = (self.arm1, self.arm2, self.scene);
+        let mut truth = |marker: usize, t: f64| {
+            Some(match marker {
+                0 => {
+                    tracker_from_world * arm2.fk_flange(&lerp(&qa.1, &qb.1, t)) * scene.e2_from_head
+                }
+                _ => {
+                    tracker_from_world
+                        * scene.world_from_base1
+                        * arm1.fk_flange(&lerp(&qa.0, &qb.0, t))
+                        * scene.e1_from_coil
+                }
+            })
+        };
+        let before = (
+            self.head_client.counters().transforms,
+            self.coil_client.counters().transforms,
+        );
+        let mut sent = 0u64;
+        let server = &self.server;
+        self.tracker.step(now - base, &mut truth, &mut |o| {
+            let device = if o.marker == 0 {
+                HEAD_DEVICE
+            } else {
+                COIL_DEVICE
+            };
+            let ts = Timestamp::from_secs_f64(o.acquired_s + base + EPOCH_S);
+            if let Ok(m) = Message::transform(device, &o.tracker_from_marker, ts) {
+                let status = if o.valid { "OK" } else { "INVALID" };
+                server.send(&m.with_metadata(vec![MetaEntry::text("TransformStatus", status)]));
+                sent += 1;
+            }
+        });
+        if sent > 0 {
+            let (h, c) = (&self.head_client, &self.coil_client);
+            spin(Duration::from_secs(5), "tracker messages", || {
+                h.counters().transforms >= before.0 + sent
+                    && c.counters().transforms >= before.1 + sent
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Waits until both simulators have taken this tick's commands, advances the clock one
+    /// period, steps both and waits for their new states.
+    fn advance(&mut self) -> Result<(), ExperimentError> {
+        let n = (self.robot1.state_count(), self.robot2.state_count());
+        self.t_prev = self.clock.now_s();
+        self.clock.advance(self.period);
+        self.sim1.step();
+        self.sim2.step();
+        let (r1, r2) = (&self.robot1, &self.robot2);
+        spin(Duration::from_secs(5), "the robots' states", || {
+            r1.state_count() > n.0 && r2.state_count() > n.1
+        })?;
+        self.q_prev = self.q_now;
+        if let (Some(a), Some(b)) = (self.robot1.state(), self.robot2.state()) {
+            self.q_now = (a.actual_q, b.actual_q);
+        }
+        Ok(())
+    }
+
+    /// Sends a command on a robot and waits until its simulator has it.
+    fn sent(
+        sim: &Sim,
+        f: impl FnOnce() -> Result<(), mocomp_ur::UrError>,
+    ) -> Result<(), ExperimentError> {
+        let inputs = sim.stats().inputs;
+        f().map_err(|e| io("commanding a robot", e))?;
+        spin(Duration::from_secs(5), "a command to arrive", || {
+            sim.stats().inputs > inputs
+        })
+    }
+
+    /// Moves one robot (U1 if `coil`) to `q` with movej while the other keeps still, ticking
+    /// until it is there.
+    fn move_to(&mut self, coil: bool, q: &[f64; 6]) -> Result<(), ExperimentError> {
+        let start = self.clock.now_s();
+        let mut commanded = false;
+        loop {
+            self.track()?;
+            let (mover, other, sim_m, sim_o) = if coil {
+                (&mut self.robot1, &mut self.robot2, &self.sim1, &self.sim2)
+            } else {
+                (&mut self.robot2, &mut self.robot1, &self.sim2, &self.sim1)
+            };
+            if commanded {
+                Self::sent(sim_m, || mover.keep_alive())?;
+            } else {
+                Self::sent(sim_m, || mover.move_joints(q, 2.0, 4.0).map(|_| ()))?;
+                commanded = true;
+            }
+            Self::sent(sim_o, || other.keep_alive())?;
+            self.advance()?;
+            let s = if coil {
+                self.robot1.state()
+            } else {
+                self.robot2.state()
+            };
+            if let Some(s) = s {
+                if let Some(f) = s.fault() {
+                    return Err(io("a calibration move", f));
+                }
+                let there = s.actual_q.iter().zip(q).all(|(a, b)| (a - b).abs() < 1e-4);
+                let still = s.actual_qd.iter().all(|v| v.abs() < 1e-4);
+                if there && still {
+                    return Ok(());
+                }
+            }
+            if self.clock.now_s() - start > 30.0 {
+                return Err(ExperimentError::Timeout("a calibration move"));
+            }
+        }
+    }
+
+    /// Ticks for `seconds` with both robots still.
+    fn idle(&mut self, seconds: f64) -> Result<(), ExperimentError> {
+        let end = self.clock.now_s() + seconds;
+        while self.clock.now_s() < end - 1e-9 {
+            self.track()?;
+            Self::sent(&self.sim1, || self.robot1.keep_alive())?;
+            Self::sent(&self.sim2, || self.robot2.keep_alive())?;
+            self.advance()?;
+        }
+        Ok(())
+    }
+
+    /// Hand-eye calibration of one robot against the tracker: the planner's poses around its
+    /// start, `samples` averaged at each, solved with the refined method.
+    fn calibrate(
+        &mut self,
+        coil: bool,
+        cfg: &ExperimentConfig,
+        progress: &mut dyn FnMut(Phase, f64),
+    ) -> Result<CalibrationResult, ExperimentError> {
+        let (arm, q0, name, phase) = if coil {
+            (
+                self.arm1,
+                self.scene.q1_start,
+                "the coil robot",
+                Phase::CalibratingCoilRobot,
+            )
+        } else {
+            (
+                self.arm2,
+                self.scene.q2_start,
+                "the head robot",
+                Phase::CalibratingHeadRobot,
+            )
+        };
+        let calib_err = |detail: String| ExperimentError::Calibration {
+            robot: name,
+            detail,
+        };
+        // Around the start, backed off along the flange axis (the coil away from the head).
+        let center = arm.fk_flange(&q0) * Isometry3::translation(0.0, 0.0, -0.1);
+        let current = arm
+            .ik_closest(&center, &q0, &Selection::tracking(0.1))
+            .map_err(|e| calib_err(format!("the centre pose: {e}")))?
+            .joints;
+        let mut o = PlanOptions::new(cfg.calibration_poses, center, current);
+        o.translation_spread_m = 0.06;
+        o.rotation_range_rad = (12f64.to_radians(), 30f64.to_radians());
+        let poses = plan(&arm, &o).map_err(|e| calib_err(e.to_string()))?;
+        let mut pairs = Vec::with_capacity(poses.len());
+        for (i, p) in poses.iter().enumerate() {
+            self.move_to(coil, &p.joints)?;
+            self.idle(0.05)?;
+            let after = self.clock.now_s();
+            let mut samples = Vec::new();
+            let mut qs = Vec::new();
+            while samples.len() < cfg.calibration_samples {
+                self.idle(self.period)?;
+                let s = if coil {
+                    self.coil_source.latest()
+                } else {
+                    self.head_source.latest()
+                };
+                if let Some(s) = s
+                    && s.valid
+                    && s.acquired_s > after
+                {
+                    samples.push(s.tracker_from_marker);
+                    qs.push(if coil { self.q_now.0 } else { self.q_now.1 });
+                }
+                if self.clock.now_s() - after > 5.0 {
+                    return Err(calib_err(format!("no marker samples at pose {}", i + 1)));
+                }
+            }
+            let marker =
+                mocomp_geom::average(&samples, None).map_err(|e| calib_err(e.to_string()))?;
+            let q = qs[0];
+            let mut pair = Pair::new(arm.fk_flange(&q), marker);
+            pair.joints = Some(q);
+            pairs.push(pair);
+            progress(phase, (i + 1) as f64 / poses.len() as f64);
+        }
+        self.move_to(coil, &q0)?;
+        let noise = NoiseModel {
+            tracker_translation_m: cfg.tracker.noise_m.max(1e-6),
+            tracker_rotation_rad: cfg.tracker.noise_rad.max(1e-6),
+            robot_translation_m: 1e-5,
+            robot_rotation_rad: 1e-5,
+        };
+        let c = solve(
+            &pairs,
+            &SolveOptions {
+                method: Method::Refined,
+                noise,
+                reject_outliers: true,
+            },
+        )
+        .map_err(|e| calib_err(e.to_string()))?;
+        let (true_x, true_y) = if coil {
+            (
+                self.scene.e1_from_coil,
+                self.scene.world_from_base1.inverse() * self.scene.world_from_tracker,
+            )
+        } else {
+            (self.scene.e2_from_head, self.scene.world_from_tracker)
+        };
+        let err = |a: &Isometry3<f64>, b: &Isometry3<f64>| {
+            (translation_error(a, b), rotation_error(a, b))
+        };
+        Ok(CalibrationResult {
+            flange_from_marker: c.flange_from_marker,
+            base_from_tracker: c.base_from_tracker,
+            residual: (c.rms_mm * 1e-3, c.rms_deg.to_radians()),
+            x_error: err(&c.flange_from_marker, &true_x),
+            y_error: err(&c.base_from_tracker, &true_y),
+            pairs: pairs.len(),
+        })
+    }
+}
+
+impl World {
+    /// Brings both robots back to their start and restarts the tracker (same seed), so each
+    /// controller meets the same trajectory and the same noise.
+    fn reset(&mut self, cfg: &ExperimentConfig) -> Result<(), ExperimentError> {
+        let (q1, q2) = (self.scene.q1_start, self.scene.q2_start);
+        self.move_to(false, &q2)?;
+        self.move_to(true, &q1)?;
+        self.idle(0.1)?;
+        self.tracker = TrackerSim::new(cfg.tracker, 2);
+        self.t_base = self.clock.now_s();
+        while self.head_source.latest().is_some() {}
+        Ok(())
+    }
+
+    /// The simulators' recent events, for an error message.
+    fn events(&self) -> String {
+        let last = |sim: &Sim, name: &str| {
+            let (ev, _) = sim.with(|c| c.events());
+            let n = ev.len().saturating_sub(3);
+            ev[n..]
+                .iter()
+                .map(|e| format!("{name} {:.3} s: {}", e.time_s, e.text))
+                .collect::<Vec<_>>()
+        };
+        let mut v = last(&self.sim1, "coil robot");
+        v.extend(last(&self.sim2, "head robot"));
+        v.join("; ")
+    }
+
+    /// One controller's run from the start positions; an error says what the simulators saw.
+    fn compensate(
+        &mut self,
+        controller: Controller,
+        cfg: &ExperimentConfig,
+        loop_cfg: LoopConfig,
+        progress: &mut dyn FnMut(Phase, f64),
+    ) -> Result<Run, ExperimentError> {
+        self.compensate_inner(controller, cfg, loop_cfg, progress)
+            .map_err(|e| match e {
+                ExperimentError::Io { what, detail } => ExperimentError::Io {
+                    what,
+                    detail: format!("{detail} (simulators: {})", self.events()),
+                },
+                other => other,
+            })
+    }
+
+    fn compensate_inner(
+        &mut self,
+        controller: Controller,
+        cfg: &ExperimentConfig,
+        loop_cfg: LoopConfig,
+        progress: &mut dyn FnMut(Phase, f64),
+    ) -> Result<Run, ExperimentError> {
+        self.reset(cfg)?;
+        let t0 = self.clock.now_s();
+        let trajectory = cfg.motion.trajectory();
+        let rest = self.scene.world_from_head_rest;
+        let head_from_e2 = self.scene.e2_from_head.inverse();
+        let head_servo = ServoParams::for_period(self.period);
+        let paper_select = Selection {
+            metric: Metric::WeightedSum([1.0; 6]),
+            branch: BranchPolicy::Any,
+            limit_margin: 0.0,
+        };
+        let mut comp = Compensator::new(loop_cfg, self.arm1, self.period);
+        let mut q2_cmd = self.scene.q2_start;
+        let mut next_loop = 0.0;
+        let mut newest: Option<mocomp_geom::PoseSample> = None;
+        let mut pending: Option<(f64, [f64; 6], f64)> = None;
+        let mut last_horizon = f64::NAN;
+        let n = (cfg.duration_s / self.period).round() as usize;
+        let mut records = Vec::with_capacity(n);
+        for k in 0..n {
+            self.track()?;
+            let t = self.clock.now_s();
+            let tr = t - t0;
+            // The head robot follows the trajectory.
+            let target = rest * trajectory.rest_from_head(tr + self.period) * head_from_e2;
+            if let Ok(c) = self
+                .arm2
+                .ik_closest(&target, &q2_cmd, &Selection::tracking(0.02))
+            {
+                q2_cmd = c.joints;
+            }
+            let (robot2, q2) = (&mut self.robot2, q2_cmd);
+            Self::sent(&self.sim2, || robot2.servo(&q2, &head_servo).map(|_| ()))?;
+            // The coil robot's controller.
+            let (mode, event, age, horizon) = match controller {
+                Controller::Mocomp => {
+                    let inputs = self.sim1.stats().inputs;
+                    let rec = comp.cycle(t, &mut self.robot1, &mut self.head_source);
+                    if matches!(rec.mode, Mode::Faulted(_)) {
+                        self.robot1
+                            .keep_alive()
+                            .map_err(|e| io("commanding the coil robot", e))?;
+                    }
+                    let sim1 = &self.sim1;
+                    spin(Duration::from_secs(5), "a command to arrive", || {
+                        sim1.stats().inputs > inputs
+                    })?;
+                    (rec.mode, rec.event, rec.sample_age_s, rec.horizon_s)
+                }
+                Controller::Paper => {
+                    while let Some(s) = self.head_source.latest() {
+                        if s.valid {
+                            newest = Some(s);
+                        }
+                    }
+                    if tr + 1e-9 >= next_loop {
+                        next_loop += cfg.paper.period_s;
+                        if let Some(s) = newest {
+                            // Z = Y · S_T_H · H_T_C,g · X⁻¹, to the IK solution of least angle sum.
+                            let z = comp.goal_for(&s.tracker_from_marker);
+                            if let Ok(c) = self.arm1.ik_closest(&z, &self.q_now.0, &paper_select) {
+                                let due = t + cfg.paper.compute_delay_s;
+                                pending = Some((due, c.joints, s.acquired_s));
+                            }
+                        }
+                    }
+                    let robot1 = &mut self.robot1;
+                    match pending {
+                        Some((due, q, acquired)) if t + 1e-9 >= due => {
+                            let p = cfg.paper;
+                            Self::sent(&self.sim1, || {
+                                robot1
+                                    .move_joints(&q, p.joint_speed_rad_s, p.joint_accel_rad_s2)
+                                    .map(|_| ())
+                            })?;
+                            last_horizon = t - acquired;
+                            pending = None;
+                        }
+                        _ => Self::sent(&self.sim1, || robot1.keep_alive())?,
+                    }
+                    let age = newest.map_or(f64::NAN, |s| t - s.acquired_s);
+                    (Mode::Tracking, None, age, last_horizon)
+                }
+            };
+            self.advance()?;
+            let e2 = self.world_from_e2(&self.q_now.1);
+            let e1 = self.world_from_e1(&self.q_now.0);
+            let actual = e2.inverse() * e1;
+            let goal = cfg.goal_e2_from_e1;
+            records.push(Record {
+                t: tr + self.period,
+                d: frobenius_deviation(&goal, &actual, LengthUnit::Millimetre),
+                translation_m: translation_error(&goal, &actual),
+                rotation_rad: rotation_error(&goal, &actual),
+                head_speed: trajectory.speed_at(tr + self.period),
+                sample_age_s: age,
+                horizon_s: horizon,
+                mode,
+                event,
+            });
+            if k % 50 == 0 {
+                progress(Phase::Compensating(controller), k as f64 / n as f64);
+            }
+        }
+        progress(Phase::Compensating(controller), 1.0);
+        Ok(Run::new(controller, records))
+    }
+}
+
+/// Runs the whole experiment: the scene, both calibrations, then each controller in `order`.
+/// `progress` is told the phase and the fraction of it done.
+pub fn run_experiment(
+    cfg: &ExperimentConfig,
+    order: &[Controller],
+    progress: &mut dyn FnMut(Phase, f64),
+) -> Result<Outcome, ExperimentError> {
+    cfg.validate()?;
+    let scene = build_scene(cfg)?;
+    progress(Phase::Connecting, 0.0);
+    let mut world = World::start(cfg, scene)?;
+    progress(Phase::Connecting, 1.0);
+    let coil_calibration = world.calibrate(true, cfg, progress)?;
+    let head_calibration = world.calibrate(false, cfg, progress)?;
+    // The goal through the estimates, as in the paper: head_from_coil = X2⁻¹ · E2_T_E1,g · X1.
+    let head_from_coil_goal = head_calibration.flange_from_marker.inverse()
+        * cfg.goal_e2_from_e1
+        * coil_calibration.flange_from_marker;
+    let period = cfg.coil_robot.spec().series.period_s();
+    let mut loop_cfg = LoopConfig::new(
+        coil_calibration.base_from_tracker,
+        coil_calibration.flange_from_marker,
+        head_from_coil_goal,
+        period,
+    );
+    loop_cfg.params = cfg.loop_params;
+    loop_cfg.predictor = cfg.predictor;
+    let mut runs = Vec::with_capacity(order.len());
+    for &c in order {
+        runs.push(world.compensate(c, cfg, loop_cfg.clone(), progress)?);
+    }
+    let head_peak_speed = cfg.motion.trajectory().peak_speeds(cfg.duration_s);
+    Ok(Outcome {
+        scene,
+        coil_calibration,
+        head_calibration,
+        head_from_coil_goal,
+        head_peak_speed,
+        runs,
+    })
+}
