@@ -17,7 +17,7 @@ fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
     let mut cfg = ExperimentConfig::new().unwrap();
     cfg.coil_host = IpAddr::from([127, 0, 0, 51]);
     cfg.head_host = IpAddr::from([127, 0, 0, 52]);
-    cfg.duration_s = std::env::var("EXP_S").map_or(12.0, |v| v.parse().unwrap());
+    cfg.duration_s = 20.0;
     let out = run_experiment(
         &cfg,
         &[Controller::Paper, Controller::Mocomp],
@@ -59,6 +59,9 @@ fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
     );
     let (paper, mocomp) = (&out.runs[0], &out.runs[1]);
     assert!(c.y_error.0 < 1e-3 && c.x_error.0 < 1e-3, "calibration");
+    // The condition: head speeds up to 20 mm/s.
+    assert!(out.head_peak_speed.0 <= 0.02, "{:?}", out.head_peak_speed);
+    assert!(paper.records.len() == mocomp.records.len() && !mocomp.records.is_empty());
     assert!(
         mocomp.translation_mm.rms < 0.5,
         "{}",
