@@ -81,7 +81,7 @@ fn summary(o: &Outcome, seconds: f64, seed: u64) -> Summary {
     }
 }
 
-fn markdown(s: &Summary, o: &Outcome) -> String {
+fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
     let mut t = String::new();
     t.push_str("# mocomp demo: the paper's experiment\n\n");
     t.push_str(&format!(
@@ -110,12 +110,16 @@ fn markdown(s: &Summary, o: &Outcome) -> String {
     ));
     let c = &o.coil_calibration;
     t.push_str(&format!(
-        "Calibration of the coil robot ({} pairs): Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}° from the truth. The `paper` controller: a 100 ms loop, 80 ms from sample to command, movej at 1.05 rad/s and 1.4 rad/s² to the least-angle-sum IK solution, no prediction.\n",
+        "Calibration of the coil robot ({} pairs): Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}° from the truth. The `paper` controller: a {:.0} ms loop, {:.0} ms from sample to command, movej at {} rad/s and {} rad/s² to the least-angle-sum IK solution, no prediction.\n",
         c.pairs,
         c.y_error.0 * 1e3,
         c.y_error.1.to_degrees(),
         c.x_error.0 * 1e3,
-        c.x_error.1.to_degrees()
+        c.x_error.1.to_degrees(),
+        cfg.paper.period_s * 1e3,
+        cfg.paper.compute_delay_s * 1e3,
+        cfg.paper.joint_speed_rad_s,
+        cfg.paper.joint_accel_rad_s2
     ));
     t
 }
@@ -187,7 +191,7 @@ pub fn demo(out: &mut dyn Write, opts: &DemoOptions) -> anyhow::Result<()> {
         }
     }
     std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
-    let md = markdown(&s, &outcome);
+    let md = markdown(&s, &outcome, &cfg);
     let md_path = opts.out.join("summary.md");
     std::fs::write(&md_path, &md).with_context(|| format!("writing {}", md_path.display()))?;
     if opts.json {

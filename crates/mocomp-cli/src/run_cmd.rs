@@ -140,7 +140,7 @@ impl Default for SimTrackerSection {
             base_from_head: [0.30, -0.12, -0.02, 0.0, 0.0, 0.3],
             base_from_tracker: None,
             flange_from_marker: [0.0, 0.06, 0.02, std::f64::consts::PI, 0.0, 0.0],
-            motion: HeadMotion::named("nods").unwrap_or(HeadMotion::Still),
+            motion: HeadMotion::Nods(mocomp_sim::motion::Nods::default()),
             model: TrackerModel::default(),
         }
     }

@@ -195,7 +195,7 @@ impl ExperimentConfig {
             coil_host: IpAddr::from([127, 0, 0, 2]),
             head_host: IpAddr::from([127, 0, 0, 3]),
             duration_s: 30.0,
-            motion: HeadMotion::named("random").unwrap_or(HeadMotion::Still),
+            motion: HeadMotion::Random(crate::motion::RandomMotion::default()),
             tracker: TrackerModel::default(),
             paper: PaperController::default(),
             calibration_poses: 15,
@@ -309,9 +309,41 @@ fn look_at(from: Vector3<f64>, to: Vector3<f64>) -> Isometry3<f64> {
     )
 }
 
-/// How well a configuration can move: its singularity margin, less for joints near their limits.
-fn score(arm: &Arm, q: &[f64; 6]) -> f64 {
-    arm.singularity(q).margin(arm.geometry())
+/// Of candidate placements (a frame, and the flange pose it asks of `arm`), the one whose IK
+/// solution is farthest from a singularity (the first of equals): its margin, frame and joints.
+fn best_placement(
+    arm: &Arm,
+    seed: &[f64; 6],
+    select: &Selection,
+    candidates: impl Iterator<Item = (Isometry3<f64>, Isometry3<f64>)>,
+) -> Option<(f64, Isometry3<f64>, [f64; 6])> {
+    let mut best: Option<(f64, Isometry3<f64>, [f64; 6])> = None;
+    for (frame, flange) in candidates {
+        if let Ok(c) = arm.ik_closest(&flange, seed, select) {
+            let margin = arm.singularity(&c.joints).margin(arm.geometry());
+            if best.as_ref().is_none_or(|b| margin > b.0) {
+                best = Some((margin, frame, c.joints));
+            }
+        }
+    }
+    best
+}
+
+/// The chosen placement, or why there is none (`task`: what the robot must do).
+fn placed(
+    best: Option<(f64, Isometry3<f64>, [f64; 6])>,
+    robot: Model,
+    task: &str,
+) -> Result<(Isometry3<f64>, [f64; 6]), ExperimentError> {
+    match best {
+        None => Err(ExperimentError::Scene(format!(
+            "the {robot} cannot {task} from anywhere tried"
+        ))),
+        Some((margin, _, _)) if margin < 0.05 => Err(ExperimentError::Scene(format!(
+            "the {robot} can {task} only near a singularity"
+        ))),
+        Some((_, frame, q)) => Ok((frame, q)),
+    }
 }
 
 /// Chooses the phantom's mounting from the paper's goal and the coil's design pose, then places
@@ -328,73 +360,45 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
         limit_margin: 0.3,
         ..Selection::default()
     };
+    let yaws = || (0..24).map(|k| f64::from(k) * std::f64::consts::TAU / 24.0);
     // The head upright in front of U2: search its yaw and place for U2's best start.
-    let mut best: Option<(f64, Isometry3<f64>, [f64; 6])> = None;
-    for yaw_step in 0..24 {
-        let yaw = f64::from(yaw_step) * std::f64::consts::TAU / 24.0;
-        for (x, z) in [
+    let heads = yaws().flat_map(|yaw| {
+        [
             (0.35, 0.55),
             (0.45, 0.45),
             (0.3, 0.7),
             (0.5, 0.6),
             (0.25, 0.85),
-        ] {
+        ]
+        .map(|(x, z)| {
             let head = upright(Vector3::new(x, 0.0, z), yaw);
-            let e2 = head * e2_from_head.inverse();
-            if let Ok(c) = arm2.ik_closest(&e2, &seed, &select) {
-                let s = score(&arm2, &c.joints);
-                if best.as_ref().is_none_or(|b| s > b.0) {
-                    best = Some((s, head, c.joints));
-                }
-            }
-        }
-    }
-    let Some((s2, world_from_head_rest, q2_start)) = best else {
-        return Err(ExperimentError::Scene(format!(
-            "the {} cannot hold the phantom anywhere tried",
-            cfg.head_robot
-        )));
-    };
-    if s2 < 0.05 {
-        return Err(ExperimentError::Scene(format!(
-            "the {} holds the phantom only near a singularity",
-            cfg.head_robot
-        )));
-    }
+            (head, head * e2_from_head.inverse())
+        })
+    });
+    let (world_from_head_rest, q2_start) = placed(
+        best_placement(&arm2, &seed, &select, heads),
+        cfg.head_robot,
+        "hold the phantom",
+    )?;
     // U1 upright, beside the head: search its yaw, distance and height.
     let world_from_e1 = world_from_head_rest * e2_from_head.inverse() * cfg.goal_e2_from_e1;
     let target = world_from_e1.translation.vector;
-    let mut best: Option<(f64, Isometry3<f64>, [f64; 6])> = None;
-    for yaw_step in 0..24 {
-        let yaw = f64::from(yaw_step) * std::f64::consts::TAU / 24.0;
-        let g = arm1.geometry();
-        let reach = g.a2.abs() + g.a3.abs();
-        for r in [0.45, 0.6, 0.75] {
-            for h in [-0.3, -0.15, 0.0, 0.15] {
+    let g = arm1.geometry();
+    let reach = g.a2.abs() + g.a3.abs();
+    let bases = yaws().flat_map(|yaw| {
+        [0.45, 0.6, 0.75].into_iter().flat_map(move |r| {
+            [-0.3, -0.15, 0.0, 0.15].map(|h| {
                 let offset = Vector3::new(yaw.cos(), yaw.sin(), 0.0) * r * reach;
                 let base = upright(target - offset + Vector3::z() * h, yaw);
-                let e1 = base.inverse() * world_from_e1;
-                if let Ok(c) = arm1.ik_closest(&e1, &seed, &select) {
-                    let s = score(&arm1, &c.joints);
-                    if best.as_ref().is_none_or(|b| s > b.0) {
-                        best = Some((s, base, c.joints));
-                    }
-                }
-            }
-        }
-    }
-    let Some((s1, world_from_base1, q1_start)) = best else {
-        return Err(ExperimentError::Scene(format!(
-            "the {} cannot reach the goal from anywhere tried",
-            cfg.coil_robot
-        )));
-    };
-    if s1 < 0.05 {
-        return Err(ExperimentError::Scene(format!(
-            "the {} reaches the goal only near a singularity",
-            cfg.coil_robot
-        )));
-    }
+                (base, base.inverse() * world_from_e1)
+            })
+        })
+    });
+    let (world_from_base1, q1_start) = placed(
+        best_placement(&arm1, &seed, &select, bases),
+        cfg.coil_robot,
+        "reach the goal",
+    )?;
     // The tracker 1.3 m from the head, above and in front, looking at it.
     let h = world_from_head_rest.translation.vector;
     let world_from_tracker = look_at(h + Vector3::new(0.9, 0.5, 0.8), h);
