@@ -191,6 +191,7 @@ pub fn demo(out: &mut dyn Write, opts: &DemoOptions) -> anyhow::Result<()> {
         }
     }
     std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    let figures = crate::plots::write_all(&outcome.runs, cfg.duration_s, &opts.out)?;
     let md = markdown(&s, &outcome, &cfg);
     let md_path = opts.out.join("summary.md");
     std::fs::write(&md_path, &md).with_context(|| format!("writing {}", md_path.display()))?;
@@ -200,9 +201,17 @@ pub fn demo(out: &mut dyn Write, opts: &DemoOptions) -> anyhow::Result<()> {
         write!(out, "{md}")?;
         writeln!(
             out,
-            "\nwrote {} and {}",
+            "\nwrote {}, {} and {} figures (PNG and SVG: {}) in {}",
             csv_path.display(),
-            md_path.display()
+            md_path.display(),
+            figures.len() / 2,
+            figures
+                .iter()
+                .filter_map(|f| f.file_stem()?.to_str())
+                .step_by(2)
+                .collect::<Vec<_>>()
+                .join(", "),
+            opts.out.display()
         )?;
     }
     Ok(())

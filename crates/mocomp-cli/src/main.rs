@@ -15,6 +15,7 @@ mod collect_cmd;
 mod demo_cmd;
 mod igtl_cmd;
 mod kin_cmd;
+mod plots;
 mod print;
 mod robot_cmd;
 mod run_cmd;

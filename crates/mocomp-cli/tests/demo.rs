@@ -33,6 +33,38 @@ fn the_demo_writes_its_report_and_mocomp_wins() {
     let csv = std::fs::read_to_string(format!("{out_dir}/demo.csv")).unwrap();
     // 10 s at 125 Hz, two controllers, and a header.
     assert_eq!(csv.lines().count(), 2 * 1250 + 1);
+    // The figures: each a 1100×700 PNG and an SVG.
+    for name in ["d", "errors", "head_speed", "latency", "events"] {
+        let png = image::open(format!("{out_dir}/{name}.png"))
+            .unwrap()
+            .to_rgb8();
+        assert_eq!(png.dimensions(), (1100, 700), "{name}.png");
+        let svg = std::fs::read_to_string(format!("{out_dir}/{name}.svg")).unwrap();
+        assert!(
+            svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"),
+            "{name}.svg"
+        );
+    }
+    // d(t) draws every tick of both controllers, in their colours, twice (linear and log).
+    let svg = std::fs::read_to_string(format!("{out_dir}/d.svg")).unwrap();
+    for colour in ["#D62728", "#1F77B4"] {
+        let lines: Vec<usize> = svg
+            .split("<polyline")
+            .skip(1)
+            .filter(|p| p.contains(&format!("stroke=\"{colour}\"")))
+            .map(|p| {
+                let pts = p.split("points=\"").nth(1).unwrap();
+                pts[..pts.find('"').unwrap()].split_whitespace().count()
+            })
+            .filter(|&n| n > 2)
+            .collect();
+        assert_eq!(lines, vec![1250, 1250], "{colour}");
+    }
+    let png = image::open(format!("{out_dir}/d.png")).unwrap().to_rgb8();
+    for rgb in [[214, 39, 40], [31, 119, 180]] {
+        let n = png.pixels().filter(|p| p.0 == rgb).count();
+        assert!(n > 1000, "{rgb:?}: {n} pixels");
+    }
     let md = std::fs::read_to_string(format!("{out_dir}/summary.md")).unwrap();
     assert!(
         md.contains("| mocomp |") && md.contains("| paper |"),

@@ -85,7 +85,7 @@ pub struct CycleRecord {
     pub mode: Mode,
     /// The event of this cycle.
     pub event: Option<Event>,
-    /// Age of the newest accepted tracker sample, s.
+    /// Age of the newest accepted tracker sample, s (NaN before the first).
     pub sample_age_s: f64,
     /// Prediction horizon from the newest sample, s (0 without prediction).
     pub horizon_s: f64,
@@ -554,7 +554,12 @@ impl Compensator {
         let mut reason = self.tracker_reason(now);
         let (v, w) = self.predictor.velocity();
         rec.head_speed = (v.norm(), w.norm());
-        rec.sample_age_s = now - self.predictor.time_s();
+        // No sample yet: no age (not the time since the predictor's t = 0).
+        rec.sample_age_s = if self.predictor.is_initialised() {
+            now - self.predictor.time_s()
+        } else {
+            f64::NAN
+        };
         let mut goal_q = None;
         let mut base_from_head = None;
         if reason.is_none() {

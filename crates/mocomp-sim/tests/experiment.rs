@@ -67,6 +67,21 @@ fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
         "{}",
         mocomp.translation_mm.rms
     );
+    // Each controller sees fresh samples only: the previous run's last sample must not leak in
+    // (no sample yet reads NaN), and the 60 Hz tracker with 20 ms latency keeps them young.
+    for r in &out.runs {
+        let worst = r
+            .records
+            .iter()
+            .map(|x| x.sample_age_s)
+            .filter(|a| !a.is_nan())
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 0.06,
+            "{}: sample age up to {worst} s",
+            r.controller.name()
+        );
+    }
     assert!(
         paper.d.max > 10.0 * mocomp.d.max,
         "{} vs {}",
