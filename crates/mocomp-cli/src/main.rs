@@ -167,30 +167,9 @@ enum Command {
     },
     /// The paper's two-robot experiment on the simulated world (UR5 moving a head phantom, UR3
     /// compensating, tracker over OpenIGTLink, both robots calibrated first): the `paper`
-    /// pipeline and `mocomp` on the same trajectory; writes demo.csv and summary.md.
-    Demo {
-        /// Output directory.
-        #[arg(long, default_value = "mocomp-demo")]
-        out: PathBuf,
-        /// Print the summary as one JSON object.
-        #[arg(long)]
-        json: bool,
-        /// Compensation time per controller, seconds.
-        #[arg(long, default_value_t = 30.0)]
-        seconds: f64,
-        /// Seed of the head motion and the tracker noise.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
-        /// The coil robot's (UR3's) loopback address.
-        #[arg(long, default_value = "127.0.0.2")]
-        coil_host: IpAddr,
-        /// The head robot's (UR5's) loopback address.
-        #[arg(long, default_value = "127.0.0.3")]
-        head_host: IpAddr,
-    },
+    /// pipeline and `mocomp` on the same trajectory; writes demo.csv, the figures (PNG and SVG),
+    /// summary.md and config.toml.
+    Demo(Box<demo_cmd::DemoArgs>),
     /// Store the coil's current pose relative to the head as the goal: averages the head
     /// marker while the robot holds still, checks the goal against the head model, and writes
     /// `[goal] head_from_coil` into the configuration file in place (comments kept).
@@ -511,25 +490,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             robot_cmd::ursim(&mut out, model, host, seconds)?;
         }
-        Command::Demo {
-            out: dir,
-            json,
-            seconds,
-            seed,
-            quiet,
-            coil_host,
-            head_host,
-        } => demo_cmd::demo(
-            &mut out,
-            &demo_cmd::DemoOptions {
-                out: dir,
-                json,
-                seconds,
-                seed,
-                quiet,
-                hosts: (coil_host, head_host),
-            },
-        )?,
+        Command::Demo(a) => demo_cmd::demo(&mut out, &a)?,
         Command::TeachGoal {
             config,
             samples,

@@ -5,7 +5,8 @@
 //! - `latency`: age of the newest tracker sample used, and the time from that sample to when the
 //!   command takes effect (mocomp predicts over it; the paper's pipeline does not);
 //! - `events`: each controller's mode over time (tracking, approaching, holding, faulted) with
-//!   its safety events (holds, resumes, rejected outliers, approaches reached).
+//!   its safety events (holds, resumes, rejected outliers, approaches reached), and where the
+//!   true coil was inside the head model.
 //!
 //! Text is set in DejaVu Sans compiled into the binary, so the figures look the same on every
 //! machine and need no system fonts.
@@ -406,6 +407,10 @@ impl Figure for Events<'_> {
         let areas = root.split_evenly((rows, 1));
         for (run, area) in self.runs.iter().zip(&areas) {
             let [holds, resumes, outliers, reached] = event_counts(run);
+            let period = match run.records.as_slice() {
+                [a, b, ..] => b.t - a.t,
+                _ => 0.0,
+            };
             let caption = format!(
                 "{}: mode and safety events ({holds} holds, {resumes} resumes, {outliers} outliers rejected, {reached} approaches reached)",
                 run.controller.name()
@@ -455,6 +460,20 @@ impl Figure for Events<'_> {
                     .legend(move |(x, y)| {
                         Rectangle::new([(x, y - 6), (x + 22, y + 6)], c.mix(0.5).filled())
                     });
+            }
+            // Where the true coil was inside the head model: a red strip at the bottom.
+            let inside: Vec<_> = run
+                .records
+                .iter()
+                .filter(|r| r.coil_clearance_m < 0.0)
+                .map(|r| Rectangle::new([(r.t - period, 0.02), (r.t, 0.1)], RED.filled()))
+                .collect();
+            if !inside.is_empty() {
+                chart
+                    .draw_series(inside)
+                    .map_err(e)?
+                    .label("coil inside the head model")
+                    .legend(|(x, y)| Rectangle::new([(x, y - 6), (x + 22, y + 6)], RED.filled()));
             }
             // Events above the band.
             let at = |want: fn(&Event) -> bool| -> Vec<f64> {

@@ -261,6 +261,9 @@ impl RunFile {
         self.params
             .validate()
             .map_err(|e| UsageError(format!("loop.{e}")))?;
+        self.predictor
+            .validate()
+            .map_err(|e| UsageError(format!("predictor.{e}")))?;
         match self.tracker.source.as_str() {
             "openigtlink" if self.tracker.igtl.is_none() => {
                 return Err(UsageError(

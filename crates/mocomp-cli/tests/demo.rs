@@ -30,6 +30,15 @@ fn the_demo_writes_its_report_and_mocomp_wins() {
     assert_eq!(rows[1]["controller"], "mocomp");
     assert!(j["ratio_d_max"].as_f64().unwrap() >= 10.0, "{j}");
     assert!(rows[1]["translation_mm_rms"].as_f64().unwrap() < 0.5, "{j}");
+    // mocomp's true coil never enters the head model.
+    assert_eq!(rows[1]["inside_head_s"].as_f64().unwrap(), 0.0, "{j}");
+    assert!(rows[1]["min_clearance_mm"].as_f64().unwrap() > 0.0, "{j}");
+    // The configuration it ran with is written beside the report.
+    let cfg = std::fs::read_to_string(format!("{out_dir}/config.toml")).unwrap();
+    assert!(
+        cfg.contains("seconds = 10.0") && cfg.contains("coil_host = \"127.0.0.55\""),
+        "{cfg}"
+    );
     let csv = std::fs::read_to_string(format!("{out_dir}/demo.csv")).unwrap();
     // 10 s at 125 Hz, two controllers, and a header.
     assert_eq!(csv.lines().count(), 2 * 1250 + 1);
@@ -70,4 +79,96 @@ fn the_demo_writes_its_report_and_mocomp_wins() {
         md.contains("| mocomp |") && md.contains("| paper |"),
         "{md}"
     );
+}
+
+fn stdout(out: &std::process::Output) -> String {
+    String::from_utf8(out.stdout.clone()).unwrap()
+}
+
+#[test]
+fn the_config_file_and_the_options_set_the_experiment() {
+    let dir = TempDir::new("mocomp-demo-config");
+    // Options over the defaults, printed as a file; the file reads back to the same settings.
+    let printed = mocomp(&[
+        "demo",
+        "--print-config",
+        "--motion",
+        "drift",
+        "--speed-mm-s",
+        "8",
+        "--seconds",
+        "4",
+        "--tracker-noise-mm",
+        "0.2",
+        "--coil-host",
+        "127.0.0.57",
+        "--head-host",
+        "127.0.0.58",
+    ]);
+    assert_success(&printed);
+    let text = stdout(&printed);
+    assert!(
+        text.contains("kind = \"drift\"") && text.contains("noise_m = 0.0002"),
+        "{text}"
+    );
+    let path = dir.path("demo.toml");
+    std::fs::write(&path, &text).unwrap();
+    let again = mocomp(&["demo", "--print-config", "--config", &path]);
+    assert_success(&again);
+    assert_eq!(stdout(&again), text);
+    // A run from the file does what it says.
+    let out_dir = dir.path("out");
+    let run = mocomp(&[
+        "demo", "--config", &path, "--json", "--quiet", "--out", &out_dir,
+    ]);
+    assert_success(&run);
+    let j: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(j["motion"], "drift", "{j}");
+    assert_eq!(j["seconds"], 4.0, "{j}");
+    assert!(
+        (j["tracker_noise_mm"].as_f64().unwrap() - 0.2).abs() < 1e-12,
+        "{j}"
+    );
+    // The drift moves at the speed asked for.
+    assert!(
+        (j["head_peak_mm_s"].as_f64().unwrap() - 8.0).abs() < 0.05,
+        "{j}"
+    );
+    // The example file is valid.
+    let example = concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/demo-nods.toml");
+    let ex = mocomp(&["demo", "--print-config", "--config", example]);
+    assert_success(&ex);
+    assert!(stdout(&ex).contains("kind = \"nods\""));
+}
+
+#[test]
+fn bad_settings_are_refused_naming_the_key_or_option() {
+    let dir = TempDir::new("mocomp-demo-bad");
+    let path = dir.path("bad.toml");
+    let cases: [(&str, &[&str], &str); 6] = [
+        ("seconds = 3\n\n[tracker]\nnoise = 1\n", &[], "line 4"),
+        ("[robots]\nhead = \"ur5e\"\n", &[], "robots.head"),
+        (
+            "[motion]\nkind = \"nods\"\nsway_m = -1.0\n",
+            &[],
+            "motion.sway_m",
+        ),
+        (
+            "",
+            &["--motion", "still", "--speed-mm-s", "5"],
+            "--speed-mm-s",
+        ),
+        ("", &["--tracker-rate-hz", "0"], "tracker.rate_hz"),
+        ("", &["--seconds=-2"], "seconds"),
+    ];
+    for (file, opts, named) in cases {
+        std::fs::write(&path, file).unwrap();
+        let mut args = vec!["demo", "--print-config", "--config", &path];
+        args.extend_from_slice(opts);
+        let out = mocomp(&args);
+        assert_eq!(out.status.code(), Some(2), "{file:?} {opts:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(named), "{file:?} {opts:?}: {err}");
+        assert!(out.stdout.is_empty());
+    }
 }

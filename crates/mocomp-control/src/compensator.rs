@@ -387,20 +387,7 @@ impl Compensator {
 
     /// The coil's nearest distance to the head (its face rim, centre and back), m.
     fn coil_distance(&self, head_from_coil: &Isometry3<f64>) -> f64 {
-        let r = self.cfg.coil.radius;
-        let mut nearest = f64::INFINITY;
-        for z in [0.0, -self.cfg.coil.thickness] {
-            for k in 0..9 {
-                let p = if k == 8 {
-                    Point3::new(0.0, 0.0, z)
-                } else {
-                    let ang = std::f64::consts::TAU * f64::from(k) / 8.0;
-                    Point3::new(r * ang.cos(), r * ang.sin(), z)
-                };
-                nearest = nearest.min(self.cfg.head.distance(&(head_from_coil * p)));
-            }
-        }
-        nearest
+        self.cfg.coil.distance(&self.cfg.head, head_from_coil)
     }
 
     /// Plans a path from the commanded pose to the goal around the head at `base_from_head` and

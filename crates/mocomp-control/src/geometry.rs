@@ -70,6 +70,27 @@ pub struct CoilModel {
     pub thickness: f64,
 }
 
+impl CoilModel {
+    /// Signed distance (m) from the coil at `head_from_coil` to `head`: the nearest of its
+    /// face's and back's centres and rims (eight points each); negative when inside the head.
+    pub fn distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
+        let r = self.radius;
+        let mut nearest = f64::INFINITY;
+        for z in [0.0, -self.thickness] {
+            for k in 0..9 {
+                let p = if k == 8 {
+                    Point3::new(0.0, 0.0, z)
+                } else {
+                    let ang = std::f64::consts::TAU * f64::from(k) / 8.0;
+                    Point3::new(r * ang.cos(), r * ang.sin(), z)
+                };
+                nearest = nearest.min(head.distance(&(head_from_coil * p)));
+            }
+        }
+        nearest
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -42,6 +42,34 @@ impl Default for PredictorConfig {
     }
 }
 
+impl PredictorConfig {
+    /// Checks every value's range; the error names the first key out of range.
+    pub fn validate(&self) -> Result<(), crate::ParamError> {
+        for (key, value, positive) in [
+            ("position_noise_m", self.position_noise_m, true),
+            ("rotation_noise_rad", self.rotation_noise_rad, true),
+            ("accel_noise", self.accel_noise, true),
+            ("angular_accel_noise", self.angular_accel_noise, true),
+            ("max_horizon_s", self.max_horizon_s, false),
+            ("velocity_shrink", self.velocity_shrink, false),
+        ] {
+            let ok = value.is_finite() && if positive { value > 0.0 } else { value >= 0.0 };
+            if !ok {
+                return Err(crate::ParamError {
+                    key,
+                    value,
+                    problem: if positive {
+                        "must be finite and > 0"
+                    } else {
+                        "must be finite and ≥ 0"
+                    },
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
 /// One 2-state (value, rate) covariance, shared by three axes.
 #[derive(Debug, Clone, Copy)]
 struct Cov2 {
@@ -206,7 +234,23 @@ impl PosePredictor {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)] // test code
     use super::*;
+
+    #[test]
+    fn a_bad_noise_value_is_named() {
+        assert!(PredictorConfig::default().validate().is_ok());
+        let bad = PredictorConfig {
+            angular_accel_noise: -1.0,
+            ..Default::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "angular_accel_noise");
+        let bad = PredictorConfig {
+            max_horizon_s: f64::NAN,
+            ..Default::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().key, "max_horizon_s");
+    }
     use mocomp_geom::{rotation_error, translation_error};
 
     fn pose_at(t: f64) -> Isometry3<f64> {

@@ -100,7 +100,7 @@ fn io(what: &'static str, e: impl std::fmt::Display) -> ExperimentError {
 }
 
 /// The `paper` controller's model of the original pipeline.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PaperController {
     /// Loop period, s (tracking, IK and communication in MATLAB).
@@ -212,27 +212,56 @@ impl ExperimentConfig {
         })
     }
 
-    /// Checks the values the components do not check themselves.
+    /// Seeds the random motion (if the motion is random) and the tracker's noise.
+    pub fn set_seed(&mut self, seed: u64) {
+        self.tracker.seed = seed;
+        if let HeadMotion::Random(r) = &mut self.motion {
+            r.seed = seed;
+        }
+    }
+
+    /// Checks the values the components do not check themselves; the error names the key as in
+    /// the configuration file (see [`crate::config`]).
     pub fn validate(&self) -> Result<(), ExperimentError> {
         let bad = |m: String| Err(ExperimentError::Config(m));
         if !(self.duration_s.is_finite() && self.duration_s > 0.0 && self.duration_s <= 3600.0) {
             return bad(format!(
-                "duration_s = {}: must be in (0, 3600]",
+                "seconds = {}: must be in (0, 3600]",
                 self.duration_s
             ));
         }
         if self.coil_host == self.head_host {
-            return bad("the two robots need their own addresses".into());
+            return bad(format!(
+                "robots.coil_host = robots.head_host = {}: the two robots need their own addresses",
+                self.coil_host
+            ));
+        }
+        if !(self.coil_host.is_loopback() && self.head_host.is_loopback()) {
+            return bad(format!(
+                "robots.coil_host = {}, robots.head_host = {}: the simulators listen on loopback addresses only",
+                self.coil_host, self.head_host
+            ));
+        }
+        // One stepped clock ticks both simulators at one rate.
+        let (p1, p2) = (
+            self.coil_robot.spec().series.period_s(),
+            self.head_robot.spec().series.period_s(),
+        );
+        if p1 != p2 {
+            return bad(format!(
+                "robots.coil = {}, robots.head = {}: both must be of one series (CB3, or e-Series), as the lockstep ticks both at one rate",
+                self.coil_robot, self.head_robot
+            ));
         }
         if !(3..=100).contains(&self.calibration_poses) {
             return bad(format!(
-                "calibration_poses = {}: must be in [3, 100]",
+                "calibration.poses = {}: must be in [3, 100]",
                 self.calibration_poses
             ));
         }
         if !(1..=100).contains(&self.calibration_samples) {
             return bad(format!(
-                "calibration_samples = {}: must be in [1, 100]",
+                "calibration.samples = {}: must be in [1, 100]",
                 self.calibration_samples
             ));
         }
@@ -256,6 +285,9 @@ impl ExperimentConfig {
         self.loop_params
             .validate()
             .map_err(|e| ExperimentError::Config(format!("loop.{e}")))?;
+        self.predictor
+            .validate()
+            .map_err(|e| ExperimentError::Config(format!("predictor.{e}")))?;
         Ok(())
     }
 }
@@ -435,6 +467,8 @@ pub struct Record {
     pub mode: Mode,
     /// A safety event in this tick.
     pub event: Option<Event>,
+    /// The true coil's signed distance to the head model, m (negative: inside the head).
+    pub coil_clearance_m: f64,
 }
 
 /// Summary statistics of a series.
@@ -483,12 +517,22 @@ pub struct Run {
     pub translation_mm: Stats,
     /// Rotation error, degrees.
     pub rotation_deg: Stats,
+    /// The true coil's least distance to the head model over the run, m (negative: inside).
+    pub min_clearance_m: f64,
+    /// Time the true coil spent inside the head model, s.
+    pub inside_head_s: f64,
 }
 
 impl Run {
-    fn new(controller: Controller, records: Vec<Record>) -> Self {
+    fn new(controller: Controller, records: Vec<Record>, period_s: f64) -> Self {
         let col = |f: &dyn Fn(&Record) -> f64| records.iter().map(f).collect::<Vec<f64>>();
         Self {
+            min_clearance_m: records
+                .iter()
+                .map(|r| r.coil_clearance_m)
+                .fold(f64::INFINITY, f64::min),
+            inside_head_s: records.iter().filter(|r| r.coil_clearance_m < 0.0).count() as f64
+                * period_s,
             controller,
             d: Stats::of(&col(&|r| r.d)),
             translation_mm: Stats::of(&col(&|r| r.translation_m * 1e3)),
@@ -1025,6 +1069,7 @@ impl World {
             branch: BranchPolicy::Any,
             limit_margin: 0.0,
         };
+        let (head, coil) = (loop_cfg.head, loop_cfg.coil);
         let mut comp = Compensator::new(loop_cfg, self.arm1, self.period);
         let mut q2_cmd = self.scene.q2_start;
         let mut next_loop = 0.0;
@@ -1103,6 +1148,8 @@ impl World {
             let e1 = self.world_from_e1(&self.q_now.0);
             let actual = e2.inverse() * e1;
             let goal = cfg.goal_e2_from_e1;
+            let head_from_coil =
+                (e2 * self.scene.e2_from_head).inverse() * e1 * self.scene.e1_from_coil;
             records.push(Record {
                 t: tr + self.period,
                 d: frobenius_deviation(&goal, &actual, LengthUnit::Millimetre),
@@ -1113,13 +1160,14 @@ impl World {
                 horizon_s: horizon,
                 mode,
                 event,
+                coil_clearance_m: coil.distance(&head, &head_from_coil),
             });
             if k % 50 == 0 {
                 progress(Phase::Compensating(controller), k as f64 / n as f64);
             }
         }
         progress(Phase::Compensating(controller), 1.0);
-        Ok(Run::new(controller, records))
+        Ok(Run::new(controller, records, self.period))
     }
 }
 

@@ -9,7 +9,7 @@
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
 
 /// A motion parameter out of range.
@@ -26,7 +26,7 @@ pub struct MotionError {
 
 /// A head motion. In a TOML file: `kind = "still" | "drift" | "nods" | "random"` and the kind's
 /// fields (every field has a default; unknown fields are rejected).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum HeadMotion {
     /// No motion.
@@ -40,7 +40,7 @@ pub enum HeadMotion {
 }
 
 /// Constant-velocity drift.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Drift {
     /// Start, s.
@@ -64,7 +64,7 @@ impl Default for Drift {
 
 /// Nods and turns: sideways sway with a turn (yaw) at `frequency_hz`, and a nod (pitch) at 0.7 of
 /// it, ramped in over half a second.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Nods {
     /// Start, s.
@@ -93,7 +93,7 @@ impl Default for Nods {
 }
 
 /// Smooth random motion.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RandomMotion {
     /// Start, s (ramped in over `ramp_s`).
@@ -197,6 +197,106 @@ impl HeadMotion {
             Self::Nods(_) => "nods",
             Self::Random(_) => "random",
         }
+    }
+
+    /// The same motion at other speeds (`None` keeps the motion's own): `speed_m_s` bounds the
+    /// translational speed, `angular_rad_s` the angular speed.
+    /// - random motion takes them as its bounds;
+    /// - a drift moves at exactly these speeds, in its own directions (along head x, or about
+    ///   head z, if it had none);
+    /// - nods and turns are scaled in amplitude so that their peaks are these speeds.
+    ///
+    /// A still head, or nods at zero frequency, has no speed to set.
+    pub fn with_speeds(
+        &self,
+        speed_m_s: Option<f64>,
+        angular_rad_s: Option<f64>,
+    ) -> Result<Self, MotionError> {
+        for (key, v) in [("speed_m_s", speed_m_s), ("angular_rad_s", angular_rad_s)] {
+            if let Some(v) = v
+                && !(v.is_finite() && v >= 0.0)
+            {
+                return Err(MotionError {
+                    key,
+                    value: v,
+                    problem: "must be finite and ≥ 0",
+                });
+            }
+        }
+        if speed_m_s.is_none() && angular_rad_s.is_none() {
+            return Ok(*self);
+        }
+        let scaled = |v: [f64; 3], norm: f64, fallback: [f64; 3]| {
+            let n = Vector3::from(v).norm();
+            if n > 0.0 {
+                v.map(|x| x * norm / n)
+            } else {
+                fallback.map(|x| x * norm)
+            }
+        };
+        Ok(match *self {
+            Self::Still => {
+                let (key, value) = match (speed_m_s, angular_rad_s) {
+                    (Some(v), _) => ("speed_m_s", v),
+                    (None, w) => ("angular_rad_s", w.unwrap_or(0.0)),
+                };
+                return Err(MotionError {
+                    key,
+                    value,
+                    problem: "a still head has no speed to set",
+                });
+            }
+            Self::Drift(mut d) => {
+                if let Some(v) = speed_m_s {
+                    d.velocity_m_s = scaled(d.velocity_m_s, v, [1.0, 0.0, 0.0]);
+                }
+                if let Some(w) = angular_rad_s {
+                    d.angular_rad_s = scaled(d.angular_rad_s, w, [0.0, 0.0, 1.0]);
+                }
+                Self::Drift(d)
+            }
+            Self::Random(mut r) => {
+                if let Some(v) = speed_m_s {
+                    r.max_speed_m_s = v;
+                }
+                if let Some(w) = angular_rad_s {
+                    r.max_angular_rad_s = w;
+                }
+                Self::Random(r)
+            }
+            Self::Nods(mut n) => {
+                if !(n.frequency_hz.is_finite() && n.frequency_hz > 0.0) {
+                    return Err(MotionError {
+                        key: "frequency_hz",
+                        value: n.frequency_hz,
+                        problem: "nods at zero frequency have no speed to set",
+                    });
+                }
+                // Turn and nod beat with a period of ten turns: the peaks are within it.
+                let window = n.start_s + 0.5 + 10.0 / n.frequency_hz;
+                let peaks = |n: &Nods| Self::Nods(*n).trajectory().peak_speeds(window);
+                if let Some(v) = speed_m_s {
+                    if n.sway_m == 0.0 {
+                        n.sway_m = 0.01;
+                    }
+                    // The sway's speed is linear in its amplitude.
+                    n.sway_m *= v / peaks(&n).0;
+                }
+                if let Some(w) = angular_rad_s {
+                    if n.turn_rad == 0.0 && n.nod_rad == 0.0 {
+                        n.turn_rad = 0.1;
+                    }
+                    // Nearly linear in the amplitudes (the turn and the nod compose): a few
+                    // rescalings converge.
+                    for _ in 0..4 {
+                        let k = w / peaks(&n).1;
+                        n.turn_rad *= k;
+                        n.nod_rad *= k;
+                    }
+                }
+                Self::Nods(n)
+            }
+        })
     }
 
     /// Checks every parameter; the error names the first one out of range.
@@ -430,6 +530,69 @@ mod tests {
         let same = a.rest_from_head(5.0);
         assert_eq!(same, a.rest_from_head(5.0), "deterministic");
         assert!((same.translation.vector - b.rest_from_head(5.0).translation.vector).norm() > 1e-4);
+    }
+
+    #[test]
+    fn speeds_set_the_bound_of_random_motion_and_the_peaks_of_the_others() {
+        let (v, w) = (0.03, 12f64.to_radians());
+        for name in ["drift", "nods"] {
+            let m = HeadMotion::named(name)
+                .unwrap()
+                .with_speeds(Some(v), Some(w))
+                .unwrap();
+            let (pv, pw) = m.trajectory().peak_speeds(30.0);
+            assert!((pv / v - 1.0).abs() < 0.01, "{name}: {pv}");
+            assert!((pw / w - 1.0).abs() < 0.01, "{name}: {pw}");
+        }
+        // One of the two: the other stays.
+        let nods = HeadMotion::named("nods").unwrap();
+        let (_, w0) = nods.trajectory().peak_speeds(30.0);
+        let (pv, pw) = nods
+            .with_speeds(Some(v), None)
+            .unwrap()
+            .trajectory()
+            .peak_speeds(30.0);
+        assert!((pv / v - 1.0).abs() < 0.01 && (pw / w0 - 1.0).abs() < 1e-9);
+        match HeadMotion::named("random")
+            .unwrap()
+            .with_speeds(Some(v), None)
+            .unwrap()
+        {
+            HeadMotion::Random(r) => {
+                assert_eq!(r.max_speed_m_s, v);
+                assert_eq!(
+                    r.max_angular_rad_s,
+                    RandomMotion::default().max_angular_rad_s
+                );
+            }
+            other => panic!("{other:?}"),
+        }
+        // A drift without a direction gets one.
+        let still_drift = HeadMotion::Drift(Drift {
+            velocity_m_s: [0.0; 3],
+            ..Default::default()
+        });
+        let (pv, _) = still_drift
+            .with_speeds(Some(v), None)
+            .unwrap()
+            .trajectory()
+            .peak_speeds(5.0);
+        assert!((pv / v - 1.0).abs() < 1e-6, "{pv}");
+        assert_eq!(
+            HeadMotion::Still
+                .with_speeds(Some(v), None)
+                .unwrap_err()
+                .key,
+            "speed_m_s"
+        );
+        assert_eq!(
+            HeadMotion::Still.with_speeds(None, None),
+            Ok(HeadMotion::Still)
+        );
+        assert_eq!(
+            nods.with_speeds(Some(-1.0), None).unwrap_err().key,
+            "speed_m_s"
+        );
     }
 
     #[test]

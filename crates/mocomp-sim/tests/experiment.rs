@@ -82,6 +82,16 @@ fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
             r.controller.name()
         );
     }
+    // mocomp's coil stays out of the head model; the paper's pipeline, with no collision check,
+    // lags into it.
+    eprintln!(
+        "least coil clearance: paper {:.2} mm ({:.2} s inside), mocomp {:.2} mm",
+        paper.min_clearance_m * 1e3,
+        paper.inside_head_s,
+        mocomp.min_clearance_m * 1e3
+    );
+    assert!(mocomp.min_clearance_m > 0.0 && mocomp.inside_head_s == 0.0);
+    assert!(paper.inside_head_s > 0.0);
     assert!(
         paper.d.max > 10.0 * mocomp.d.max,
         "{} vs {}",
