@@ -12,6 +12,7 @@
 //! machine and need no system fonts.
 
 use mocomp_control::{Event, Mode};
+use mocomp_geom::units::{m_to_mm, rad_to_deg};
 use mocomp_sim::experiment::{Controller, Record, Run};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -76,7 +77,7 @@ fn colour(c: Controller) -> RGBColor {
 /// A figure that draws itself on any backend.
 trait Figure {
     /// Its file stem.
-    const NAME: &'static str;
+    fn name(&self) -> &'static str;
     /// Draws on `root` (already white).
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String>;
 }
@@ -90,7 +91,7 @@ fn e<E: std::fmt::Display>(err: E) -> String {
 fn write<F: Figure>(fig: &F, dir: &Path) -> Result<[PathBuf; 2], PlotError> {
     font()?;
     let draw_err = |detail: String| PlotError::Draw {
-        figure: F::NAME,
+        figure: fig.name(),
         detail,
     };
     // SVG.
@@ -101,7 +102,7 @@ fn write<F: Figure>(fig: &F, dir: &Path) -> Result<[PathBuf; 2], PlotError> {
         fig.draw(&root).map_err(draw_err)?;
         root.present().map_err(e).map_err(draw_err)?;
     }
-    let svg_path = dir.join(format!("{}.svg", F::NAME));
+    let svg_path = dir.join(format!("{}.svg", fig.name()));
     std::fs::write(&svg_path, svg).map_err(|source| PlotError::Write {
         path: svg_path.clone(),
         source,
@@ -114,7 +115,7 @@ fn write<F: Figure>(fig: &F, dir: &Path) -> Result<[PathBuf; 2], PlotError> {
         fig.draw(&root).map_err(draw_err)?;
         root.present().map_err(e).map_err(draw_err)?;
     }
-    let png_path = dir.join(format!("{}.png", F::NAME));
+    let png_path = dir.join(format!("{}.png", fig.name()));
     image::save_buffer_with_format(
         &png_path,
         &rgb,
@@ -135,9 +136,41 @@ pub fn write_all(runs: &[Run], duration_s: f64, dir: &Path) -> Result<Vec<PathBu
     let t = 0.0..duration_s.max(1e-3);
     let mut files = Vec::new();
     files.extend(write(&Deviation { runs, t: t.clone() }, dir)?);
-    files.extend(write(&Errors { runs, t: t.clone() }, dir)?);
+    files.extend(write(
+        &Panels {
+            name: "errors",
+            runs,
+            t: t.clone(),
+            panels: [
+                ("translation error of E2_T_E1", "mm", |r| {
+                    m_to_mm(r.translation_m)
+                }),
+                ("rotation error of E2_T_E1", "degrees", |r| {
+                    rad_to_deg(r.rotation_rad)
+                }),
+            ],
+        },
+        dir,
+    )?);
     files.extend(write(&HeadSpeed { runs, t: t.clone() }, dir)?);
-    files.extend(write(&Latency { runs, t: t.clone() }, dir)?);
+    files.extend(write(
+        &Panels {
+            name: "latency",
+            runs,
+            t: t.clone(),
+            panels: [
+                ("age of the newest tracker sample used", "ms", |r| {
+                    r.sample_age_s * 1e3
+                }),
+                (
+                    "from the sample to the command's effect (mocomp predicts over it)",
+                    "ms",
+                    |r| r.horizon_s * 1e3,
+                ),
+            ],
+        },
+        dir,
+    )?);
     files.extend(write(&Events { runs, t }, dir)?);
     Ok(files)
 }
@@ -212,7 +245,9 @@ struct Deviation<'a> {
 }
 
 impl Figure for Deviation<'_> {
-    const NAME: &'static str = "d";
+    fn name(&self) -> &'static str {
+        "d"
+    }
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
         let (upper, lower) = root.split_vertically(SIZE.1 / 2);
         let f = |r: &Record| r.d;
@@ -254,35 +289,6 @@ impl Figure for Deviation<'_> {
     }
 }
 
-/// Translation and rotation error over time.
-struct Errors<'a> {
-    runs: &'a [Run],
-    t: Range<f64>,
-}
-
-impl Figure for Errors<'_> {
-    const NAME: &'static str = "errors";
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
-        let (upper, lower) = root.split_vertically(SIZE.1 / 2);
-        line_panel(
-            &upper,
-            "translation error of E2_T_E1",
-            "mm",
-            self.runs,
-            &self.t,
-            &|r| r.translation_m * 1e3,
-        )?;
-        line_panel(
-            &lower,
-            "rotation error of E2_T_E1",
-            "degrees",
-            self.runs,
-            &self.t,
-            &|r| r.rotation_rad.to_degrees(),
-        )
-    }
-}
-
 /// The head's true speed (from the first run: the trajectory is the same for every controller).
 struct HeadSpeed<'a> {
     runs: &'a [Run],
@@ -290,7 +296,9 @@ struct HeadSpeed<'a> {
 }
 
 impl Figure for HeadSpeed<'_> {
-    const NAME: &'static str = "head_speed";
+    fn name(&self) -> &'static str {
+        "head_speed"
+    }
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
         let Some(run) = self.runs.first() else {
             return Ok(());
@@ -332,32 +340,27 @@ impl Figure for HeadSpeed<'_> {
     }
 }
 
-/// Sample age and the horizon from the sample to the command's effect.
-struct Latency<'a> {
+/// One panel of [`Panels`]: caption, unit, and the value of a record.
+type Panel = (&'static str, &'static str, fn(&Record) -> f64);
+
+/// Two panels of lines, one line per controller (errors, latency).
+struct Panels<'a> {
+    name: &'static str,
     runs: &'a [Run],
     t: Range<f64>,
+    panels: [Panel; 2],
 }
 
-impl Figure for Latency<'_> {
-    const NAME: &'static str = "latency";
+impl Figure for Panels<'_> {
+    fn name(&self) -> &'static str {
+        self.name
+    }
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
         let (upper, lower) = root.split_vertically(SIZE.1 / 2);
-        line_panel(
-            &upper,
-            "age of the newest tracker sample used",
-            "ms",
-            self.runs,
-            &self.t,
-            &|r| r.sample_age_s * 1e3,
-        )?;
-        line_panel(
-            &lower,
-            "from the sample to the command's effect (mocomp predicts over it)",
-            "ms",
-            self.runs,
-            &self.t,
-            &|r| r.horizon_s * 1e3,
-        )
+        for (area, (caption, unit, f)) in [&upper, &lower].into_iter().zip(self.panels) {
+            line_panel(area, caption, unit, self.runs, &self.t, &f)?;
+        }
+        Ok(())
     }
 }
 
@@ -401,7 +404,9 @@ struct Events<'a> {
 }
 
 impl Figure for Events<'_> {
-    const NAME: &'static str = "events";
+    fn name(&self) -> &'static str {
+        "events"
+    }
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
         let rows = self.runs.len().max(1);
         let areas = root.split_evenly((rows, 1));
