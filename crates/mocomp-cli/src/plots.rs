@@ -15,6 +15,8 @@ use mocomp_control::{Event, Mode};
 use mocomp_geom::units::{m_to_mm, rad_to_deg};
 use mocomp_sim::experiment::{Controller, Record, Run};
 use plotters::coord::Shift;
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -194,6 +196,38 @@ fn top(runs: &[Run], f: &dyn Fn(&Record) -> f64, floor: f64) -> f64 {
     (m * 1.08).max(floor)
 }
 
+/// A chart with time (s) on x and `y` on y, its caption, axes and grid drawn.
+fn time_chart<'a, DB, Y>(
+    area: &'a DrawingArea<DB, Shift>,
+    caption: &str,
+    y_desc: &str,
+    t: &Range<f64>,
+    y: Y,
+) -> Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, Y::CoordDescType>>, String>
+where
+    DB: DrawingBackend,
+    Y: AsRangedCoord,
+    Y::CoordDescType: ValueFormatter<Y::Value>,
+    Y::Value: std::fmt::Debug + Clone,
+{
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t.clone(), y)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc(y_desc)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15))
+        .draw()
+        .map_err(e)?;
+    Ok(chart)
+}
+
 /// One panel of lines, one per run: `f` of each record against time.
 fn line_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
@@ -204,21 +238,7 @@ fn line_panel<DB: DrawingBackend>(
     f: &dyn Fn(&Record) -> f64,
 ) -> Result<(), String> {
     let y_max = top(runs, f, 1e-3);
-    let mut chart = ChartBuilder::on(area)
-        .caption(caption, (FONT, 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t.clone(), 0.0..y_max)
-        .map_err(e)?;
-    chart
-        .configure_mesh()
-        .x_desc("time (s)")
-        .y_desc(y_desc)
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 15))
-        .draw()
-        .map_err(e)?;
+    let mut chart = time_chart(area, caption, y_desc, t, 0.0..y_max)?;
     for run in runs {
         let c = colour(run.controller);
         chart
@@ -261,21 +281,13 @@ impl Figure for Deviation<'_> {
         )?;
         // Log axis: floor at 0.01 so a perfect tick stays on the chart.
         let y_max = top(self.runs, &f, 1.0);
-        let mut chart = ChartBuilder::on(&lower)
-            .caption("d(t), log scale", (FONT, 20))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d(self.t.clone(), (0.01..y_max).log_scale())
-            .map_err(e)?;
-        chart
-            .configure_mesh()
-            .x_desc("time (s)")
-            .y_desc("d")
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 15))
-            .draw()
-            .map_err(e)?;
+        let mut chart = time_chart(
+            &lower,
+            "d(t), log scale",
+            "d",
+            &self.t,
+            (0.01..y_max).log_scale(),
+        )?;
         for run in self.runs {
             let c = colour(run.controller);
             chart
@@ -317,21 +329,7 @@ impl Figure for HeadSpeed<'_> {
             }),
         ] {
             let y_max = top(std::slice::from_ref(run), f, 1e-3);
-            let mut chart = ChartBuilder::on(area)
-                .caption(caption, (FONT, 20))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(70)
-                .build_cartesian_2d(self.t.clone(), 0.0..y_max)
-                .map_err(e)?;
-            chart
-                .configure_mesh()
-                .x_desc("time (s)")
-                .y_desc(unit)
-                .label_style((FONT, 14))
-                .axis_desc_style((FONT, 15))
-                .draw()
-                .map_err(e)?;
+            let mut chart = time_chart(area, caption, unit, &self.t, 0.0..y_max)?;
             chart
                 .draw_series(LineSeries::new(series(run, f), grey.stroke_width(1)))
                 .map_err(e)?;
