@@ -2,7 +2,8 @@
 
 Requests (one JSON line each):
   {"op": "version"}                                  -> {"version": "0.3.4"}
-  {"op": "server", "port": p}                        -> starts a pyigtl server on 127.0.0.1:p
+  {"op": "server", "port": p}                        -> starts a pyigtl server on 127.0.0.1:p (0: any
+                                                        free port) -> {"ok": true, "port": bound}
   {"op": "client", "port": p}                        -> starts a pyigtl client to 127.0.0.1:p
   {"op": "connected"}                                -> {"connected": bool}
   {"op": "send", "kind": "transform"|"string", "device": d, "matrix": [[4x4 mm]] | "string": s,
@@ -45,7 +46,7 @@ def handle(req):
         return {"version": md.version("pyigtl")}
     if op == "server":
         STATE["endpoint"] = pyigtl.OpenIGTLinkServer(port=int(req["port"]), local_server=True)
-        return {"ok": True}
+        return {"ok": True, "port": STATE["endpoint"].server_address[1]}
     if op == "client":
         STATE["endpoint"] = pyigtl.OpenIGTLinkClient(host="127.0.0.1", port=int(req["port"]))
         return {"ok": True}

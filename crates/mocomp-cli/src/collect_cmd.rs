@@ -245,7 +245,7 @@ pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()>
     let period = setup.model.spec().series.period_s();
     let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
     let q0 = initial_joints(&setup.file, &arm, &cfg)?;
-    let mut world = World::connect(&setup, q0, out)?;
+    let mut world = World::connect(&setup, q0, out, None)?;
     let client = world.client(&setup, &c.device);
     let mut source = client.pose_source();
 

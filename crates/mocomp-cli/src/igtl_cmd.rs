@@ -252,8 +252,8 @@ pub fn serve(out: &mut impl Write, a: &ServeArgs<'_>) -> Result<()> {
             std::thread::sleep(wait);
         }
     }
-    // Let the writers drain before closing.
-    std::thread::sleep(Duration::from_millis(100));
+    // Every pose written to the clients before closing (a client that stopped reading gets 2 s).
+    server.flush(Duration::from_secs(2));
     let c = server.counters();
     let last = match &file {
         Some(f) => f[((k.max(1) - 1) as usize) % f.len()],

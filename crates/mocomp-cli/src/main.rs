@@ -164,6 +164,9 @@ enum Command {
         /// No status line or event lines while running (the summary is still printed).
         #[arg(long)]
         quiet: bool,
+        /// Print the summary as one JSON object (figures, holds, protective stops, real time).
+        #[arg(long)]
+        json: bool,
     },
     /// The paper's two-robot experiment on the simulated world (UR5 moving a head phantom, UR3
     /// compensating, tracker over OpenIGTLink, both robots calibrated first): the `paper`
@@ -471,6 +474,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             seconds,
             log_csv,
             quiet,
+            json,
         } => run_cmd::run(
             &mut out,
             &run_cmd::RunOptions {
@@ -478,6 +482,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 seconds,
                 log_csv,
                 status: !quiet,
+                json,
             },
         )?,
         Command::Ursim {

@@ -12,8 +12,15 @@ use std::net::IpAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Starts a real-time simulator of `model` on the standard ports of `host`.
+/// Starts a real-time simulator of `model` on the standard ports of `host`. It stands for the
+/// controller's own computer, so its threads run at `SCHED_FIFO` (the default simulator
+/// priority) where the operating system allows: they inherit it from the calling thread, which
+/// is left at that priority. A refusal is printed once as a warning.
 pub fn start_sim(model: Model, host: IpAddr) -> Result<Sim> {
+    let rt = mocomp_rt::RtConfig::default();
+    if let Err(e) = mocomp_rt::set_fifo(rt.simulator_priority) {
+        eprintln!("warning: the simulated controller runs without real-time scheduling: {e}");
+    }
     Sim::start(SimConfig::new(ControllerConfig::new(model), host)).with_context(|| {
         format!(
             "starting the simulated {model} on {host} (each simulator needs its own loopback \
@@ -147,6 +154,7 @@ struct StreamReport {
     expected_lag_rad: f64,
     lag_compensated_joint_max_rad: f64,
     protective_stop: bool,
+    realtime: String,
 }
 
 fn percentile(v: &mut [f64], p: f64) -> f64 {
@@ -166,6 +174,12 @@ pub fn stream(
     a: StreamArgs,
     json: bool,
 ) -> Result<()> {
+    // The streaming thread (and the client's receive thread, started from it) in real time.
+    let rt = mocomp_rt::RtConfig::default();
+    let (realtime, _cpu_latency) = mocomp_rt::apply(&rt, rt.priority);
+    if let Some(w) = realtime.warning() {
+        eprintln!("warning: {w}");
+    }
     let clock = MonotonicClock::new();
     let mut robot = connect(host)?;
     let period = robot.period_s();
@@ -198,19 +212,21 @@ pub fn stream(
     let mut tcp_err = Vec::with_capacity(n);
     let mut pending: std::collections::VecDeque<(i32, f64)> = std::collections::VecDeque::new();
     let start = clock.now_s();
+    let t0 = Instant::now();
     let mut last_send = f64::NAN;
     let mut protective = false;
-    for k in 0..n {
-        let deadline = start + k as f64 * period;
-        let now = clock.now_s();
-        if deadline > now {
-            std::thread::sleep(Duration::from_secs_f64(deadline - now));
-        }
-        let t = k as f64 * period;
+    let mut k = 0usize;
+    while k < n {
+        // Absolute deadlines; a late wake-up skips the deadlines it missed instead of sending
+        // them in a burst, and the target is taken at the real time, so the trajectory the
+        // controller sees stays smooth whatever this thread's timing.
+        mocomp_rt::sleep_until(t0 + Duration::from_secs_f64(k as f64 * period));
+        let t = clock.now_s() - start;
+        k = k.max((t / period).floor() as usize) + 1;
         let Some(s) = robot.state() else { continue };
         if let Some(f) = s.fault() {
             protective = true;
-            writeln!(out, "stopped at cycle {k}: {f}")?;
+            writeln!(out, "stopped at {t:.3} s: {f}")?;
             break;
         }
         while let Some(&(seq, sent)) = pending.front() {
@@ -231,12 +247,14 @@ pub fn stream(
         }
         last_send = sent;
         if t > 1.0 {
-            // Error against the target commanded now (includes the servo's lag) and against
-            // the target one lookahead earlier (the lag a servo with lookahead shows).
-            let now_t = target(t - period);
+            // Error against the target commanded at the state's time (includes the servo's
+            // lag) and against the target one lookahead earlier (the lag a servo with lookahead
+            // shows). The state is the controller's newest, received at `received_s`.
+            let ts = s.received_s - start - period;
+            let now_t = target(ts);
             let e = (0..6).fold(0.0f64, |m, j| m.max((s.actual_q[j] - now_t[j]).abs()));
             joint_err.push(e);
-            let lagged = target(t - period - a.lookahead);
+            let lagged = target(ts - a.lookahead);
             comp_err.push((0..6).fold(0.0f64, |m, j| m.max((s.actual_q[j] - lagged[j]).abs())));
             tcp_err.push(translation_error(&arm.fk(&now_t), &s.base_from_tcp) * 1e3);
         }
@@ -267,6 +285,7 @@ pub fn stream(
             * (0..n).fold(0.0f64, |m, k| m.max(target_speed(k as f64 * period).abs())),
         lag_compensated_joint_max_rad: max(&comp_err),
         protective_stop: protective,
+        realtime: realtime.describe(),
     };
     if json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;

@@ -14,7 +14,7 @@ use crate::world::{Setup, World};
 use anyhow::Context;
 use mocomp_control::{
     CoilModel, Compensator, CycleRecord, Event, HeadModel, LoopConfig, LoopParams, Mode,
-    PredictorConfig,
+    PredictorConfig, Reason,
 };
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{iso_from_ur_pose, rotation_error, translation_error};
@@ -65,6 +65,9 @@ pub struct RunFile {
     /// `calibrate collect`.
     #[serde(default)]
     pub calibrate: CollectSection,
+    /// Real-time scheduling of the loop and of the in-process simulators.
+    #[serde(default)]
+    pub realtime: mocomp_rt::RtConfig,
 }
 
 /// `[robot]`.
@@ -264,6 +267,9 @@ impl RunFile {
         self.predictor
             .validate()
             .map_err(|e| UsageError(format!("predictor.{e}")))?;
+        self.realtime
+            .validate()
+            .map_err(|e| UsageError(e.to_string()))?;
         match self.tracker.source.as_str() {
             "openigtlink" if self.tracker.igtl.is_none() => {
                 return Err(UsageError(
@@ -411,6 +417,7 @@ struct Summary {
     first_t: Option<f64>,
     last_t: f64,
     missed: u64,
+    period_ms: Vec<f64>,
     compute_us: Vec<f64>,
     delay_ms: Vec<f64>,
     deviation_mm: Vec<f64>,
@@ -468,8 +475,11 @@ fn logger(
         window_cycles += 1;
         if s.first_t.is_none() {
             s.first_t = Some(r.t);
-        } else if r.t - s.last_t > 1.5 * period {
-            s.missed += ((r.t - s.last_t) / period).round() as u64 - 1;
+        } else {
+            s.period_ms.push((r.t - s.last_t) * 1e3);
+            if r.t - s.last_t > 1.5 * period {
+                s.missed += ((r.t - s.last_t) / period).round() as u64 - 1;
+            }
         }
         s.last_t = r.t;
         s.by_mode[mode_index(&r.mode)] += 1;
@@ -554,6 +564,164 @@ pub struct RunOptions {
     pub log_csv: Option<String>,
     /// Print the status line and events.
     pub status: bool,
+    /// Print the summary as one JSON object instead of text.
+    pub json: bool,
+}
+
+/// The run's summary (also `--json`): what an operator, and `scripts/stress.sh`, reads.
+#[derive(Debug, serde::Serialize)]
+struct RunReport {
+    cycles: u64,
+    seconds: f64,
+    rate_hz: f64,
+    missed_cycles: u64,
+    missed_percent: f64,
+    log_records_dropped: u64,
+    period_median_ms: f64,
+    period_p99_ms: f64,
+    period_max_ms: f64,
+    compute_median_us: f64,
+    compute_p99_us: f64,
+    compute_max_us: f64,
+    command_delay_median_ms: f64,
+    tracking_percent: f64,
+    approaching_percent: f64,
+    holding_percent: f64,
+    faulted_percent: f64,
+    deviation_rms_mm: f64,
+    deviation_p95_mm: f64,
+    deviation_max_mm: f64,
+    rotation_p95_deg: f64,
+    holds: usize,
+    robot_stale_holds: usize,
+    protective_stops: usize,
+    events: usize,
+    final_mode: String,
+    realtime: String,
+    realtime_complete: bool,
+}
+
+impl RunReport {
+    fn new(s: &mut Summary, rt: Option<&mocomp_rt::RtReport>, final_mode: &Mode) -> Self {
+        let span = s.last_t - s.first_t.unwrap_or(s.last_t);
+        let n = s.cycles.max(1) as f64;
+        let rms = (s.deviation_mm.iter().map(|d| d * d).sum::<f64>()
+            / s.deviation_mm.len().max(1) as f64)
+            .sqrt();
+        let holds = |f: fn(&Reason) -> bool| {
+            s.events
+                .iter()
+                .filter(|(_, e)| matches!(e, Event::Hold(r) if f(r)))
+                .count()
+        };
+        Self {
+            cycles: s.cycles,
+            seconds: span,
+            rate_hz: s.cycles.saturating_sub(1) as f64 / span.max(1e-9),
+            missed_cycles: s.missed,
+            missed_percent: 100.0 * s.missed as f64 / (s.cycles + s.missed).max(1) as f64,
+            log_records_dropped: s.dropped,
+            period_median_ms: percentile(&mut s.period_ms, 0.5),
+            period_p99_ms: percentile(&mut s.period_ms, 0.99),
+            period_max_ms: percentile(&mut s.period_ms, 1.0),
+            compute_median_us: percentile(&mut s.compute_us, 0.5),
+            compute_p99_us: percentile(&mut s.compute_us, 0.99),
+            compute_max_us: percentile(&mut s.compute_us, 1.0),
+            command_delay_median_ms: percentile(&mut s.delay_ms, 0.5),
+            tracking_percent: 100.0 * s.by_mode[0] as f64 / n,
+            approaching_percent: 100.0 * s.by_mode[1] as f64 / n,
+            holding_percent: 100.0 * s.by_mode[2] as f64 / n,
+            faulted_percent: 100.0 * s.by_mode[3] as f64 / n,
+            deviation_rms_mm: rms,
+            deviation_p95_mm: percentile(&mut s.deviation_mm, 0.95),
+            deviation_max_mm: percentile(&mut s.deviation_mm, 1.0),
+            rotation_p95_deg: percentile(&mut s.deviation_deg, 0.95),
+            holds: holds(|_| true),
+            robot_stale_holds: holds(|r| matches!(r, Reason::RobotStale)),
+            protective_stops: holds(|r| {
+                matches!(r, Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop))
+            }),
+            events: s.events.len(),
+            final_mode: mode_name(final_mode),
+            realtime: rt.map_or_else(|| "normal scheduling".into(), mocomp_rt::RtReport::describe),
+            realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
+        }
+    }
+
+    fn print(
+        &self,
+        out: &mut dyn Write,
+        events: &[(f64, Event)],
+        log: Option<&str>,
+    ) -> std::io::Result<()> {
+        writeln!(out, "\nsummary")?;
+        writeln!(
+            out,
+            "  cycles            {} in {:.2} s ({:.1} Hz); missed {} ({:.2} %); log records dropped {}",
+            self.cycles,
+            self.seconds,
+            self.rate_hz,
+            self.missed_cycles,
+            self.missed_percent,
+            self.log_records_dropped
+        )?;
+        writeln!(
+            out,
+            "  real time         {}{}",
+            self.realtime,
+            if self.realtime_complete {
+                ""
+            } else {
+                " (the loop ran without full real-time scheduling)"
+            }
+        )?;
+        writeln!(
+            out,
+            "  cycle period      median {:.3} ms, p99 {:.3} ms, max {:.3} ms",
+            self.period_median_ms, self.period_p99_ms, self.period_max_ms
+        )?;
+        writeln!(
+            out,
+            "  modes             tracking {:.1} %, approaching {:.1} %, holding {:.1} %, faulted {:.1} %",
+            self.tracking_percent,
+            self.approaching_percent,
+            self.holding_percent,
+            self.faulted_percent
+        )?;
+        writeln!(
+            out,
+            "  cycle compute     median {:.1} µs, p99 {:.1} µs, max {:.1} µs (the socket write included)",
+            self.compute_median_us, self.compute_p99_us, self.compute_max_us
+        )?;
+        writeln!(
+            out,
+            "  command delay     median {:.2} ms",
+            self.command_delay_median_ms
+        )?;
+        writeln!(
+            out,
+            "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
+            self.deviation_rms_mm,
+            self.deviation_p95_mm,
+            self.deviation_max_mm,
+            self.rotation_p95_deg
+        )?;
+        writeln!(
+            out,
+            "  holds             {} (robot state stale {}, protective stops {})",
+            self.holds, self.robot_stale_holds, self.protective_stops
+        )?;
+        writeln!(out, "  events            {}", self.events)?;
+        for (t, e) in events {
+            writeln!(out, "    {t:9.3} s  {e:?}")?;
+        }
+        writeln!(out, "  final mode        {}", self.final_mode)?;
+        writeln!(out, "  robot stopped     stopj sent")?;
+        if let Some(p) = log {
+            writeln!(out, "  log               {p}")?;
+        }
+        Ok(())
+    }
 }
 
 pub(crate) fn initial_joints(
@@ -607,7 +775,11 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     let period = model.spec().series.period_s();
     let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
     let q0 = initial_joints(&setup.file, &arm, &cfg)?;
-    let world = World::connect(&setup, q0, out)?;
+    let world = World::connect(&setup, q0, out, Some(&setup.file.realtime))?;
+    let realtime = world.realtime.clone();
+    if let Some(w) = realtime.as_ref().and_then(mocomp_rt::RtReport::warning) {
+        eprintln!("warning: {w}");
+    }
     let file = &setup.file;
     let clock = Arc::clone(&world.clock);
     let client = world.client(&setup, &file.tracker.device);
@@ -625,7 +797,13 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     let status = opts.status;
     let log_thread = std::thread::Builder::new()
         .name("mocomp-log".into())
-        .spawn(move || logger(rx, arm, period, csv, status))
+        .spawn(move || {
+            // Spawned by the real-time thread; the logger must not compete with it, nor sit on
+            // its core.
+            mocomp_rt::set_normal().ok();
+            mocomp_rt::unpin().ok();
+            logger(rx, arm, period, csv, status)
+        })
         .context("logger thread")?;
 
     // Ctrl-C.
@@ -645,15 +823,12 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     };
     let mut seen = robot.state_count();
     let mut dropped = 0u64;
+    // Wait for the next state (woken by the client's receive thread); after three periods without
+    // one, cycle anyway: the loop resends its command (the watchdog stays fed) and its
+    // stale-state rule stops the robot once the state is really stale.
+    let patience = Duration::from_secs_f64(3.0 * period);
     while !stop.load(Ordering::Relaxed) && clock.now_s() < t_end {
-        // Wait for the next state; after three periods without one, cycle anyway (the loop's
-        // stale-state rule stops the robot).
-        let wait_until = clock.now_s() + 3.0 * period;
-        while robot.state_count() == seen && clock.now_s() < wait_until {
-            std::hint::spin_loop();
-            std::thread::yield_now();
-        }
-        seen = robot.state_count();
+        seen = robot.wait_for_state(seen, patience);
         let t0 = Instant::now();
         let mut rec = comp.cycle(clock.now_s(), &mut robot, &mut source);
         rec.compute_ns = t0.elapsed().as_nanos() as u64;
@@ -683,58 +858,11 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     let _ = robot.close();
     drop(client);
 
-    // Summary.
-    let span = s.last_t - s.first_t.unwrap_or(s.last_t);
-    writeln!(out, "\nsummary")?;
-    writeln!(
-        out,
-        "  cycles            {} in {:.2} s ({:.1} Hz); missed {}; log records dropped {}",
-        s.cycles,
-        span,
-        s.cycles.saturating_sub(1) as f64 / span.max(1e-9),
-        s.missed,
-        s.dropped
-    )?;
-    let n = s.cycles.max(1) as f64;
-    writeln!(
-        out,
-        "  modes             tracking {:.1} %, approaching {:.1} %, holding {:.1} %, faulted {:.1} %",
-        100.0 * s.by_mode[0] as f64 / n,
-        100.0 * s.by_mode[1] as f64 / n,
-        100.0 * s.by_mode[2] as f64 / n,
-        100.0 * s.by_mode[3] as f64 / n
-    )?;
-    writeln!(
-        out,
-        "  cycle compute     median {:.1} µs, p99 {:.1} µs, max {:.1} µs",
-        percentile(&mut s.compute_us, 0.5),
-        percentile(&mut s.compute_us, 0.99),
-        percentile(&mut s.compute_us, 1.0)
-    )?;
-    writeln!(
-        out,
-        "  command delay     median {:.2} ms",
-        percentile(&mut s.delay_ms, 0.5)
-    )?;
-    let rms = (s.deviation_mm.iter().map(|d| d * d).sum::<f64>()
-        / s.deviation_mm.len().max(1) as f64)
-        .sqrt();
-    writeln!(
-        out,
-        "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
-        rms,
-        percentile(&mut s.deviation_mm, 0.95),
-        percentile(&mut s.deviation_mm, 1.0),
-        percentile(&mut s.deviation_deg, 0.95)
-    )?;
-    writeln!(out, "  events            {}", s.events.len())?;
-    for (t, e) in &s.events {
-        writeln!(out, "    {t:9.3} s  {e:?}")?;
-    }
-    writeln!(out, "  final mode        {}", mode_name(&final_mode))?;
-    writeln!(out, "  robot stopped     stopj sent")?;
-    if let Some(p) = &file.log_csv {
-        writeln!(out, "  log               {p}")?;
+    let report = RunReport::new(&mut s, realtime.as_ref(), &final_mode);
+    if opts.json {
+        writeln!(out, "{}", serde_json::to_string(&report)?)?;
+    } else {
+        report.print(out, &s.events, file.log_csv.as_deref())?;
     }
     Ok(())
 }

@@ -179,7 +179,7 @@ pub fn run(out: &mut dyn Write, opts: &TeachOptions) -> anyhow::Result<()> {
     let period = setup.model.spec().series.period_s();
     let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
     let q0 = initial_joints(&setup.file, &setup.arm, &cfg)?;
-    let mut world = World::connect(&setup, q0, out)?;
+    let mut world = World::connect(&setup, q0, out, None)?;
     let taught = teach(&setup, &mut world, opts.samples);
     let _ = world.robot.close();
     let t = taught?;

@@ -61,6 +61,10 @@ pub struct World {
     pub robot: UrRobot,
     /// The tracker's address.
     pub tracker_addr: String,
+    /// The real-time scheduling the calling thread got (when asked for).
+    pub realtime: Option<mocomp_rt::RtReport>,
+    /// Keeps the CPUs out of deep idle states while the world runs (held for its drop).
+    _cpu_latency: Option<mocomp_rt::CpuLatencyGuard>,
     // Dropped after the robot client (field order): the simulators.
     tracker: Option<TrackerServer>,
     sim: Option<Arc<Sim>>,
@@ -78,12 +82,27 @@ impl std::fmt::Debug for World {
 impl World {
     /// Starts what is simulated and connects the robot. `initial_q`: the simulated robot's joints
     /// at start.
+    ///
+    /// With `realtime`, the simulators are started from this thread at the simulators' FIFO
+    /// priority and the robot client at the loop's, so their threads inherit those; this thread
+    /// is left at the loop's priority (memory locked, pinned as configured) and the report says
+    /// what the operating system granted. Clients started later from this thread (the tracker's)
+    /// inherit the loop's priority too.
     pub fn connect(
         setup: &Setup,
         initial_q: [f64; 6],
         out: &mut dyn Write,
+        realtime: Option<&mocomp_rt::RtConfig>,
     ) -> anyhow::Result<Self> {
         let file = &setup.file;
+        let realtime = realtime.filter(|c| c.enabled);
+        if let Some(c) = realtime {
+            // A refusal shows in the loop's report below (same cause); nothing to add here.
+            if let Some(cpu) = c.cpu {
+                mocomp_rt::pin_to_cpu(cpu).ok();
+            }
+            mocomp_rt::set_fifo(c.simulator_priority).ok();
+        }
         let clock: Arc<dyn Clock> = Arc::new(MonotonicClock::new());
         let host: std::net::IpAddr = file
             .robot
@@ -111,6 +130,10 @@ impl World {
             (None, Some(a)) => a.clone(),
             (None, None) => return Err(UsageError("tracker.igtl: needed".into()).into()),
         };
+        let (report, cpu_latency) = match realtime.map(|c| mocomp_rt::apply(c, c.priority)) {
+            Some((r, g)) => (Some(r), g),
+            None => (None, None),
+        };
         let robot = UrRobot::connect(ucfg, Arc::clone(&clock))
             .with_context(|| format!("robot at {host}"))?;
         writeln!(
@@ -122,6 +145,8 @@ impl World {
             clock,
             robot,
             tracker_addr,
+            realtime: report,
+            _cpu_latency: cpu_latency,
             tracker,
             sim,
         })

@@ -5,7 +5,7 @@
 mod common;
 use common::assert_success;
 
-use mocomp_testkit::{TempDir, free_port};
+use mocomp_testkit::TempDir;
 use std::io::BufRead;
 use std::process::{Command, Stdio};
 
@@ -22,12 +22,12 @@ fn listen_prints_what_serve_poses_sends() {
         })
         .collect();
     std::fs::write(&feed, lines.join("\n")).unwrap();
-    let port = free_port().to_string();
+    // Port 0: the server binds what is free and prints the address it got.
     let mut server = Command::new(env!("CARGO_BIN_EXE_mocomp"))
         .args([
             "serve-poses",
             "--igtl-port",
-            &port,
+            "0",
             "--from",
             &feed,
             "--rate",
@@ -44,11 +44,21 @@ fn listen_prints_what_serve_poses_sends() {
         .read_line(&mut first)
         .unwrap();
     assert!(first.contains("waiting for a client"), "{first}");
+    let addr = first
+        .split(" on ")
+        .nth(1)
+        .and_then(|r| r.split(';').next())
+        .unwrap()
+        .to_string();
+    assert!(
+        addr.starts_with("127.0.0.1:") && !addr.ends_with(":0"),
+        "{first}"
+    );
     let out = Command::new(env!("CARGO_BIN_EXE_mocomp"))
         .args([
             "listen",
             "--igtl",
-            &format!("127.0.0.1:{port}"),
+            &addr,
             "--device",
             "HeadToTracker",
             "--count",
@@ -78,15 +88,9 @@ fn listen_prints_what_serve_poses_sends() {
 
 #[test]
 fn listen_without_a_server_is_exit_1_with_the_reason() {
-    let port = free_port().to_string();
+    // An address of this test's own, where nothing listens: the connection is refused.
     let out = Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args([
-            "listen",
-            "--igtl",
-            &format!("127.0.0.1:{port}"),
-            "--timeout",
-            "0.5",
-        ])
+        .args(["listen", "--igtl", "127.0.88.1:18944", "--timeout", "0.5"])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));

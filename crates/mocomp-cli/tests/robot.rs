@@ -25,7 +25,10 @@ fn robot_stream_against_an_in_process_simulator_reports_its_figures() {
     assert_success(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["rate_hz"], 500.0);
-    assert_eq!(v["cycles"], 1000);
+    // One command per 2 ms deadline; a deadline the thread wakes too late for is skipped, never
+    // made up in a burst, so a loaded machine sends a few fewer, never more.
+    let cycles = v["cycles"].as_u64().unwrap();
+    assert!((900..=1000).contains(&cycles), "{cycles}");
     assert_eq!(v["protective_stop"], false);
     // The joints follow the target with the servo's lag (lookahead × speed) and no more.
     let lag = v["expected_lag_rad"].as_f64().unwrap();

@@ -162,6 +162,7 @@ impl World {
     fn cycle(&mut self) -> Mode {
         let now = self.tracker.now;
         self.robot.state.received_s = now;
+        self.robot.state.controller_s = now;
         let rec = self.comp.cycle(now, &mut self.robot, &mut self.tracker);
         self.tracker.now += PERIOD;
         rec.mode

@@ -27,7 +27,7 @@ pub enum Reason {
     HeadTooFast(f64, f64),
     /// The robot reports a fault.
     Robot(RobotFault),
-    /// The robot's state is older than `robot_stale_periods`.
+    /// The robot's state was received longer ago than `robot_stale_s`.
     RobotStale,
     /// The goal is at or near a singularity (its margin).
     Singular(f64),
@@ -138,6 +138,11 @@ pub struct Compensator {
     sigma_dot: f64,
     replan: bool,
     last_head: Option<Isometry3<f64>>,
+    /// The controller time of the state the previous command answered (NaN before the first).
+    last_controller_s: f64,
+    /// The controller time between the previous command and this one, s: the time the command
+    /// is stepped by.
+    dt: f64,
 }
 
 impl Compensator {
@@ -169,6 +174,8 @@ impl Compensator {
             sigma_dot: 0.0,
             replan: false,
             last_head: None,
+            last_controller_s: f64::NAN,
+            dt: period_s,
         }
     }
 
@@ -271,9 +278,15 @@ impl Compensator {
     }
 
     /// Rate- and acceleration-limits the command towards `desired`, joint by joint, so that each
-    /// joint can still stop at `desired` within its acceleration.
+    /// joint can still stop at `desired` within its acceleration. The step is over the controller
+    /// time since the previous command (`self.dt`): a late cycle moves as far as the time that
+    /// really passed and no further, so the controller never sees a setpoint faster than the
+    /// limits (URControl's C204A3), and a cycle with no controller time passed moves nothing.
     fn limit(&mut self, desired: &[f64; 6], speed_fraction: f64) -> [f64; 6] {
-        let dt = self.period;
+        let dt = self.dt;
+        if dt <= 0.0 {
+            return self.q_cmd;
+        }
         let a = self.cfg.params.max_joint_accel_rad_s2;
         let mut q = self.q_cmd;
         let mut v = self.v_cmd;
@@ -322,7 +335,9 @@ impl Compensator {
         let now_from_base = head_now.inverse();
         let prev_from_base = head_prev.inverse();
         let frames = self.arm.link_frames(q);
-        let prev_frames = self.arm.link_frames(q_prev);
+        // The previous command's links are needed only near the head (rare), its flange always.
+        let mut prev_frames: Option<[Isometry3<f64>; 7]> = None;
+        let prev_flange = self.arm.fk_flange(q_prev);
         let head = &self.cfg.head;
         let point_at = |f: &[Isometry3<f64>; 7], i: usize, k: u32| {
             let a = f[i - 1].translation.vector;
@@ -330,16 +345,21 @@ impl Compensator {
             Point3::from(a + (b - a) * (f64::from(k) / 4.0))
         };
         // Links up to wrist 2; wrist 3 and the flange are inside the coil's model.
+        let (radius, clearance) = (
+            self.cfg.params.link_radius_m,
+            self.cfg.params.link_clearance_m,
+        );
         for i in 1..6 {
             for k in 0..=4 {
                 let p = point_at(&frames, i, k);
-                let d = head.distance(&(now_from_base * p)) - self.cfg.params.link_radius_m;
-                if d < self.cfg.params.link_clearance_m {
-                    let p0 = point_at(&prev_frames, i, k);
+                let d = head.distance_below(&(now_from_base * p), clearance + radius) - radius;
+                if d < clearance {
+                    let pf = prev_frames.get_or_insert_with(|| self.arm.link_frames(q_prev));
+                    let p0 = point_at(pf, i, k);
                     let d0 = head
                         .distance(&(now_from_base * p0))
                         .min(head.distance(&(prev_from_base * p0)))
-                        - self.cfg.params.link_radius_m;
+                        - radius;
                     if d < d0 {
                         return Some(Reason::LinkCollision(i, d));
                     }
@@ -347,10 +367,15 @@ impl Compensator {
             }
         }
         let coil_now = now_from_base * frames[6] * self.cfg.flange_from_coil;
-        let coil_prev_now = now_from_base * prev_frames[6] * self.cfg.flange_from_coil;
-        let coil_prev_prev = prev_from_base * prev_frames[6] * self.cfg.flange_from_coil;
-        let nearest = self.coil_distance(&coil_now);
-        if nearest < self.cfg.params.coil_min_distance_m - self.cfg.params.coil_contact_tolerance_m
+        let coil_prev_now = now_from_base * prev_flange * self.cfg.flange_from_coil;
+        let coil_prev_prev = prev_from_base * prev_flange * self.cfg.flange_from_coil;
+        let deepest =
+            self.cfg.params.coil_min_distance_m - self.cfg.params.coil_contact_tolerance_m;
+        let nearest = self
+            .cfg
+            .coil
+            .distance_below(&self.cfg.head, &coil_now, deepest);
+        if nearest < deepest
             && nearest
                 < self
                     .coil_distance(&coil_prev_now)
@@ -359,15 +384,17 @@ impl Compensator {
             return Some(Reason::CoilCollision(nearest));
         }
         let centre = coil_now.translation.vector;
-        let d = head.distance(&Point3::from(centre));
+        let zone = self.cfg.params.approach_zone_m;
+        let d = head.distance_below(&Point3::from(centre), zone);
         let (p1, p2) = (
             coil_prev_now.translation.vector,
             coil_prev_prev.translation.vector,
         );
-        let d_prev = head
-            .distance(&Point3::from(p1))
-            .min(head.distance(&Point3::from(p2)));
-        if d < self.cfg.params.approach_zone_m && d < d_prev - 1e-6 {
+        let d_prev = || {
+            head.distance(&Point3::from(p1))
+                .min(head.distance(&Point3::from(p2)))
+        };
+        if d < zone && d < d_prev() - 1e-6 {
             let g = &self.cfg.head_from_coil_goal;
             let axis = g.rotation * Vector3::z();
             let lateral_of = |c: Vector3<f64>| {
@@ -436,7 +463,7 @@ impl Compensator {
     /// Advances along the path (a speed-limited, acceleration-limited arc-length profile that
     /// waits for the command when it lags) and returns the flange target at the new arc length.
     fn path_target(&mut self, path: &ShellPath, base_from_head: &Isometry3<f64>) -> Isometry3<f64> {
-        let dt = self.period;
+        let dt = self.dt;
         let a = self.cfg.params.approach_accel_m_s2;
         let here = base_from_head * path.pose_at(self.sigma) * self.coil_from_flange;
         let lag =
@@ -507,7 +534,7 @@ impl Compensator {
         let state = robot.state();
         let robot_reason = match state {
             None => Some(Reason::RobotStale),
-            Some(s) if now - s.received_s > self.cfg.params.robot_stale_periods * self.period => {
+            Some(s) if now - s.received_s > self.cfg.params.robot_stale_s => {
                 Some(Reason::RobotStale)
             }
             Some(s) => s.fault().map(Reason::Robot),
@@ -531,9 +558,24 @@ impl Compensator {
         }
         self.stop_sent = false;
         let Some(state) = state else { return rec };
+        // Step by the controller's time, not the loop's: what matters is how long the controller
+        // held the previous setpoint. Several states that arrive together give one longer step;
+        // a cycle on the same state (woken without a new one) gives none.
+        self.dt = if self.last_controller_s.is_finite() {
+            (state.controller_s - self.last_controller_s).clamp(0.0, self.cfg.params.robot_stale_s)
+        } else {
+            self.period
+        };
+        self.last_controller_s = state.controller_s;
         if !self.have_cmd {
+            // Start (or come back after a stop) from where the arm is and how it moves, so the
+            // first command continues its motion instead of jerking it to a halt.
             self.q_cmd = state.actual_q;
-            self.v_cmd = [0.0; 6];
+            self.v_cmd = std::array::from_fn(|j| {
+                let v = state.actual_qd[j];
+                if v.is_finite() { v } else { 0.0 }
+            });
+            self.dt = self.period;
             self.have_cmd = true;
         }
 
@@ -574,7 +616,7 @@ impl Compensator {
                     ) {
                         Err(_) => reason = Some(Reason::Unreachable),
                         Ok(c) => {
-                            let m = self.arm.singularity(&c.joints).margin(self.arm.geometry());
+                            let m = self.arm.singularity_margin(&c.joints);
                             if m < self.cfg.params.singularity_hold {
                                 reason = Some(Reason::Singular(m));
                             } else {

@@ -63,8 +63,12 @@ pub struct LoopParams {
     pub max_head_speed_rad_s: f64,
     /// A fault must have been clear this long before tracking resumes, s. [0.2]
     pub resume_after_s: f64,
-    /// Robot state older than this many controller periods is stale. [5]
-    pub robot_stale_periods: f64,
+    /// Robot state received longer ago than this is stale and stops the robot, s. A state a
+    /// few periods late (a busy PC, a delayed packet) is not: the loop goes on with the newest
+    /// one and steps by the controller time that really passed. 30 ms is 15 e-Series or about
+    /// 4 CB3 periods, and below the control program's 50 ms watchdog, so the loop stops the
+    /// robot itself before the controller would. [0.03]
+    pub robot_stale_s: f64,
     /// Singularity margin below which the loop slows down (see `Singularity::margin`). [0.1]
     pub singularity_slow: f64,
     /// Singularity margin below which the loop holds. [0.02]
@@ -110,7 +114,7 @@ impl Default for LoopParams {
             max_head_speed_m_s: 0.15,
             max_head_speed_rad_s: 1.2,
             resume_after_s: 0.2,
-            robot_stale_periods: 5.0,
+            robot_stale_s: 0.03,
             singularity_slow: 0.1,
             singularity_hold: 0.02,
             stop_decel_rad_s2: 4.0,
@@ -245,10 +249,10 @@ impl LoopParams {
                 "must be finite and > 0",
             );
         }
-        if !(self.robot_stale_periods.is_finite() && self.robot_stale_periods > 0.0) {
+        if !(self.robot_stale_s.is_finite() && self.robot_stale_s > 0.0) {
             return err(
-                "robot_stale_periods",
-                self.robot_stale_periods,
+                "robot_stale_s",
+                self.robot_stale_s,
                 "must be finite and > 0",
             );
         }

@@ -24,6 +24,22 @@ impl HeadModel {
             .coords;
         ellipsoid_distance(&p, &self.radii)
     }
+
+    /// [`Self::distance`] where it is below `cutoff`; elsewhere a lower bound of it that is at
+    /// least `cutoff` (the distance to the ellipsoid's bounding sphere), which spares the exact
+    /// solve for the many points a check only needs to know are far enough.
+    pub fn distance_below(&self, p_head: &Point3<f64>, cutoff: f64) -> f64 {
+        let p = self
+            .head_from_ellipsoid
+            .inverse_transform_point(p_head)
+            .coords;
+        let bound = p.norm() - self.radii.max();
+        if bound >= cutoff {
+            bound
+        } else {
+            ellipsoid_distance(&p, &self.radii)
+        }
+    }
 }
 
 /// Distance from `p` (ellipsoid frame) to the ellipsoid with semi-axes `r`.
@@ -74,17 +90,37 @@ impl CoilModel {
     /// Signed distance (m) from the coil at `head_from_coil` to `head`: the nearest of its
     /// face's and back's centres and rims (eight points each); negative when inside the head.
     pub fn distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
+        self.distance_below(head, head_from_coil, f64::INFINITY)
+    }
+
+    /// [`Self::distance`] where it is below `cutoff`; elsewhere some value of at least `cutoff`
+    /// (see [`HeadModel::distance_below`]).
+    pub fn distance_below(
+        &self,
+        head: &HeadModel,
+        head_from_coil: &Isometry3<f64>,
+        cutoff: f64,
+    ) -> f64 {
+        // The rim at every 45° and the centre, as unit offsets (no trigonometry per call: this
+        // runs several times a control cycle).
+        const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
+        const RIM: [(f64, f64); 9] = [
+            (1.0, 0.0),
+            (H, H),
+            (0.0, 1.0),
+            (-H, H),
+            (-1.0, 0.0),
+            (-H, -H),
+            (0.0, -1.0),
+            (H, -H),
+            (0.0, 0.0),
+        ];
         let r = self.radius;
         let mut nearest = f64::INFINITY;
         for z in [0.0, -self.thickness] {
-            for k in 0..9 {
-                let p = if k == 8 {
-                    Point3::new(0.0, 0.0, z)
-                } else {
-                    let ang = std::f64::consts::TAU * f64::from(k) / 8.0;
-                    Point3::new(r * ang.cos(), r * ang.sin(), z)
-                };
-                nearest = nearest.min(head.distance(&(head_from_coil * p)));
+            for (c, s) in RIM {
+                let p = Point3::new(r * c, r * s, z);
+                nearest = nearest.min(head.distance_below(&(head_from_coil * p), cutoff));
             }
         }
         nearest
@@ -94,6 +130,55 @@ impl CoilModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `distance_below` is the exact distance below its cutoff and never claims a point is
+    /// nearer than it is (points and coil poses all around the head, cutoffs from inside to far).
+    #[test]
+    fn distance_below_is_exact_below_the_cutoff_and_a_bound_above() {
+        let head = HeadModel {
+            head_from_ellipsoid: Isometry3::new(
+                Vector3::new(0.01, -0.02, 0.005),
+                Vector3::new(0.1, 0.2, -0.3),
+            ),
+            radii: Vector3::new(0.075, 0.095, 0.11),
+        };
+        let coil = CoilModel {
+            radius: 0.04,
+            thickness: 0.03,
+        };
+        let mut x = 7u64;
+        let mut next = || {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for _ in 0..2000 {
+            let p = Point3::new(0.4 * next(), 0.4 * next(), 0.4 * next());
+            let exact = head.distance(&p);
+            for cutoff in [-0.01, 0.0, 0.003, 0.03, 0.1] {
+                let d = head.distance_below(&p, cutoff);
+                if exact < cutoff {
+                    assert_eq!(d, exact);
+                } else {
+                    assert!(d >= cutoff && d <= exact + 1e-12, "{d} {exact} {cutoff}");
+                }
+            }
+            let pose = Isometry3::new(
+                p.coords,
+                Vector3::new(3.0 * next(), 3.0 * next(), 3.0 * next()),
+            );
+            let exact = coil.distance(&head, &pose);
+            for cutoff in [-0.002, 0.0, 0.01] {
+                let d = coil.distance_below(&head, &pose, cutoff);
+                if exact < cutoff {
+                    assert_eq!(d, exact);
+                } else {
+                    assert!(d >= cutoff, "{d} {exact} {cutoff}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn ellipsoid_distance_is_exact_on_the_axes_and_bounded_elsewhere() {

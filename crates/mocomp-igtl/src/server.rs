@@ -75,6 +75,8 @@ struct Slot {
     tdata: Arc<AtomicBool>,
     stream: TcpStream,
     alive: Arc<AtomicBool>,
+    /// Messages queued for this client and not yet written to its socket.
+    pending: Arc<AtomicU64>,
 }
 
 #[derive(Debug)]
@@ -169,23 +171,48 @@ impl Server {
                 if tdata && !slot.tdata.load(Ordering::Relaxed) {
                     return true;
                 }
+                slot.pending.fetch_add(1, Ordering::Relaxed);
                 match slot.tx.try_send(Arc::clone(&bytes)) {
                     Ok(()) => {
                         c.sent.fetch_add(1, Ordering::Relaxed);
                         true
                     }
                     Err(TrySendError::Full(_)) => {
+                        slot.pending.fetch_sub(1, Ordering::Relaxed);
                         c.dropped_slow.fetch_add(1, Ordering::Relaxed);
                         slot.alive.store(false, Ordering::Relaxed);
                         slot.stream.shutdown(std::net::Shutdown::Both).ok();
                         false
                     }
                     Err(TrySendError::Disconnected(_)) => {
+                        slot.pending.fetch_sub(1, Ordering::Relaxed);
                         c.disconnected.fetch_add(1, Ordering::Relaxed);
                         false
                     }
                 }
             });
+        }
+    }
+
+    /// Waits until every message sent so far has been written to the sockets of the clients
+    /// still connected, or `timeout` has passed; returns whether everything was written. For a
+    /// sender about to close that must not cut its last messages off.
+    pub fn flush(&self, timeout: Duration) -> bool {
+        let end = std::time::Instant::now() + timeout;
+        loop {
+            let pending = self.shared.clients.lock().map_or(0, |c| {
+                c.iter()
+                    .filter(|s| s.alive.load(Ordering::Relaxed))
+                    .map(|s| s.pending.load(Ordering::Relaxed))
+                    .sum::<u64>()
+            });
+            if pending == 0 {
+                return true;
+            }
+            if std::time::Instant::now() >= end {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(1));
         }
     }
 
@@ -239,20 +266,22 @@ fn add_client(shared: &Arc<Shared>, stream: TcpStream, id: u64) -> std::io::Resu
     let (tx, rx) = sync_channel::<Bytes>(shared.config.queue);
     let tdata = Arc::new(AtomicBool::new(false));
     let alive = Arc::new(AtomicBool::new(true));
+    let pending = Arc::new(AtomicU64::new(0));
     let writer_stream = stream.try_clone()?;
     let reader_stream = stream.try_clone()?;
     {
-        let alive = Arc::clone(&alive);
+        let (alive, pending) = (Arc::clone(&alive), Arc::clone(&pending));
         std::thread::Builder::new()
             .name(format!("igtl-writer-{id}"))
-            .spawn(move || writer(writer_stream, rx, alive))?;
+            .spawn(move || writer(writer_stream, rx, alive, pending))?;
     }
     {
         let shared = Arc::clone(shared);
         let (tx, tdata, alive) = (tx.clone(), Arc::clone(&tdata), Arc::clone(&alive));
+        let pending = Arc::clone(&pending);
         std::thread::Builder::new()
             .name(format!("igtl-reader-{id}"))
-            .spawn(move || reader(reader_stream, shared, tx, tdata, alive))?;
+            .spawn(move || reader(reader_stream, shared, tx, tdata, alive, pending))?;
     }
     shared.counters.accepted.fetch_add(1, Ordering::Relaxed);
     if let Ok(mut clients) = shared.clients.lock() {
@@ -261,16 +290,24 @@ fn add_client(shared: &Arc<Shared>, stream: TcpStream, id: u64) -> std::io::Resu
             tdata,
             stream,
             alive,
+            pending,
         });
     }
     Ok(())
 }
 
-fn writer(mut stream: TcpStream, rx: Receiver<Bytes>, alive: Arc<AtomicBool>) {
+fn writer(
+    mut stream: TcpStream,
+    rx: Receiver<Bytes>,
+    alive: Arc<AtomicBool>,
+    pending: Arc<AtomicU64>,
+) {
     while alive.load(Ordering::Relaxed) {
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok(bytes) => {
-                if stream.write_all(&bytes).is_err() {
+                let ok = stream.write_all(&bytes).is_ok();
+                pending.fetch_sub(1, Ordering::Relaxed);
+                if !ok {
                     break;
                 }
             }
@@ -305,6 +342,7 @@ fn reader(
     tx: SyncSender<Bytes>,
     tdata: Arc<AtomicBool>,
     alive: Arc<AtomicBool>,
+    pending: Arc<AtomicU64>,
 ) {
     stream
         .set_read_timeout(Some(Duration::from_millis(100)))
@@ -312,7 +350,10 @@ fn reader(
     let mut decoder = Decoder::new(shared.config.max_body);
     let mut buf = vec![0u8; 16 * 1024];
     let reply = |bytes: Bytes| {
-        tx.try_send(bytes).ok();
+        pending.fetch_add(1, Ordering::Relaxed);
+        if tx.try_send(bytes).is_err() {
+            pending.fetch_sub(1, Ordering::Relaxed);
+        }
     };
     while alive.load(Ordering::Relaxed) && !shared.stop.load(Ordering::Relaxed) {
         match stream.read(&mut buf) {

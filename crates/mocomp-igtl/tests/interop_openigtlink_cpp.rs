@@ -15,7 +15,7 @@ use mocomp_igtl::message::{Body, Status, TDataElement, transform_floats};
 use mocomp_igtl::name::Name;
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{DeviceName, Message, Timestamp, encode};
-use mocomp_testkit::{free_port, wait_until};
+use mocomp_testkit::{listening_port, wait_until};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, OnceLock};
@@ -194,15 +194,17 @@ fn our_server_feeds_the_cpp_receive_client() {
 #[test]
 fn the_cpp_tracker_server_streams_to_our_client() {
     let exe = peer("TrackerServer");
-    let port = free_port();
-    let _server = Killed(
+    // Port 0: the server binds whatever is free and we read which from /proc (the example
+    // does not print it), so no other process can take it in between.
+    let server = Killed(
         Command::new(&exe)
-            .args([port.to_string(), "200".into()])
+            .args(["0", "200"])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
             .unwrap(),
     );
+    let port = listening_port(server.0.id());
     let mut cfg = ClientConfig::new(&format!("127.0.0.1:{port}"));
     cfg.device = Some("Tracker".into());
     cfg.keep_messages = 1000;

@@ -18,7 +18,7 @@ use mocomp_igtl::message::{Body, ENCODING_US_ASCII, Status, matrix_mm};
 use mocomp_igtl::name::Name;
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
-use mocomp_testkit::{PythonPeer, free_port, wait_until};
+use mocomp_testkit::{PythonPeer, wait_until};
 use serde_json::{Value, json};
 use std::sync::Arc;
 use std::time::Duration;
@@ -47,8 +47,10 @@ fn matrix_of(v: &Value) -> Matrix4<f64> {
 #[test]
 fn pyigtl_server_to_our_client() {
     let mut py = peer();
-    let port = free_port();
-    py.request(&json!({"op": "server", "port": port}));
+    // pyigtl binds port 0 itself and reports the port it got.
+    let port = py.request(&json!({"op": "server", "port": 0}))["port"]
+        .as_u64()
+        .unwrap();
     let mut cfg = ClientConfig::new(&format!("127.0.0.1:{port}"));
     cfg.device = Some("HeadToTracker".into());
     cfg.keep_messages = 100;

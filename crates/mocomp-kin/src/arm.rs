@@ -261,6 +261,19 @@ impl Arm {
         }
     }
 
+    /// [`Singularity::margin`] at `q`, without the Jacobian's determinant the full
+    /// [`Self::singularity`] also computes (the control loop needs only the margin, every cycle).
+    pub fn singularity_margin(&self, q: &[f64; 6]) -> f64 {
+        let c = BranchCoordinates::of(&self.spec.geometry, q);
+        Singularity {
+            shoulder_m: c.rho_m,
+            elbow: c.sin_q3,
+            wrist: c.sin_q5,
+            manipulability: f64::NAN,
+        }
+        .margin(&self.spec.geometry)
+    }
+
     /// All IK solutions (up to 8, distinct, each labelled with its branch) for `base_from_tool`.
     ///
     /// Joint values are canonical within the limits (for UR's ±2π limits: in `(−π, π]`);

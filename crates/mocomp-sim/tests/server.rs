@@ -10,7 +10,6 @@ use mocomp_igtl::client::{Client, ClientConfig, TimestampMode};
 use mocomp_sim::{TrackedMarker, TrackerModel, TrackerServer};
 use mocomp_testkit::wait_until;
 use std::sync::Arc;
-use std::time::Duration;
 
 #[test]
 fn the_server_streams_each_marker_with_its_latency_and_validity() {
@@ -49,9 +48,11 @@ fn the_server_streams_each_marker_with_its_latency_and_validity() {
     assert!(s.valid);
     assert!(translation_error(&s.tracker_from_marker, &head) < 1e-6);
     let age = clock.now_s() - s.acquired_s;
-    assert!((0.03..0.06).contains(&age), "sample age {age}");
-    // The tool went out of view: its newest samples are invalid.
-    std::thread::sleep(Duration::from_millis(100));
-    let t = tools.latest().unwrap();
-    assert!(!t.valid, "a marker out of view is reported invalid");
+    // At least the model's 30 ms latency (the point: a same-host receiver sees it); the upper
+    // bound leaves a loaded machine 200 ms to deliver.
+    assert!((0.03..0.25).contains(&age), "sample age {age}");
+    // The tool went out of view after 0.2 s: its newest samples turn invalid.
+    wait_until("the tool's samples to turn invalid", || {
+        tools.latest().is_some_and(|t| !t.valid)
+    });
 }

@@ -5,8 +5,12 @@
 //!   install it, never a skip.
 //! - [`SplitMix64`]: a tiny seeded generator for tests that must not depend on a RNG crate's
 //!   version.
-//! - [`TempDir`]: a scratch directory removed when dropped; [`free_port`] and [`wait_until`] for
-//!   socket and thread tests; [`proptest_config`] with a fixed seed.
+//! - [`TempDir`]: a scratch directory removed when dropped; [`listening_port`] (the port a child
+//!   process bound itself, for peers that cannot print it) and [`wait_until`] for socket and
+//!   thread tests; [`proptest_config`] with a fixed seed.
+//!
+//! There is deliberately no "find a free port" helper: a port probed free and bound later can be
+//! taken in between. Servers bind port 0 (or an address of their own) and report what they got.
 #![allow(clippy::panic)] // test support: failures are panics with a message
 
 use serde_json::Value;
@@ -113,16 +117,56 @@ impl Drop for PythonPeer {
     }
 }
 
-/// A free TCP port on 127.0.0.1 (bound and released; a tiny window for a race remains).
-pub fn free_port() -> u16 {
-    match std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()) {
-        Ok(a) => a.port(),
-        Err(e) => panic!("no free port on 127.0.0.1: {e}"),
+/// The TCP port process `pid` listens on (IPv4 or IPv6), read from `/proc`: for a third-party
+/// server started on port 0 that does not print the port it got. Waits up to 10 s for the
+/// listening socket to appear; panics naming the process otherwise.
+pub fn listening_port(pid: u32) -> u16 {
+    let mut port = None;
+    wait_until(&format!("process {pid} to listen on a TCP port"), || {
+        port = listening_ports(pid).into_iter().next();
+        port.is_some()
+    });
+    port.unwrap_or_else(|| panic!("process {pid} listens on no port"))
+}
+
+fn listening_ports(pid: u32) -> Vec<u16> {
+    // The process's socket inodes …
+    let inodes: Vec<String> = std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .map(|d| {
+            d.filter_map(Result::ok)
+                .filter_map(|e| std::fs::read_link(e.path()).ok())
+                .filter_map(|l| {
+                    let l = l.to_string_lossy().into_owned();
+                    l.strip_prefix("socket:[")
+                        .and_then(|r| r.strip_suffix(']'))
+                        .map(str::to_string)
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    // … matched against the listening (state 0A) sockets of its network namespace.
+    let mut ports = Vec::new();
+    for table in ["tcp", "tcp6"] {
+        let Ok(text) = std::fs::read_to_string(format!("/proc/{pid}/net/{table}")) else {
+            continue;
+        };
+        for line in text.lines().skip(1) {
+            let f: Vec<&str> = line.split_whitespace().collect();
+            if f.len() > 9 && f[3] == "0A" && inodes.iter().any(|i| i == f[9]) {
+                let port = f[1]
+                    .rsplit(':')
+                    .next()
+                    .and_then(|h| u16::from_str_radix(h, 16).ok());
+                ports.extend(port);
+            }
+        }
     }
+    ports
 }
 
 /// Polls `f` every 2 ms until it is true; panics naming `what` after 10 s. For tests on threads
-/// and sockets, where fixed sleeps are flaky on loaded machines.
+/// and sockets, where fixed sleeps are flaky on loaded machines: a condition with a deadline, the
+/// deadline generous enough for two loaded cores.
 pub fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
     let end = std::time::Instant::now() + std::time::Duration::from_secs(10);
     while !f() {

@@ -100,6 +100,9 @@ struct Shared {
     cell: SeqLock<WORDS>,
     stop: AtomicBool,
     last_error: Mutex<Option<String>>,
+    /// The thread blocked in [`Robot::wait_for_state`], woken after each state is published.
+    /// Set once per waiting thread; the state thread only ever `try_lock`s it, so it never waits.
+    waiter: Mutex<Option<std::thread::Thread>>,
 }
 
 /// A connected UR robot running mocomp's control program.
@@ -115,6 +118,7 @@ pub struct UrRobot {
     seq: i32,
     version: ControllerVersion,
     period_s: f64,
+    waiter: Option<std::thread::ThreadId>,
 }
 
 impl std::fmt::Debug for UrRobot {
@@ -235,6 +239,7 @@ impl UrRobot {
             cell: SeqLock::new(),
             stop: AtomicBool::new(false),
             last_error: Mutex::new(None),
+            waiter: Mutex::new(None),
         });
         shared.cell.publish(&encode_state(&first));
         let thread = {
@@ -257,6 +262,7 @@ impl UrRobot {
             buf: Vec::with_capacity(128),
             seq: start_seq,
             version,
+            waiter: None,
         };
         robot.values[0] = Value::Int32(cmd::NONE);
         robot.values[1] = Value::Int32(start_seq);
@@ -435,6 +441,30 @@ impl Robot for UrRobot {
         self.shared.cell.version()
     }
 
+    fn wait_for_state(&mut self, seen: u64, timeout: Duration) -> u64 {
+        let me = std::thread::current();
+        if self.waiter != Some(me.id()) {
+            // Once per waiting thread, never per cycle.
+            if let Ok(mut w) = self.shared.waiter.lock() {
+                *w = Some(me.clone());
+                self.waiter = Some(me.id());
+            }
+        }
+        let end = Instant::now() + timeout;
+        loop {
+            let n = self.state_count();
+            if n != seen {
+                return n;
+            }
+            let now = Instant::now();
+            if now >= end {
+                return n;
+            }
+            // An unpark between the check above and this park makes it return at once.
+            std::thread::park_timeout(end - now);
+        }
+    }
+
     fn period_s(&self) -> f64 {
         self.period_s
     }
@@ -538,6 +568,7 @@ fn state_thread(
                 Some(s) => {
                     shared.cell.publish(&encode_state(&s));
                     last = Some(s);
+                    wake(&shared);
                 }
                 None => {
                     record(&shared, "a state package with a non-rigid TCP pose".into());
@@ -562,6 +593,14 @@ fn state_thread(
         }
     }
     conn.shutdown();
+}
+
+fn wake(shared: &Shared) {
+    if let Ok(w) = shared.waiter.try_lock()
+        && let Some(t) = w.as_ref()
+    {
+        t.unpark();
+    }
 }
 
 fn record(shared: &Shared, e: String) {

@@ -287,6 +287,19 @@ pub trait Robot {
     fn state(&self) -> Option<RobotState>;
     /// How many states have arrived (grows by one per controller cycle received).
     fn state_count(&self) -> u64;
+    /// Blocks until more than `seen` states have arrived, or `timeout` has passed; returns
+    /// [`Robot::state_count`]. This default polls every 100 µs; a client with a receive thread
+    /// wakes the waiting thread instead, so a loop paced by the robot neither spins nor oversleeps.
+    fn wait_for_state(&mut self, seen: u64, timeout: std::time::Duration) -> u64 {
+        let end = std::time::Instant::now() + timeout;
+        loop {
+            let n = self.state_count();
+            if n != seen || std::time::Instant::now() >= end {
+                return n;
+            }
+            std::thread::sleep(std::time::Duration::from_micros(100));
+        }
+    }
     /// The controller period, s.
     fn period_s(&self) -> f64;
     /// Streams one servo target (call every cycle). Returns the command's sequence number.

@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Ports to serve (0: any free port, for tests that do not need the standard ones).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,7 +142,8 @@ pub struct SimStats {
     pub outputs_skipped: u64,
     /// Malformed or unknown RTDE packages received.
     pub bad_packages: u64,
-    /// Real-time cycles that started late by more than a period.
+    /// Real-time wake-ups that came a period or more late (the cycles missed were made up, up
+    /// to 25 ms of them).
     pub overruns: u64,
 }
 
@@ -375,20 +376,25 @@ fn tick(shared: &Shared) {
     }
 }
 
+/// Longest stretch of missed cycles the real-time clock makes up, s. A real controller never
+/// falls behind; a simulator on a busy PC can, and making the cycles up keeps its time on the wall
+/// clock (a client's late command is then judged over the real time that passed, as on a robot).
+/// Beyond this (a stopped process) it restarts from now instead of bursting, below the 50 ms
+/// watchdog so a burst never looks like a silent client.
+const CATCH_UP_S: f64 = 0.025;
+
 fn tick_loop(shared: Arc<Shared>) {
     let period = Duration::from_secs_f64(1.0 / shared.rate_hz);
-    let mut next = Instant::now() + period;
+    let max_late = ((CATCH_UP_S * shared.rate_hz).ceil() as u32).max(1);
+    let mut ticker = mocomp_rt::Ticker::new(period, max_late);
     while !shared.stop.load(Ordering::Relaxed) {
-        let now = Instant::now();
-        if next > now {
-            std::thread::sleep(next - now);
-        } else if now - next > period {
-            // Late by more than a cycle: count it and restart the schedule from now.
+        let due = ticker.wait();
+        if due > 1 {
             shared.counters.overruns.fetch_add(1, Ordering::Relaxed);
-            next = now;
         }
-        tick(&shared);
-        next += period;
+        for _ in 0..due {
+            tick(&shared);
+        }
     }
 }
 

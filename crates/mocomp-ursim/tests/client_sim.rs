@@ -111,7 +111,8 @@ fn servo_streaming_tracks_a_trajectory_on_a_stepped_clock_deterministically() {
 fn the_watchdog_stops_the_program_when_the_client_goes_silent() {
     let sim = sim(Model::Ur3e, SimClock::RealTime);
     let mut cfg = config_for(&sim);
-    cfg.watchdog_hz = 20.0;
+    // 2 Hz: a test thread on a loaded machine is never silent for 500 ms by accident.
+    cfg.watchdog_hz = 2.0;
     let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
     let q = robot.state().unwrap().actual_q;
     let p = ServoParams::for_period(0.002);
@@ -120,8 +121,16 @@ fn the_watchdog_stops_the_program_when_the_client_goes_silent() {
         std::thread::sleep(Duration::from_millis(2));
     }
     assert!(robot.state().unwrap().fault().is_none());
-    // Silence: the program stops within 50 ms plus a cycle.
-    std::thread::sleep(Duration::from_millis(150));
+    // Silence: the program stops, and not before the watchdog's 500 ms.
+    let silent = std::time::Instant::now();
+    wait_until("the watchdog to stop the program", || {
+        robot.state().unwrap().runtime_state == RuntimeState::Stopped
+    });
+    assert!(
+        silent.elapsed() >= Duration::from_millis(480),
+        "{:?}",
+        silent.elapsed()
+    );
     let s = robot.state().unwrap();
     assert_eq!(s.runtime_state, RuntimeState::Stopped);
     assert_eq!(s.fault(), Some(RobotFault::ProgramStopped));
