@@ -149,9 +149,15 @@ fn our_server_feeds_the_cpp_receive_client() {
         )
         .unwrap(),
     );
-    std::thread::sleep(Duration::from_millis(300));
+    // Everything written to the socket before closing it: the client reads it all before it
+    // sees the end of the stream.
+    assert!(
+        server.flush(Duration::from_secs(10)),
+        "{:?}",
+        server.counters()
+    );
     server.stop(); // ReceiveClient exits when the connection closes
-    let deadline = Instant::now() + Duration::from_secs(5);
+    let deadline = Instant::now() + Duration::from_secs(20);
     while child.0.try_wait().unwrap().is_none() && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(10));
     }

@@ -343,3 +343,19 @@ fn timestamps_synchronized_see_the_senders_latency_estimated_needs_it_given() {
         "estimated with the fixed latency given: {given}"
     );
 }
+
+#[test]
+fn flush_waits_until_every_client_has_been_written_to() {
+    let s = server();
+    let c = client(&s.local_addr().to_string(), "HeadToTracker");
+    wait_until("connection", || s.client_count() == 1);
+    for k in 0..500 {
+        s.send(
+            &Message::transform("HeadToTracker", &pose(f64::from(k)), Timestamp::now()).unwrap(),
+        );
+    }
+    assert!(s.flush(Duration::from_secs(10)), "{:?}", s.counters());
+    // Written means in the socket: the client gets all of it even once the server is gone.
+    s.stop();
+    wait_until("500 poses", || c.counters().poses == 500);
+}
