@@ -1,0 +1,172 @@
+//! An in-memory world for the loop's tests and benchmark: a robot that is wherever it was last
+//! commanded (its state's times and faults set by the test), and a 60 Hz tracker of a nodding,
+//! noisy head, 20 ms old. No sockets, no threads, no clock: time is what the test says.
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+
+use mocomp_control::{Compensator, CycleRecord, LoopConfig, Mode};
+use mocomp_geom::nalgebra::{Isometry3, Vector3};
+use mocomp_geom::{PoseSample, PoseSource};
+use mocomp_kin::{Arm, Model, Selection};
+use mocomp_ur::{Robot, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, UrError};
+
+use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
+
+pub const PERIOD: f64 = 0.002;
+
+fn base_from_head(t: f64) -> Isometry3<f64> {
+    // From rest, after the loop's start-up hold.
+    let s = (4.0 * (t - 0.5).max(0.0)).sin();
+    head_rest()
+        * Isometry3::new(
+            Vector3::new(0.02 * s, 0.01 * s, 0.0),
+            Vector3::new(0.0, 0.05 * s, 0.15 * s),
+        )
+}
+
+/// A robot that is wherever it was last commanded.
+pub struct MemRobot {
+    /// What it reports (tests change times, speeds and faults).
+    pub state: RobotState,
+    seq: i32,
+}
+
+impl Robot for MemRobot {
+    fn state(&self) -> Option<RobotState> {
+        Some(self.state)
+    }
+    fn state_count(&self) -> u64 {
+        self.seq as u64
+    }
+    fn period_s(&self) -> f64 {
+        PERIOD
+    }
+    fn servo(&mut self, q: &[f64; 6], _: &ServoParams) -> Result<i32, UrError> {
+        self.seq += 1;
+        self.state.actual_q = *q;
+        self.state.target_q = *q;
+        self.state.acked_seq = self.seq;
+        Ok(self.seq)
+    }
+    fn move_joints(&mut self, _: &[f64; 6], _: f64, _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn speed_joints(&mut self, _: &[f64; 6], _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn stop(&mut self, _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn keep_alive(&mut self) -> Result<(), UrError> {
+        Ok(())
+    }
+}
+
+/// 60 Hz samples of the nodding head with 0.1 mm of deterministic noise, 20 ms old.
+pub struct MemTracker {
+    /// Loop time, s.
+    pub now: f64,
+    k: u64,
+    x: u64,
+}
+
+impl PoseSource for MemTracker {
+    fn latest(&mut self) -> Option<PoseSample> {
+        let t = self.k as f64 / 60.0;
+        if t + 0.02 > self.now {
+            return None;
+        }
+        self.k += 1;
+        self.x = self.x.wrapping_mul(6364136223846793005).wrapping_add(1);
+        let n = ((self.x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 3.5e-4;
+        let mut pose = base_from_tracker().inverse() * base_from_head(t);
+        pose.translation.vector += Vector3::new(n, -n, 0.5 * n);
+        Some(PoseSample {
+            tracker_from_marker: pose,
+            acquired_s: t,
+            valid: true,
+            error_m: f64::NAN,
+        })
+    }
+}
+
+pub struct World {
+    /// The loop.
+    pub comp: Compensator,
+    /// The robot.
+    pub robot: MemRobot,
+    /// The tracker.
+    pub tracker: MemTracker,
+}
+
+impl World {
+    /// At rest, past the start-up hold, tracking.
+    pub fn new() -> Self {
+        let arm = Arm::new(Model::Ur3e);
+        let flange_from_coil = flange_from_coil();
+        let start = base_from_head(0.0) * head_from_coil_goal() * flange_from_coil.inverse();
+        let q0 = arm
+            .ik_closest(
+                &start,
+                &[0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+                &Selection::tracking(0.05),
+            )
+            .unwrap()
+            .joints;
+        let cfg = LoopConfig::new(
+            base_from_tracker(),
+            flange_from_coil,
+            head_from_coil_goal(),
+            PERIOD,
+        );
+        let state = RobotState {
+            controller_s: 0.0,
+            received_s: 0.0,
+            actual_q: q0,
+            actual_qd: [0.0; 6],
+            target_q: q0,
+            base_from_tcp: arm.fk(&q0),
+            robot_mode: RobotMode::Running,
+            safety_mode: SafetyMode::Normal,
+            runtime_state: RuntimeState::Playing,
+            robot_status_bits: 0,
+            safety_status_bits: 0,
+            speed_scaling: 1.0,
+            program_mode: 1,
+            acked_seq: 0,
+            move_done_seq: 0,
+            program_ours: true,
+            connected: true,
+        };
+        let mut w = Self {
+            comp: Compensator::new(cfg, arm, PERIOD),
+            robot: MemRobot { state, seq: 0 },
+            tracker: MemTracker {
+                now: 0.0,
+                k: 0,
+                x: 42,
+            },
+        };
+        // Past the start-up hold, into tracking.
+        for _ in 0..1000 {
+            w.cycle();
+        }
+        assert_eq!(w.comp.mode(), Mode::Tracking, "{:?}", w.comp.mode());
+        w
+    }
+
+    /// One cycle on time: a fresh state one period after the last.
+    pub fn cycle(&mut self) -> Mode {
+        let now = self.tracker.now;
+        self.robot.state.received_s = now;
+        self.robot.state.controller_s = now;
+        let rec = self.comp.cycle(now, &mut self.robot, &mut self.tracker);
+        self.tracker.now += PERIOD;
+        rec.mode
+    }
+
+    /// One cycle at loop time `now` on whatever state the test set up.
+    pub fn cycle_at(&mut self, now: f64) -> CycleRecord {
+        self.tracker.now = now;
+        self.comp.cycle(now, &mut self.robot, &mut self.tracker)
+    }
+}
