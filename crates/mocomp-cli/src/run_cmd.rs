@@ -596,6 +596,8 @@ struct RunReport {
     robot_stale_holds: usize,
     protective_stops: usize,
     events: usize,
+    /// Each event: loop time (s) and what happened.
+    event_log: Vec<(f64, String)>,
     final_mode: String,
     realtime: String,
     realtime_complete: bool,
@@ -642,18 +644,18 @@ impl RunReport {
                 matches!(r, Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop))
             }),
             events: s.events.len(),
+            event_log: s
+                .events
+                .iter()
+                .map(|(t, e)| (*t, format!("{e:?}")))
+                .collect(),
             final_mode: mode_name(final_mode),
             realtime: rt.map_or_else(|| "normal scheduling".into(), mocomp_rt::RtReport::describe),
             realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
         }
     }
 
-    fn print(
-        &self,
-        out: &mut dyn Write,
-        events: &[(f64, Event)],
-        log: Option<&str>,
-    ) -> std::io::Result<()> {
+    fn print(&self, out: &mut dyn Write, log: Option<&str>) -> std::io::Result<()> {
         writeln!(out, "\nsummary")?;
         writeln!(
             out,
@@ -712,8 +714,8 @@ impl RunReport {
             self.holds, self.robot_stale_holds, self.protective_stops
         )?;
         writeln!(out, "  events            {}", self.events)?;
-        for (t, e) in events {
-            writeln!(out, "    {t:9.3} s  {e:?}")?;
+        for (t, e) in &self.event_log {
+            writeln!(out, "    {t:9.3} s  {e}")?;
         }
         writeln!(out, "  final mode        {}", self.final_mode)?;
         writeln!(out, "  robot stopped     stopj sent")?;
@@ -775,7 +777,10 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     let period = model.spec().series.period_s();
     let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
     let q0 = initial_joints(&setup.file, &arm, &cfg)?;
-    let world = World::connect(&setup, q0, out, Some(&setup.file.realtime))?;
+    // With --json, standard output is the summary alone; what starts goes to standard error.
+    let mut stderr = std::io::stderr();
+    let progress: &mut dyn Write = if opts.json { &mut stderr } else { out };
+    let world = World::connect(&setup, q0, progress, Some(&setup.file.realtime))?;
     let realtime = world.realtime.clone();
     if let Some(w) = realtime.as_ref().and_then(mocomp_rt::RtReport::warning) {
         eprintln!("warning: {w}");
@@ -862,7 +867,7 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     if opts.json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {
-        report.print(out, &s.events, file.log_csv.as_deref())?;
+        report.print(out, file.log_csv.as_deref())?;
     }
     Ok(())
 }

@@ -98,7 +98,7 @@ impl World {
         let realtime = realtime.filter(|c| c.enabled);
         if let Some(c) = realtime {
             // A refusal shows in the loop's report below (same cause); nothing to add here.
-            if let Some(cpu) = c.cpu {
+            if let Some(cpu) = c.simulator_cpu.or(c.cpu) {
                 mocomp_rt::pin_to_cpu(cpu).ok();
             }
             mocomp_rt::set_fifo(c.simulator_priority).ok();
@@ -130,6 +130,10 @@ impl World {
             (None, Some(a)) => a.clone(),
             (None, None) => return Err(UsageError("tracker.igtl: needed".into()).into()),
         };
+        if realtime.is_some_and(|c| c.cpu.is_none() && c.simulator_cpu.is_some()) {
+            // The simulators are pinned; the loop is not.
+            mocomp_rt::unpin().ok();
+        }
         let (report, cpu_latency) = match realtime.map(|c| mocomp_rt::apply(c, c.priority)) {
             Some((r, g)) => (Some(r), g),
             None => (None, None),

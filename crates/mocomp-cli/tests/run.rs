@@ -28,13 +28,19 @@ fn the_example_config_compensates_on_the_simulated_robot() {
         "--log-csv",
         &csv,
         "--quiet",
+        "--json",
     ]);
     assert_success(&out);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("summary"), "{text}");
+    // Standard output is the summary alone, one JSON object.
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     // The planned approach reached the goal, then the loop tracked the nodding head.
-    assert!(text.contains("Reached"), "{text}");
-    assert!(text.contains("final mode        tracking"), "{text}");
+    let events = v["event_log"].as_array().unwrap();
+    assert!(events.iter().any(|e| e[1] == "Reached"), "{events:?}");
+    assert_eq!(v["final_mode"], "tracking");
+    // A loaded machine may delay a cycle; it may not stop the robot or stall the state.
+    assert_eq!(v["protective_stops"], 0, "{v}");
+    assert_eq!(v["robot_stale_holds"], 0, "{v}");
+    assert!(v["realtime"].as_str().unwrap().contains("SCHED"), "{v}");
     let rows: Vec<String> = std::fs::read_to_string(&csv)
         .unwrap()
         .lines()
@@ -86,6 +92,13 @@ fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
             "radii_m = [0.075, -0.095, 0.11]",
             "head.radii_m[1]",
         ),
+        ("cpu = 1 ", "cpu = 4096 ", "realtime.cpu"),
+        (
+            "simulator_priority = 49",
+            "simulator_priority = 0",
+            "realtime.simulator_priority",
+        ),
+        ("lock_memory = true", "lock_memry = true", "lock_memry"),
     ] {
         let cfg = example();
         assert!(cfg.contains(from), "{from}");

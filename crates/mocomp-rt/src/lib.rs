@@ -47,12 +47,15 @@ pub struct RtConfig {
     /// from 1–3 % missed cycles to under 0.1 %; the price is idle CPUs that do not sleep while
     /// the loop runs. [true]
     pub prevent_cpu_sleep: bool,
-    /// Pin the real-time threads (the loop, the robot and tracker clients' receive threads, the
-    /// in-process simulators) to this CPU, leaving the others to the rest of the PC. Keeping
-    /// them on one core spares each cycle's cross-core wake-ups, which on a virtual machine cost
-    /// far more than on bare metal (measured on a 2-vCPU VM: state-to-loop wake-up p99 472 µs
-    /// unpinned, 36 µs pinned). [none: the scheduler chooses]
+    /// Pin the loop and the robot and tracker clients' receive threads to this CPU (and the
+    /// in-process simulators too, unless `simulator_cpu` says otherwise), leaving the other
+    /// CPUs to the rest of the PC. One core for the loop and the thread that wakes it spares a
+    /// cross-core wake-up each cycle, which on a virtual machine costs far more than on bare
+    /// metal (measured on a 2-vCPU VM: state-to-loop wake-up p99 472 µs unpinned, 36 µs
+    /// pinned). [none: the scheduler chooses]
     pub cpu: Option<usize>,
+    /// Pin the in-process simulated controller and tracker to this CPU. [none: as `cpu`]
+    pub simulator_cpu: Option<usize>,
 }
 
 impl Default for RtConfig {
@@ -64,6 +67,7 @@ impl Default for RtConfig {
             lock_memory: true,
             prevent_cpu_sleep: true,
             cpu: None,
+            simulator_cpu: None,
         }
     }
 }
@@ -126,11 +130,11 @@ impl RtConfig {
                 });
             }
         }
-        if let Some(cpu) = self.cpu {
-            let n = std::thread::available_parallelism().map_or(1, usize::from);
-            if cpu >= n {
+        let n = std::thread::available_parallelism().map_or(1, usize::from);
+        for (key, cpu) in [("cpu", self.cpu), ("simulator_cpu", self.simulator_cpu)] {
+            if let Some(cpu) = cpu.filter(|c| *c >= n) {
                 return Err(RtError::Setting {
-                    key: "cpu",
+                    key,
                     value: cpu.to_string(),
                     why: format!("this machine has CPUs 0–{}", n - 1),
                 });
@@ -470,6 +474,13 @@ mod tests {
         assert!(e.contains("realtime.cpu") && e.contains("4096"), "{e}");
         c.cpu = Some(0);
         c.validate().unwrap();
+        c.simulator_cpu = Some(4096);
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("realtime.simulator_cpu")
+        );
     }
 
     #[test]
