@@ -102,6 +102,13 @@ pub enum RtError {
     /// `mlockall` was refused.
     #[error("locking memory refused ({0}; needs root, or a memlock limit)")]
     LockMemory(#[source] nix::Error),
+    /// Memory was not locked because the limit is finite.
+    #[error(
+        "locking memory not attempted: the memlock limit is {0} KiB, and with every future \
+         allocation locked the process would fail once it grew past it (needs root, or \
+         `memlock unlimited`)"
+    )]
+    MemlockLimit(u64),
     /// `/dev/cpu_dma_latency` could not be held.
     #[error("holding /dev/cpu_dma_latency at 0 µs refused ({0}; needs root)")]
     CpuLatency(#[source] std::io::Error),
@@ -206,10 +213,25 @@ pub fn set_normal() -> Result<(), RtError> {
     .map_err(RtError::Normal)
 }
 
-/// Locks every current and future page of the process in memory.
+/// Locks every current and future page of the process in memory. Only as root or with an
+/// unlimited memlock limit: under a finite one, a later allocation past the limit would fail
+/// (and abort the process) instead of merely going unlocked.
 pub fn lock_memory() -> Result<(), RtError> {
     use nix::sys::mman::{MlockAllFlags, mlockall};
+    use nix::sys::resource::{Resource, getrlimit};
+    let (soft, _) = getrlimit(Resource::RLIMIT_MEMLOCK).map_err(RtError::LockMemory)?;
+    may_lock_all(nix::unistd::geteuid().is_root(), soft)?;
     mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE).map_err(RtError::LockMemory)
+}
+
+/// Whether locking all future memory is safe: as root (the limit does not apply), or with no
+/// limit.
+fn may_lock_all(root: bool, memlock_soft_limit: u64) -> Result<(), RtError> {
+    if root || memlock_soft_limit == nix::sys::resource::RLIM_INFINITY {
+        Ok(())
+    } else {
+        Err(RtError::MemlockLimit(memlock_soft_limit / 1024))
+    }
 }
 
 /// Pins the calling thread to `cpu`.
@@ -480,6 +502,18 @@ mod tests {
                 .unwrap_err()
                 .to_string()
                 .contains("realtime.simulator_cpu")
+        );
+    }
+
+    #[test]
+    fn memory_is_locked_only_where_future_allocations_cannot_fail_for_it() {
+        use nix::sys::resource::RLIM_INFINITY;
+        assert!(may_lock_all(true, 8 << 20).is_ok());
+        assert!(may_lock_all(false, RLIM_INFINITY).is_ok());
+        let e = may_lock_all(false, 8 << 20).unwrap_err().to_string();
+        assert!(
+            e.contains("8192 KiB") && e.contains("memlock unlimited"),
+            "{e}"
         );
     }
 
