@@ -17,7 +17,6 @@ use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
@@ -200,18 +199,9 @@ fn run(sc: Scenario) -> Outcome {
     let clock = Arc::new(SteppedClock::new(0.0));
     let ucfg = sim.ur_config();
     // Connect while stepping the simulator (the clock stays at 0 until the run starts).
-    let done = AtomicBool::new(false);
-    let mut robot = std::thread::scope(|s| {
-        s.spawn(|| {
-            while !done.load(Ordering::Relaxed) {
-                sim.step();
-                std::thread::sleep(Duration::from_micros(300));
-            }
-        });
-        let r = UrRobot::connect(ucfg, clock.clone()).unwrap();
-        done.store(true, Ordering::Relaxed);
-        r
-    });
+    let mut robot = sim
+        .stepping_in_real_time(|| UrRobot::connect(ucfg, clock.clone()))
+        .unwrap();
     let mut cfg = cfg0;
     cfg.params.predict = sc.predict;
     (sc.tune)(&mut cfg);

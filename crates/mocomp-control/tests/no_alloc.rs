@@ -86,18 +86,9 @@ fn the_cycle_allocates_nothing() {
     let sim = Sim::start(SimConfig::stepped_local(ctrl)).unwrap();
     let clock = Arc::new(SteppedClock::new(0.0));
     let ucfg = sim.ur_config();
-    let stepping = std::sync::atomic::AtomicBool::new(true);
-    let mut robot = std::thread::scope(|s| {
-        s.spawn(|| {
-            while stepping.load(std::sync::atomic::Ordering::Relaxed) {
-                sim.step();
-                std::thread::sleep(std::time::Duration::from_micros(300));
-            }
-        });
-        let r = UrRobot::connect(ucfg, clock.clone());
-        stepping.store(false, std::sync::atomic::Ordering::Relaxed);
-        r.unwrap()
-    });
+    let mut robot = sim
+        .stepping_in_real_time(|| UrRobot::connect(ucfg, clock.clone()))
+        .unwrap();
     let cfg = LoopConfig::new(
         base_from_tracker(),
         flange_from_coil,

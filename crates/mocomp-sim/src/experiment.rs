@@ -647,8 +647,9 @@ impl World {
         let sim2 = Sim::start(s2).map_err(|e| io("starting the head robot's simulator", e))?;
         let period = cfg.coil_robot.spec().series.period_s();
         let clock = Arc::new(SteppedClock::new(0.0));
-        // Connect both while stepping the simulators at about 4× real time (the client feeds the
-        // program's watchdog on the machine's clock; the clock stays at 0 meanwhile).
+        // Connect both while stepping the simulators at most at real time (the client feeds the
+        // program's watchdog on the machine's clock, so a faster simulator would stop a client
+        // that a busy machine delayed for a few milliseconds; the clock stays at 0 meanwhile).
         // Both at once, and a simulator stops stepping once its robot is connected: a connected
         // robot whose program is not fed would stop on its watchdog.
         let done = [AtomicBool::new(false), AtomicBool::new(false)];
@@ -662,7 +663,7 @@ impl World {
                     if !done[1].load(Ordering::Relaxed) {
                         sim2.step();
                     }
-                    std::thread::sleep(Duration::from_secs_f64(slowest / 4.0));
+                    std::thread::sleep(Duration::from_secs_f64(slowest));
                 }
             });
             let c: Arc<dyn Clock> = clock.clone();

@@ -307,6 +307,27 @@ impl Sim {
         tick(&self.shared);
     }
 
+    /// Runs `f` while a background thread steps this (stepped) simulator at most at real time,
+    /// one cycle per controller period: a client that connects needs state packages, and its
+    /// program's watchdog must judge the client's silence over time that really passed (a
+    /// simulator stepped faster than real time would stop a client that a busy machine delayed
+    /// for a few milliseconds).
+    pub fn stepping_in_real_time<T>(&self, f: impl FnOnce() -> T) -> T {
+        let done = AtomicBool::new(false);
+        let period = Duration::from_secs_f64(1.0 / self.shared.rate_hz);
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                while !done.load(Ordering::Relaxed) {
+                    self.step();
+                    std::thread::sleep(period);
+                }
+            });
+            let r = f();
+            done.store(true, Ordering::Relaxed);
+            r
+        })
+    }
+
     /// Runs `n` cycles.
     pub fn step_n(&self, n: usize) {
         for _ in 0..n {

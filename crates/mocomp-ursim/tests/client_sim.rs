@@ -9,7 +9,6 @@ use mocomp_ur::robot::{RobotFault, RuntimeState, SafetyMode};
 use mocomp_ur::{Robot, ServoParams, UrConfig, UrError, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimClock, SimConfig};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 fn sim(model: Model, clock: SimClock) -> Sim {
@@ -28,18 +27,7 @@ fn connect(sim: &Sim) -> UrRobot {
 
 /// Steps a stepped simulator in the background while `f` runs (connecting needs state packages).
 fn pumped<T>(sim: &Sim, f: impl FnOnce() -> T) -> T {
-    let done = AtomicBool::new(false);
-    std::thread::scope(|s| {
-        s.spawn(|| {
-            while !done.load(Ordering::Relaxed) {
-                sim.step();
-                std::thread::sleep(Duration::from_micros(500));
-            }
-        });
-        let r = f();
-        done.store(true, Ordering::Relaxed);
-        r
-    })
+    sim.stepping_in_real_time(f)
 }
 
 #[test]

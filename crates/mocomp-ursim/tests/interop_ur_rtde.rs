@@ -40,9 +40,10 @@ fn check_receive(model: Model, host: &str, rate: f64) {
         "{model}: ur_rtde saw {distinct} distinct timestamps in 1 s ({rate} Hz expected), span {span:.3} s"
     );
     // Every package is one controller cycle: consecutive timestamps are one period apart, so
-    // the rate seen is the controller rate (less what a loaded machine drops).
+    // the rate seen is the controller rate (less what a loaded machine drops; plus, at most, the
+    // 25 ms of cycles a simulator delayed by a busy machine makes up).
     assert!(
-        distinct > 0.7 * rate && distinct < 1.02 * rate,
+        distinct > 0.7 * rate && distinct <= 1.025 * rate + 3.0,
         "{distinct}"
     );
     assert!(span > 0.7 && span < 1.05, "timestamps span {span} s");
