@@ -3,10 +3,12 @@
 //! allocations made on the loop's thread while `Compensator::cycle` runs, with the real client (`UrRobot`) talking to a
 //! stepped simulator over TCP, and a tracker source that nods the head with noise and dropouts.
 
+mod common;
+
 use mocomp_control::{Compensator, LoopConfig, Mode};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{Clock, PoseSample, PoseSource, SteppedClock};
-use mocomp_kin::{Arm, Model, Selection};
+use mocomp_kin::{Arm, Model};
 use mocomp_testkit::{SplitMix64, spin_until};
 use mocomp_ur::{Robot, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
@@ -72,15 +74,7 @@ impl PoseSource for NoddingTracker {
 fn the_cycle_allocates_nothing() {
     let arm = Arm::new(Model::Ur3e);
     let flange_from_coil = flange_from_coil();
-    let start = base_from_head(0.0) * head_from_coil_goal() * flange_from_coil.inverse();
-    let q0 = arm
-        .ik_closest(
-            &start,
-            &[0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
-            &Selection::tracking(0.05),
-        )
-        .unwrap()
-        .joints;
+    let q0 = common::mem::coil_on_head_joints(&arm);
     let mut ctrl = ControllerConfig::new(Model::Ur3e);
     ctrl.initial_q = q0;
     let sim = Sim::start(SimConfig::stepped_local(ctrl)).unwrap();

@@ -23,6 +23,18 @@ fn base_from_head(t: f64) -> Isometry3<f64> {
         )
 }
 
+/// The UR3e's joints with the coil at its goal on the head at rest.
+pub fn coil_on_head_joints(arm: &Arm) -> [f64; 6] {
+    let start = head_rest() * head_from_coil_goal() * flange_from_coil().inverse();
+    arm.ik_closest(
+        &start,
+        &[0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+        &Selection::tracking(0.05),
+    )
+    .unwrap()
+    .joints
+}
+
 /// A robot that is wherever it was last commanded.
 pub struct MemRobot {
     /// What it reports (tests change times, speeds and faults).
@@ -103,15 +115,7 @@ impl World {
     pub fn new() -> Self {
         let arm = Arm::new(Model::Ur3e);
         let flange_from_coil = flange_from_coil();
-        let start = base_from_head(0.0) * head_from_coil_goal() * flange_from_coil.inverse();
-        let q0 = arm
-            .ik_closest(
-                &start,
-                &[0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
-                &Selection::tracking(0.05),
-            )
-            .unwrap()
-            .joints;
+        let q0 = coil_on_head_joints(&arm);
         let cfg = LoopConfig::new(
             base_from_tracker(),
             flange_from_coil,
