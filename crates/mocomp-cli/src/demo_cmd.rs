@@ -47,8 +47,13 @@ pub struct DemoArgs {
     pub seed: Option<u64>,
     /// The head's motion, with its defaults: smooth random motion, a slow drift, nods and turns
     /// (patient-like), or still [random].
-    #[arg(long, value_parser = ["random", "drift", "nods", "still"])]
+    #[arg(long, value_parser = ["random", "drift", "nods", "still"], conflicts_with = "motion_file")]
     pub motion: Option<String>,
+    /// Replay a recorded head motion: a CSV file `t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz` (a tracker's
+    /// head poses; irregular sample times are interpolated), taken relative to its first sample
+    /// in the head's own frame and applied to the head at rest from t = 1 s.
+    #[arg(long, value_name = "FILE")]
+    pub motion_file: Option<PathBuf>,
     /// The head's translational speed, mm/s: the bound of random motion, the speed of a drift,
     /// the peak of nods [random: 20].
     #[arg(long, value_name = "MM_PER_S")]
@@ -107,10 +112,19 @@ pub fn configuration(a: &DemoArgs) -> anyhow::Result<ExperimentConfig> {
             .with_context(|| format!("--config {}", path.display()))?;
         apply_toml(&text, &mut cfg)
             .map_err(|e| crate::UsageError(format!("{}: {e}", path.display())))?;
+        // A recorded motion's file is relative to the configuration's directory.
+        let dir = path.parent().unwrap_or(std::path::Path::new(""));
+        cfg.motion
+            .load_file(dir)
+            .map_err(|e| crate::UsageError(format!("{}: motion.path: {e}", path.display())))?;
     }
     let opt = |flag: &str, e: String| crate::UsageError(format!("--{flag}: {e}"));
     if let Some(s) = a.seconds {
         cfg.duration_s = s;
+    }
+    if let Some(file) = &a.motion_file {
+        cfg.motion = HeadMotion::from_file(&file.to_string_lossy(), std::path::Path::new(""))
+            .map_err(|e| opt("motion-file", e.to_string()))?;
     }
     if let Some(kind) = &a.motion
         && cfg.motion.name() != kind
@@ -267,6 +281,7 @@ fn motion_words(m: &HeadMotion) -> &'static str {
         HeadMotion::Drift(_) => "a slow drift of the head",
         HeadMotion::Nods(_) => "nods and turns of the head",
         HeadMotion::Random(_) => "smooth random head motion",
+        HeadMotion::File(_) => "a recorded head motion",
     }
 }
 

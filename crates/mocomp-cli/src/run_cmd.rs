@@ -243,12 +243,21 @@ fn positive(key: &str, v: f64) -> anyhow::Result<()> {
 impl RunFile {
     /// Parses and checks a configuration; errors name the file and the key.
     pub fn parse(path: &str, text: &str) -> anyhow::Result<Self> {
-        let f: Self = toml::from_str(text).map_err(|e| {
+        let mut f: Self = toml::from_str(text).map_err(|e| {
             UsageError(format!(
                 "{path}: {}",
                 e.to_string().trim_end().replace('\n', " ")
             ))
         })?;
+        // A recorded motion's file is relative to this file's directory.
+        let dir = std::path::Path::new(path)
+            .parent()
+            .unwrap_or(std::path::Path::new(""));
+        f.tracker
+            .simulated
+            .motion
+            .load_file(dir)
+            .map_err(|e| UsageError(format!("{path}: tracker.simulated.motion.path: {e}")))?;
         let ctx = |e: anyhow::Error| match e.downcast::<UsageError>() {
             Ok(UsageError(m)) => anyhow::Error::from(UsageError(format!("{path}: {m}"))),
             Err(e) => e,

@@ -172,3 +172,71 @@ fn bad_settings_are_refused_naming_the_key_or_option() {
         assert!(out.stdout.is_empty());
     }
 }
+
+/// A recorded motion replayed: irregular samples of a 30 mm/s sway with a turn, the head at rest
+/// before it; the demo reports the trace's speeds and writes the file's path into its config.
+#[test]
+fn the_demo_replays_a_recorded_motion_file() {
+    let dir = TempDir::new("mocomp-demo-trace");
+    let trace = dir.path("head.csv");
+    let mut text = String::from("# a recorded head: 10 mm sway at 3 rad/s, a 0.1 rad turn\n");
+    text += "t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz\n";
+    let mut t = 0.0f64;
+    let mut k = 0u32;
+    while t < 4.0 {
+        let yaw = 0.05 * (2.0 * t).sin();
+        text += &format!(
+            "{:.4},{:.5},-20.5,950,{:.9},0,0,{:.9}\n",
+            100.0 + t,
+            10.0 * (3.0 * t).sin(),
+            (yaw / 2.0).cos(),
+            (yaw / 2.0).sin()
+        );
+        // Irregular, about 33 Hz.
+        t += if k.is_multiple_of(3) { 0.021 } else { 0.035 };
+        k += 1;
+    }
+    std::fs::write(&trace, text).unwrap();
+    let out_dir = dir.path("out");
+    let out = mocomp(&[
+        "demo",
+        "--out",
+        &out_dir,
+        "--seconds",
+        "4",
+        "--json",
+        "--quiet",
+        "--motion-file",
+        &trace,
+        "--coil-host",
+        "127.0.0.59",
+        "--head-host",
+        "127.0.0.60",
+    ]);
+    assert_success(&out);
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["motion"], "file", "{j}");
+    let v = j["head_peak_mm_s"].as_f64().unwrap();
+    assert!((27.0..33.0).contains(&v), "the trace's 30 mm/s peak: {v}");
+    let rows = j["controllers"].as_array().unwrap();
+    assert_eq!(rows[1]["inside_head_s"].as_f64().unwrap(), 0.0, "{j}");
+    let cfg = std::fs::read_to_string(format!("{out_dir}/config.toml")).unwrap();
+    assert!(
+        cfg.contains("kind = \"file\"") && cfg.contains("head.csv"),
+        "{cfg}"
+    );
+
+    // A malformed trace: exit 2, the file, line and column named.
+    std::fs::write(
+        &trace,
+        "t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n0.1,0,abc,0,1,0,0,0\n",
+    )
+    .unwrap();
+    let out = mocomp(&["demo", "--motion-file", &trace, "--quiet"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("head.csv") && err.contains("line 3, column y_mm"),
+        "{err}"
+    );
+}

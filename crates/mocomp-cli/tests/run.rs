@@ -117,3 +117,48 @@ fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("missing.toml"));
 }
+
+/// `[tracker.simulated.motion] kind = "file"`: the trace is read relative to the configuration's
+/// directory and replayed; a missing or malformed one is refused with its name.
+#[test]
+fn the_run_replays_a_recorded_motion_relative_to_its_config() {
+    let dir = TempDir::new("mocomp-run-trace");
+    std::fs::write(
+        dir.path("head.csv"),
+        "t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,900,1,0,0,0\n0.5,5,0,900,1,0,0,0\n",
+    )
+    .unwrap();
+    let motion = "kind = \"nods\"                  # sway and turn at frequency_hz, nod at 0.7 of it: peaks 89 mm/s, 34°/s";
+    let cfg = example();
+    assert!(cfg.contains(motion));
+    let cfg = cfg
+        .replace(motion, "kind = \"file\"\npath = \"head.csv\"")
+        .replace("sway_m = 0.02 ", "# sway_m")
+        .replace("turn_rad = 0.15 ", "# turn_rad")
+        .replace("nod_rad = 0.08 ", "# nod_rad")
+        .replace("frequency_hz = 0.6366 ", "# frequency_hz")
+        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.45\"");
+    let path = dir.path("run.toml");
+    std::fs::write(&path, &cfg).unwrap();
+    let out = mocomp(&[
+        "run",
+        "--config",
+        &path,
+        "--seconds",
+        "1",
+        "--quiet",
+        "--json",
+    ]);
+    assert_success(&out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["cycles"].as_u64().unwrap() > 300, "{v}");
+
+    std::fs::write(dir.path("run.toml"), cfg.replace("head.csv", "gone.csv")).unwrap();
+    let out = mocomp(&["run", "--config", &path, "--seconds", "1"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("tracker.simulated.motion.path") && err.contains("gone.csv"),
+        "{err}"
+    );
+}

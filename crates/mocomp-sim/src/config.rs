@@ -128,7 +128,7 @@ impl ExperimentFile {
                 poses: Some(cfg.calibration_poses),
                 samples: Some(cfg.calibration_samples),
             }),
-            motion: Some(cfg.motion),
+            motion: Some(cfg.motion.clone()),
             tracker: Some(cfg.tracker),
             paper: Some(cfg.paper),
             predictor: Some(cfg.predictor),
@@ -168,7 +168,7 @@ impl ExperimentFile {
             cfg.calibration_poses = c.poses.unwrap_or(cfg.calibration_poses);
             cfg.calibration_samples = c.samples.unwrap_or(cfg.calibration_samples);
         }
-        if let Some(m) = self.motion {
+        if let Some(m) = self.motion.clone() {
             cfg.motion = m;
         }
         if let Some(t) = self.tracker {

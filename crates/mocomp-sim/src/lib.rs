@@ -11,6 +11,7 @@
 pub mod config;
 pub mod experiment;
 pub mod motion;
+pub mod trace;
 pub mod tracker;
 
 pub use motion::{HeadMotion, MotionError};

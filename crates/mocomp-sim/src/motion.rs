@@ -24,9 +24,9 @@ pub struct MotionError {
     pub problem: &'static str,
 }
 
-/// A head motion. In a TOML file: `kind = "still" | "drift" | "nods" | "random"` and the kind's
-/// fields (every field has a default; unknown fields are rejected).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// A head motion. In a TOML file: `kind = "still" | "drift" | "nods" | "random" | "file"` and the
+/// kind's fields (every field has a default; unknown fields are rejected).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum HeadMotion {
     /// No motion.
@@ -37,6 +37,33 @@ pub enum HeadMotion {
     Nods(Nods),
     /// Smooth random motion: a seeded sum of sinusoids per axis, bounded in speed and range.
     Random(RandomMotion),
+    /// A recorded motion replayed from a CSV file (see [`crate::trace`]).
+    File(FileMotion),
+}
+
+/// A recorded motion: a tracker's head poses from a CSV file, replayed from `start_s`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FileMotion {
+    /// The CSV file (`t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz`); relative to the configuration file's
+    /// directory, or to the working directory on the command line.
+    pub path: String,
+    /// When the first sample plays, s.
+    pub start_s: f64,
+    /// The trace, once [`HeadMotion::load_file`] has read it.
+    #[serde(skip)]
+    pub trace: Option<std::sync::Arc<crate::trace::MotionTrace>>,
+}
+
+impl Default for FileMotion {
+    /// No file yet; from t = 1 s.
+    fn default() -> Self {
+        Self {
+            path: String::new(),
+            start_s: 1.0,
+            trace: None,
+        }
+    }
 }
 
 /// Constant-velocity drift.
@@ -196,7 +223,38 @@ impl HeadMotion {
             Self::Drift(_) => "drift",
             Self::Nods(_) => "nods",
             Self::Random(_) => "random",
+            Self::File(_) => "file",
         }
+    }
+
+    /// A recorded motion from `path`, read now (relative paths from `base_dir`).
+    pub fn from_file(
+        path: &str,
+        base_dir: &std::path::Path,
+    ) -> Result<Self, crate::trace::TraceError> {
+        let mut m = Self::File(FileMotion {
+            path: path.to_string(),
+            ..FileMotion::default()
+        });
+        m.load_file(base_dir)?;
+        Ok(m)
+    }
+
+    /// Reads a recorded motion's file (relative paths from `base_dir`); other motions have none.
+    pub fn load_file(
+        &mut self,
+        base_dir: &std::path::Path,
+    ) -> Result<(), crate::trace::TraceError> {
+        if let Self::File(f) = self {
+            let path = base_dir.join(&f.path);
+            f.trace = Some(std::sync::Arc::new(crate::trace::MotionTrace::load(&path)?));
+            // Absolute from now on, so a configuration written beside a report repeats the run
+            // from wherever it is read.
+            if let Ok(abs) = path.canonicalize() {
+                f.path = abs.to_string_lossy().into_owned();
+            }
+        }
+        Ok(())
     }
 
     /// The same motion at other speeds (`None` keeps the motion's own): `speed_m_s` bounds the
@@ -224,7 +282,7 @@ impl HeadMotion {
             }
         }
         if speed_m_s.is_none() && angular_rad_s.is_none() {
-            return Ok(*self);
+            return Ok(self.clone());
         }
         let scaled = |v: [f64; 3], norm: f64, fallback: [f64; 3]| {
             let n = Vector3::from(v).norm();
@@ -234,7 +292,14 @@ impl HeadMotion {
                 fallback.map(|x| x * norm)
             }
         };
-        Ok(match *self {
+        Ok(match self.clone() {
+            Self::File(_) => {
+                return Err(MotionError {
+                    key: "speed_m_s",
+                    value: speed_m_s.or(angular_rad_s).unwrap_or(0.0),
+                    problem: "a recorded motion moves at its own speeds",
+                });
+            }
             Self::Still => {
                 let (key, value) = match (speed_m_s, angular_rad_s) {
                     (Some(v), _) => ("speed_m_s", v),
@@ -325,6 +390,17 @@ impl HeadMotion {
         };
         match self {
             Self::Still => Ok(()),
+            Self::File(f) => {
+                nonneg("start_s", f.start_s)?;
+                if f.trace.is_none() {
+                    return Err(MotionError {
+                        key: "path",
+                        value: f64::NAN,
+                        problem: "the motion file has not been read",
+                    });
+                }
+                Ok(())
+            }
             Self::Drift(d) => {
                 nonneg("start_s", d.start_s)?;
                 for v in d.velocity_m_s {
@@ -372,7 +448,7 @@ impl HeadMotion {
     /// Prepares the motion for evaluation (random motion draws its components once here).
     pub fn trajectory(&self) -> Trajectory {
         Trajectory {
-            motion: *self,
+            motion: self.clone(),
             random: match self {
                 Self::Random(r) => Some(r.prepare()),
                 _ => None,
@@ -382,7 +458,7 @@ impl HeadMotion {
 }
 
 /// A motion ready to evaluate at any time.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     motion: HeadMotion,
     random: Option<Prepared>,
@@ -404,6 +480,10 @@ impl Trajectory {
     pub fn rest_from_head(&self, t: f64) -> Isometry3<f64> {
         match (&self.motion, &self.random) {
             (HeadMotion::Still, _) => Isometry3::identity(),
+            (HeadMotion::File(f), _) => f
+                .trace
+                .as_ref()
+                .map_or_else(Isometry3::identity, |tr| tr.rest_from_head(t - f.start_s)),
             (HeadMotion::Drift(d), _) => {
                 let t = (t - d.start_s).max(0.0);
                 Isometry3::new(
