@@ -10,7 +10,8 @@ use crate::UsageError;
 use crate::run_cmd::{initial_joints, pose};
 use crate::world::{Setup, World};
 use anyhow::Context;
-use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
+use mocomp_control::{GoalError, check_goal};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSource, rotation_error, translation_error, ur_pose_from_iso};
 use mocomp_ur::Robot;
 use std::io::Write;
@@ -137,30 +138,26 @@ fn teach(setup: &Setup, world: &mut World, samples: usize) -> anyhow::Result<Tau
     let base_from_head = setup.base_from_tracker * mean;
     let head_from_coil = base_from_head.inverse() * setup.arm.fk_flange(&q) * flange_from_coil;
     let period = setup.model.spec().series.period_s();
-    let head = setup
-        .file
-        .loop_config(setup.base_from_tracker, period)?
-        .head;
-    let p = Point3::from(head_from_coil.translation.vector);
-    let distance_m = head.distance(&p);
-    if distance_m < file.params.coil_min_distance_m {
-        refuse!(
-            "the coil's face is {:.1} mm {} the head model (loop.coil_min_distance_m = {} m): \
-             check the calibration, the coil mounting and [head]",
-            distance_m.abs() * 1e3,
-            if distance_m < 0.0 { "inside" } else { "from" },
-            file.params.coil_min_distance_m
-        );
-    }
-    // The approach axis (+z of the coil) must point into the head: a step back along it moves
-    // away from the surface.
-    let back = p - head_from_coil.rotation * Vector3::z() * 1e-3;
-    if head.distance(&back) <= distance_m {
-        refuse!(
+    let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
+    // The loop's own goal check (the whole coil model against the head model, the approach axis
+    // into the head), so a goal taught here is never one the loop refuses.
+    let distance_m = match check_goal(
+        &cfg.head,
+        &cfg.coil,
+        &head_from_coil,
+        file.params.coil_min_distance_m,
+    ) {
+        Ok(d) => d,
+        Err(e @ GoalError::InsideHead { .. }) => refuse!(
+            "{e} (loop.coil_min_distance_m): check the calibration, the coil mounting, [head] \
+             and [coil]"
+        ),
+        Err(GoalError::AxisOutward) => refuse!(
             "the coil's +z axis points away from the head: the loop approaches along it (check \
              calibration.flange_from_coil)"
-        );
-    }
+        ),
+        Err(e @ GoalError::NotFinite) => refuse!("{e}"),
+    };
     Ok(Taught {
         head_from_coil,
         spread,

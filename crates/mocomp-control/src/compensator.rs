@@ -5,6 +5,7 @@
 //! caller gets a [`CycleRecord`] (`Copy`) to queue for a logger.
 
 use crate::config::LoopConfig;
+use crate::goal::{GoalError, check_goal};
 use crate::planner::{PlanError, ShellPath};
 use crate::predict::PosePredictor;
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
@@ -43,9 +44,21 @@ pub enum Reason {
     OffApproachAxis(f64),
     /// The goal's approach axis (+z of the coil) points out of the head.
     GoalAxisOutward,
+    /// The goal is not a finite transform.
+    GoalNotFinite,
     /// No safe path to the goal: unreachable, a branch change or a collision at this arc
     /// length along it (m), or no retreat to the shell (NaN).
     NoPath(f64),
+}
+
+impl From<GoalError> for Reason {
+    fn from(e: GoalError) -> Self {
+        match e {
+            GoalError::InsideHead { distance_m, .. } => Reason::GoalInsideHead(distance_m),
+            GoalError::AxisOutward => Reason::GoalAxisOutward,
+            GoalError::NotFinite => Reason::GoalNotFinite,
+        }
+    }
 }
 
 /// What the loop is doing.
@@ -138,6 +151,8 @@ pub struct Compensator {
     sigma_dot: f64,
     replan: bool,
     last_head: Option<Isometry3<f64>>,
+    /// The goal's validity ([`crate::goal::check_goal`]), fixed with the configuration.
+    goal_check: Result<f64, GoalError>,
     /// The controller time of the state the previous command answered (NaN before the first).
     last_controller_s: f64,
     /// The controller time between the previous command and this one, s: the time the command
@@ -150,6 +165,12 @@ impl Compensator {
     pub fn new(cfg: LoopConfig, arm: Arm, period_s: f64) -> Self {
         let coil_from_flange = cfg.flange_from_coil.inverse();
         let predictor = PosePredictor::new(cfg.predictor);
+        let goal_check = check_goal(
+            &cfg.head,
+            &cfg.coil,
+            &cfg.head_from_coil_goal,
+            cfg.params.coil_min_distance_m,
+        );
         Self {
             command_delay: period_s,
             cfg,
@@ -176,6 +197,7 @@ impl Compensator {
             last_head: None,
             last_controller_s: f64::NAN,
             dt: period_s,
+            goal_check,
         }
     }
 
@@ -604,10 +626,8 @@ impl Compensator {
                 base_from_head = Some(bh);
                 let goal = bh * self.cfg.head_from_coil_goal * self.coil_from_flange;
                 rec.goal = Some(goal);
-                let goal_coil = self.cfg.head_from_coil_goal.translation.vector;
-                let gd = self.cfg.head.distance(&Point3::from(goal_coil));
-                if gd < self.cfg.params.coil_min_distance_m {
-                    reason = Some(Reason::GoalInsideHead(gd));
+                if let Err(e) = self.goal_check {
+                    reason = Some(Reason::from(e));
                 } else {
                     match self.arm.ik_closest(
                         &goal,

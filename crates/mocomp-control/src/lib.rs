@@ -9,11 +9,13 @@
 pub mod compensator;
 pub mod config;
 pub mod geometry;
+pub mod goal;
 pub mod planner;
 pub mod predict;
 
 pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
 pub use config::{LoopConfig, LoopParams, ParamError};
 pub use geometry::{CoilModel, HeadModel};
+pub use goal::{GoalError, check_goal};
 pub use planner::{PlanError, ShellPath};
 pub use predict::{PosePredictor, PredictorConfig};

@@ -85,9 +85,8 @@ impl ShellPath {
         // Pre-approach: back along the goal's axis until the shell.
         let goal_axis = axis_of(goal);
         let goal_p = goal.translation.vector;
-        let gd = centre_dist(&goal_p);
-        let back = goal_p - goal_axis * 1e-3;
-        if centre_dist(&back) < gd {
+        // The one axis rule (crate::goal), so the planner and the goal check agree on the edge.
+        if !crate::goal::axis_points_into_head(head, goal) {
             return Err(PlanError::AxisOutward);
         }
         let mut pre_p = goal_p;
