@@ -388,7 +388,10 @@ impl Compensator {
                 }
             }
         }
-        let coil_now = now_from_base * frames[6] * self.cfg.flange_from_coil;
+        // Both flanges by the same computation: a command that does not move must compare equal
+        // to itself to the last bit, or a hold would refuse to stay where it is.
+        let flange = self.arm.fk_flange(q);
+        let coil_now = now_from_base * flange * self.cfg.flange_from_coil;
         let coil_prev_now = now_from_base * prev_flange * self.cfg.flange_from_coil;
         let coil_prev_prev = prev_from_base * prev_flange * self.cfg.flange_from_coil;
         let deepest =
