@@ -47,7 +47,7 @@ pub struct DemoArgs {
     pub seed: Option<u64>,
     /// The head's motion, with its defaults: smooth random motion, a slow drift, nods and turns
     /// (patient-like), or still [random].
-    #[arg(long, value_parser = ["random", "drift", "nods", "still"], conflicts_with = "motion_file")]
+    #[arg(long, value_parser = ["random", "drift", "nods", "turn", "still"], conflicts_with = "motion_file")]
     pub motion: Option<String>,
     /// Replay a recorded head motion: a CSV file `t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz` (a tracker's
     /// head poses; irregular sample times are interpolated), taken relative to its first sample
@@ -281,6 +281,7 @@ fn motion_words(m: &HeadMotion) -> &'static str {
         HeadMotion::Drift(_) => "a slow drift of the head",
         HeadMotion::Nods(_) => "nods and turns of the head",
         HeadMotion::Random(_) => "smooth random head motion",
+        HeadMotion::Turn(_) => "a quick head turn away and back",
         HeadMotion::File(_) => "a recorded head motion",
     }
 }

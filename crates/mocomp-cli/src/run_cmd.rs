@@ -841,6 +841,16 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     // one, cycle anyway: the loop resends its command (the watchdog stays fed) and its
     // stale-state rule stops the robot once the state is really stale.
     let patience = Duration::from_secs_f64(3.0 * period);
+    // Start on a fresh state (up to a second): the first cycle must not judge a state that was
+    // received while the rest of the world was still starting.
+    let ready_by = Instant::now() + Duration::from_secs(1);
+    while Instant::now() < ready_by
+        && !robot
+            .state()
+            .is_some_and(|s| clock.now_s() - s.received_s < period)
+    {
+        seen = robot.wait_for_state(seen, patience);
+    }
     while !stop.load(Ordering::Relaxed) && clock.now_s() < t_end {
         seen = robot.wait_for_state(seen, patience);
         let t0 = Instant::now();

@@ -37,6 +37,8 @@ pub enum HeadMotion {
     Nods(Nods),
     /// Smooth random motion: a seeded sum of sinusoids per axis, bounded in speed and range.
     Random(RandomMotion),
+    /// A quick head turn away and back (a free head turning to look at something).
+    Turn(Turn),
     /// A recorded motion replayed from a CSV file (see [`crate::trace`]).
     File(FileMotion),
 }
@@ -116,6 +118,46 @@ impl Default for Nods {
             nod_rad: 0.08,
             frequency_hz: 4.0 / TAU,
         }
+    }
+}
+
+/// A quick turn about head z: away by `angle_rad` with a raised-cosine speed profile peaking at
+/// `peak_rad_s`, held for `hold_s`, and back the same way.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Turn {
+    /// Start, s.
+    pub start_s: f64,
+    /// How far the head turns, rad.
+    pub angle_rad: f64,
+    /// The turn's peak angular speed, rad/s.
+    pub peak_rad_s: f64,
+    /// How long the head stays turned, s.
+    pub hold_s: f64,
+}
+
+impl Default for Turn {
+    /// 40° at up to 250°/s (a free head turning away, as measured on patients), back after 1 s.
+    fn default() -> Self {
+        Self {
+            start_s: 1.0,
+            angle_rad: 40f64.to_radians(),
+            peak_rad_s: 250f64.to_radians(),
+            hold_s: 1.0,
+        }
+    }
+}
+
+impl Turn {
+    /// The turn's angle at `t` (s from `start_s`): a raised-cosine speed profile lasts
+    /// `2 · angle / peak` and covers the angle exactly.
+    fn angle_at(&self, t: f64) -> f64 {
+        let d = 2.0 * self.angle_rad / self.peak_rad_s;
+        let ramp = |x: f64| {
+            let x = (x / d).clamp(0.0, 1.0);
+            self.angle_rad * (x - (TAU * x).sin() / TAU)
+        };
+        ramp(t) - ramp(t - d - self.hold_s)
     }
 }
 
@@ -212,6 +254,7 @@ impl HeadMotion {
             "drift" => Self::Drift(Drift::default()),
             "nods" => Self::Nods(Nods::default()),
             "random" => Self::Random(RandomMotion::default()),
+            "turn" => Self::Turn(Turn::default()),
             _ => return None,
         })
     }
@@ -223,6 +266,7 @@ impl HeadMotion {
             Self::Drift(_) => "drift",
             Self::Nods(_) => "nods",
             Self::Random(_) => "random",
+            Self::Turn(_) => "turn",
             Self::File(_) => "file",
         }
     }
@@ -320,6 +364,19 @@ impl HeadMotion {
                 }
                 Self::Drift(d)
             }
+            Self::Turn(mut turn) => {
+                if let Some(w) = angular_rad_s.filter(|w| *w > 0.0) {
+                    turn.peak_rad_s = w;
+                }
+                if speed_m_s.is_some() {
+                    return Err(MotionError {
+                        key: "speed_m_s",
+                        value: speed_m_s.unwrap_or(0.0),
+                        problem: "a turn does not translate",
+                    });
+                }
+                Self::Turn(turn)
+            }
             Self::Random(mut r) => {
                 if let Some(v) = speed_m_s {
                     r.max_speed_m_s = v;
@@ -411,6 +468,19 @@ impl HeadMotion {
                 }
                 Ok(())
             }
+            Self::Turn(turn) => {
+                nonneg("start_s", turn.start_s)?;
+                nonneg("angle_rad", turn.angle_rad)?;
+                nonneg("hold_s", turn.hold_s)?;
+                if !(turn.peak_rad_s.is_finite() && turn.peak_rad_s > 0.0) {
+                    return Err(MotionError {
+                        key: "peak_rad_s",
+                        value: turn.peak_rad_s,
+                        problem: "must be finite and > 0",
+                    });
+                }
+                Ok(())
+            }
             Self::Nods(n) => {
                 nonneg("start_s", n.start_s)?;
                 nonneg("sway_m", n.sway_m)?;
@@ -480,6 +550,10 @@ impl Trajectory {
     pub fn rest_from_head(&self, t: f64) -> Isometry3<f64> {
         match (&self.motion, &self.random) {
             (HeadMotion::Still, _) => Isometry3::identity(),
+            (HeadMotion::Turn(turn), _) => Isometry3::new(
+                Vector3::zeros(),
+                Vector3::new(0.0, 0.0, turn.angle_at(t - turn.start_s)),
+            ),
             (HeadMotion::File(f), _) => f
                 .trace
                 .as_ref()
@@ -557,6 +631,40 @@ impl Trajectory {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
+
+    #[test]
+    fn a_turn_goes_away_at_its_peak_speed_holds_and_comes_back() {
+        let m = HeadMotion::named("turn").unwrap();
+        m.validate().unwrap();
+        let tr = m.trajectory();
+        let (v, w) = tr.peak_speeds(5.0);
+        assert_eq!(v, 0.0);
+        assert!((w.to_degrees() - 250.0).abs() < 1.0, "{}", w.to_degrees());
+        // Away for the hold, then back at rest.
+        let d = 2.0 * 40f64.to_radians() / 250f64.to_radians();
+        let away = tr.rest_from_head(1.0 + d + 0.5).rotation.angle();
+        assert!(
+            (away.to_degrees() - 40.0).abs() < 1e-9,
+            "{}",
+            away.to_degrees()
+        );
+        assert!(
+            tr.rest_from_head(1.0 + 2.0 * d + 1.0 + 0.1)
+                .rotation
+                .angle()
+                < 1e-12
+        );
+        assert_eq!(tr.rest_from_head(0.5), Isometry3::identity());
+        // Its speed is set by the angular speed, and it has no translation to set.
+        let slow = m.with_speeds(None, Some(1.0)).unwrap().trajectory();
+        assert!((slow.peak_speeds(8.0).1 - 1.0).abs() < 0.01);
+        assert!(m.with_speeds(Some(0.1), None).is_err());
+        let bad = HeadMotion::Turn(Turn {
+            peak_rad_s: 0.0,
+            ..Turn::default()
+        });
+        assert_eq!(bad.validate().unwrap_err().key, "peak_rad_s");
+    }
 
     #[test]
     fn every_motion_is_still_before_its_start() {
