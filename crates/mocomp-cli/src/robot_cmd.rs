@@ -153,6 +153,7 @@ struct StreamReport {
     tracking_tcp_rms_mm: f64,
     expected_lag_rad: f64,
     lag_compensated_joint_max_rad: f64,
+    lag_compensated_joint_rms_rad: f64,
     protective_stop: bool,
     realtime: String,
 }
@@ -284,6 +285,7 @@ pub fn stream(
         expected_lag_rad: a.lookahead
             * (0..n).fold(0.0f64, |m, k| m.max(target_speed(k as f64 * period).abs())),
         lag_compensated_joint_max_rad: max(&comp_err),
+        lag_compensated_joint_rms_rad: rms(&comp_err),
         protective_stop: protective,
         realtime: realtime.describe(),
     };

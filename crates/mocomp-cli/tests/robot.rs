@@ -30,11 +30,14 @@ fn robot_stream_against_an_in_process_simulator_reports_its_figures() {
     let cycles = v["cycles"].as_u64().unwrap();
     assert!((900..=1000).contains(&cycles), "{cycles}");
     assert_eq!(v["protective_stop"], false);
-    // The joints follow the target with the servo's lag (lookahead × speed) and no more.
+    // The joints follow the target with the servo's lag (lookahead × speed) and no more. RMS,
+    // not max: a client the host pauses for tens of ms falls behind for a moment, as it would.
+    // For a sinusoid the lag's RMS is about 0.7 of its peak.
     let lag = v["expected_lag_rad"].as_f64().unwrap();
-    let err = v["tracking_joint_max_rad"].as_f64().unwrap();
-    assert!(err > 0.3 * lag && err < 1.5 * lag, "{err} vs lag {lag}");
-    assert!(v["lag_compensated_joint_max_rad"].as_f64().unwrap() < 0.3 * lag);
+    let err = v["tracking_joint_rms_rad"].as_f64().unwrap();
+    assert!(err > 0.4 * lag && err < 1.0 * lag, "{err} vs lag {lag}");
+    let comp = v["lag_compensated_joint_rms_rad"].as_f64().unwrap();
+    assert!(comp < 0.15 * lag, "{comp} vs lag {lag}");
 }
 
 #[test]
