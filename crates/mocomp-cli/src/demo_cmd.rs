@@ -47,7 +47,9 @@ pub struct DemoArgs {
     pub seed: Option<u64>,
     /// The head's motion, with its defaults: smooth random motion, a slow drift, nods and turns
     /// (patient-like), or still [random].
-    #[arg(long, value_parser = ["random", "drift", "nods", "turn", "still"], conflicts_with = "motion_file")]
+    // Not "turn": the demo's head robot (a UR5 holding the phantom) cannot turn the head at those
+    // speeds (C204A3 on its elbow); `mocomp run`'s simulated tracker can.
+    #[arg(long, value_parser = ["random", "drift", "nods", "still"], conflicts_with = "motion_file")]
     pub motion: Option<String>,
     /// Replay a recorded head motion: a CSV file `t_s,x_mm,y_mm,z_mm,qw,qx,qy,qz` (a tracker's
     /// head poses; irregular sample times are interpolated), taken relative to its first sample
