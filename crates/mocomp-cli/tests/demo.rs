@@ -6,23 +6,36 @@ mod common;
 use common::{assert_success, mocomp};
 use mocomp_testkit::TempDir;
 
+/// `mocomp demo --json --quiet` into `out_dir` for `seconds`, the robots on `hosts` (each test
+/// its own), with `extra` options.
+fn demo_json(
+    out_dir: &str,
+    seconds: &str,
+    hosts: (&str, &str),
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = vec![
+        "demo",
+        "--out",
+        out_dir,
+        "--seconds",
+        seconds,
+        "--json",
+        "--quiet",
+        "--coil-host",
+        hosts.0,
+        "--head-host",
+        hosts.1,
+    ];
+    args.extend_from_slice(extra);
+    mocomp(&args)
+}
+
 #[test]
 fn the_demo_writes_its_report_and_mocomp_wins() {
     let dir = TempDir::new("mocomp-demo");
     let out_dir = dir.path("out");
-    let out = mocomp(&[
-        "demo",
-        "--out",
-        &out_dir,
-        "--seconds",
-        "10",
-        "--json",
-        "--quiet",
-        "--coil-host",
-        "127.0.0.55",
-        "--head-host",
-        "127.0.0.56",
-    ]);
+    let out = demo_json(&out_dir, "10", ("127.0.0.55", "127.0.0.56"), &[]);
     assert_success(&out);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let rows = j["controllers"].as_array().unwrap();
@@ -198,21 +211,12 @@ fn the_demo_replays_a_recorded_motion_file() {
     }
     std::fs::write(&trace, text).unwrap();
     let out_dir = dir.path("out");
-    let out = mocomp(&[
-        "demo",
-        "--out",
+    let out = demo_json(
         &out_dir,
-        "--seconds",
         "4",
-        "--json",
-        "--quiet",
-        "--motion-file",
-        &trace,
-        "--coil-host",
-        "127.0.0.59",
-        "--head-host",
-        "127.0.0.60",
-    ]);
+        ("127.0.0.59", "127.0.0.60"),
+        &["--motion-file", &trace],
+    );
     assert_success(&out);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(j["motion"], "file", "{j}");
