@@ -212,14 +212,17 @@ fn measure(
     let start = Instant::now();
     let mut samples = Vec::with_capacity(n);
     let mut qs = Vec::new();
+    // Polled faster than the tracker sends: each sample counts once.
+    let mut last = after;
     while samples.len() < n {
         if start.elapsed() > Duration::from_secs(3) {
             return Ok(None);
         }
         if let Some(s) = source.latest()
             && s.valid
-            && s.acquired_s > after
+            && s.acquired_s > last
         {
+            last = s.acquired_s;
             samples.push(s.tracker_from_marker);
             if let Some(r) = world.robot.state() {
                 qs.push(r.actual_q);
@@ -274,7 +277,9 @@ pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()>
     o.tracker = c
         .check_view
         .then(|| TrackerView::typical(setup.base_from_tracker));
-    let poses = plan(&arm, &o)?;
+    // Planning takes long in a debug build or on a busy machine: the running program's watchdog
+    // is fed meanwhile.
+    let poses = world.robot.keep_alive_while(|| plan(&arm, &o))??;
     writeln!(
         out,
         "{} calibration poses around the flange at [{}]; the arm will move: keep the space clear",

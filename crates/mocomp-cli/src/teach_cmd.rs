@@ -76,6 +76,8 @@ fn teach(setup: &Setup, world: &mut World, samples: usize) -> anyhow::Result<Tau
     let start = Instant::now();
     let mut heads = Vec::with_capacity(samples);
     let mut q = None;
+    // Polled faster than the tracker sends: each sample counts once.
+    let mut last = f64::NEG_INFINITY;
     while heads.len() < samples {
         if start.elapsed() > Duration::from_secs(5) {
             refuse!(
@@ -86,7 +88,9 @@ fn teach(setup: &Setup, world: &mut World, samples: usize) -> anyhow::Result<Tau
         }
         if let Some(s) = source.latest()
             && s.valid
+            && s.acquired_s > last
         {
+            last = s.acquired_s;
             heads.push(s.tracker_from_marker);
         }
         if let Some(r) = world.robot.state() {

@@ -30,12 +30,15 @@ fn goal_of(text: &str) -> Isometry3<f64> {
 #[test]
 fn teach_goal_stores_where_the_coil_is_relative_to_the_head() {
     let dir = TempDir::new("mocomp-teach");
-    let cfg = example("127.0.0.42");
+    // The goal is taught with the head still: the example's head starts nodding after 1 s, which a
+    // slow start would reach within the 60 samples (1 s at 60 Hz).
+    let cfg = example("127.0.0.42").replace("start_s = 1.0", "start_s = 1000.0");
+    assert!(cfg.contains("start_s = 1000.0"));
     let old_goal = goal_of(&cfg);
     let path = dir.path("run.toml");
     std::fs::write(&path, &cfg).unwrap();
     // The simulated robot starts with the coil 15 cm out on the goal's axis; the tracker is exact
-    // up to its 0.1 mm, 1 mrad noise, averaged over 60 samples.
+    // up to its 0.1 mm, 1 mrad noise, averaged over 60 distinct samples.
     let out = mocomp(&["teach-goal", "--config", &path, "--samples", "60"]);
     assert_success(&out);
     let text = String::from_utf8_lossy(&out.stdout);

@@ -324,6 +324,26 @@ impl UrRobot {
         Ok(())
     }
 
+    /// Runs `f` on another thread while this one keeps the program's watchdog fed, and returns
+    /// its result. Once connected, the program stops when no package arrives for
+    /// `1 / watchdog_hz` (50 ms by default); work between commands that may take longer (planning
+    /// poses, loading files, a slow machine) goes through here instead of starving it.
+    pub fn keep_alive_while<T: Send>(
+        &mut self,
+        f: impl FnOnce() -> T + Send,
+    ) -> Result<T, UrError> {
+        let interval = Duration::from_secs_f64((0.25 / self.config.watchdog_hz).min(0.01));
+        std::thread::scope(|s| {
+            let work = s.spawn(f);
+            while !work.is_finished() {
+                self.send()?;
+                std::thread::sleep(interval);
+            }
+            // A panic in `f` is a bug in the caller's code: carry it on as one.
+            Ok(work.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+        })
+    }
+
     /// Ends the program (EXIT after stopping) and closes the connection.
     pub fn close(mut self) -> Result<(), UrError> {
         self.command(cmd::EXIT, [0.0; 6], [4.0, 0.0, 0.0]).map(drop)

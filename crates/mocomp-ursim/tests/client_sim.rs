@@ -137,6 +137,31 @@ fn the_watchdog_stops_the_program_when_the_client_goes_silent() {
 }
 
 #[test]
+fn slow_work_between_commands_keeps_the_program_running_when_run_through_keep_alive_while() {
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut cfg = config_for(&sim);
+    // 2 Hz as above; the work takes three watchdog periods.
+    cfg.watchdog_hz = 2.0;
+    let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
+    let answer = robot
+        .keep_alive_while(|| {
+            std::thread::sleep(Duration::from_millis(1500));
+            42
+        })
+        .unwrap();
+    assert_eq!(answer, 42);
+    let s = robot.state().unwrap();
+    assert_eq!(s.fault(), None);
+    assert_eq!(s.runtime_state, RuntimeState::Playing);
+    // The same work done without it stops the program.
+    std::thread::sleep(Duration::from_millis(1500));
+    assert_eq!(
+        robot.state().unwrap().fault(),
+        Some(RobotFault::ProgramStopped)
+    );
+}
+
+#[test]
 fn a_setpoint_jump_is_a_protective_stop_detected_at_once_and_recovered_via_the_dashboard() {
     let sim = sim(Model::Ur5e, SimClock::Stepped);
     let mut robot = pumped(&sim, || connect(&sim));
