@@ -204,6 +204,8 @@ struct Row {
     rotation_deg_p95: f64,
     rotation_deg_max: f64,
     holds: usize,
+    retreats: usize,
+    dropouts_coasted: usize,
     outliers_rejected: usize,
     /// The true coil's least distance to the head model (negative: inside), mm.
     min_clearance_mm: f64,
@@ -237,7 +239,7 @@ fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
         .runs
         .iter()
         .map(|r| {
-            let [holds, _, outliers, _] = crate::plots::event_counts(r);
+            let n = crate::plots::event_counts(r);
             Row {
                 controller: r.controller.name(),
                 d_rms: r.d.rms,
@@ -249,8 +251,10 @@ fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
                 rotation_deg_rms: r.rotation_deg.rms,
                 rotation_deg_p95: r.rotation_deg.p95,
                 rotation_deg_max: r.rotation_deg.max,
-                holds,
-                outliers_rejected: outliers,
+                holds: n.holds,
+                retreats: n.retreats,
+                dropouts_coasted: n.coasts,
+                outliers_rejected: n.outliers,
                 min_clearance_mm: m_to_mm(r.min_clearance_m),
                 inside_head_s: r.inside_head_s,
             }
@@ -310,10 +314,10 @@ fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
         s.tracker_dropouts_per_s,
         s.seed,
     ));
-    t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | outliers rejected | least coil clearance (mm) | coil in the head (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | retreats | dropouts coasted | outliers rejected | least coil clearance (mm) | coil in the head (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in &s.controllers {
         t.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {:.2} | {:.2} |\n",
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} | {:.2} | {:.2} |\n",
             r.controller,
             r.d_rms,
             r.d_p95,
@@ -325,6 +329,8 @@ fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
             r.rotation_deg_p95,
             r.rotation_deg_max,
             r.holds,
+            r.retreats,
+            r.dropouts_coasted,
             r.outliers_rejected,
             r.min_clearance_mm,
             r.inside_head_s,

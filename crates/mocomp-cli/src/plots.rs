@@ -363,11 +363,12 @@ impl Figure for Panels<'_> {
 }
 
 /// The modes' names and colours, in the order of [`mode_kind`].
-const MODES: [(&str, RGBColor); 4] = [
+const MODES: [(&str, RGBColor); 5] = [
     ("tracking", RGBColor(44, 160, 44)),
     ("approaching", RGBColor(31, 119, 180)),
     ("holding", RGBColor(255, 127, 14)),
     ("faulted", RGBColor(214, 39, 40)),
+    ("retreating", RGBColor(148, 103, 189)),
 ];
 
 /// A mode's index in [`MODES`] (its reason aside).
@@ -377,18 +378,38 @@ fn mode_kind(m: Mode) -> usize {
         Mode::Approaching => 1,
         Mode::Holding(_) => 2,
         Mode::Faulted(_) => 3,
+        Mode::Retreating(_) => 4,
     }
 }
 
-/// Counts of each kind of event in a run: holds, resumes, outliers, reached.
-pub fn event_counts(run: &Run) -> [usize; 4] {
-    let mut n = [0; 4];
+/// Counts of each kind of event in a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct EventCounts {
+    /// Holds (and faults) begun.
+    pub holds: usize,
+    /// Resumes.
+    pub resumes: usize,
+    /// Tracker samples rejected as outliers.
+    pub outliers: usize,
+    /// Planned approaches that reached the goal.
+    pub reached: usize,
+    /// Retreats begun.
+    pub retreats: usize,
+    /// Tracker dropouts coasted through.
+    pub coasts: usize,
+}
+
+/// Counts each kind of event in a run.
+pub fn event_counts(run: &Run) -> EventCounts {
+    let mut n = EventCounts::default();
     for r in &run.records {
         match r.event {
-            Some(Event::Hold(_)) => n[0] += 1,
-            Some(Event::Resume) => n[1] += 1,
-            Some(Event::Outlier(..)) => n[2] += 1,
-            Some(Event::Reached) => n[3] += 1,
+            Some(Event::Hold(_)) => n.holds += 1,
+            Some(Event::Resume) => n.resumes += 1,
+            Some(Event::Outlier(..)) => n.outliers += 1,
+            Some(Event::Reached) => n.reached += 1,
+            Some(Event::Retreat(_)) => n.retreats += 1,
+            Some(Event::Coasting(_)) => n.coasts += 1,
             None => {}
         }
     }
@@ -409,13 +430,20 @@ impl Figure for Events<'_> {
         let rows = self.runs.len().max(1);
         let areas = root.split_evenly((rows, 1));
         for (run, area) in self.runs.iter().zip(&areas) {
-            let [holds, resumes, outliers, reached] = event_counts(run);
+            let EventCounts {
+                holds,
+                resumes,
+                outliers,
+                reached,
+                retreats,
+                coasts,
+            } = event_counts(run);
             let period = match run.records.as_slice() {
                 [a, b, ..] => b.t - a.t,
                 _ => 0.0,
             };
             let caption = format!(
-                "{}: mode and safety events ({holds} holds, {resumes} resumes, {outliers} outliers rejected, {reached} approaches reached)",
+                "{}: mode and safety events ({holds} holds, {retreats} retreats, {resumes} resumes, {coasts} dropouts coasted, {outliers} outliers rejected, {reached} approaches reached)",
                 run.controller.name()
             );
             let mut chart = ChartBuilder::on(area)

@@ -16,8 +16,8 @@ use mocomp_control::{
     CoilModel, Compensator, CycleRecord, Event, HeadModel, LoopConfig, LoopParams, Mode,
     PredictorConfig, Reason,
 };
+use mocomp_geom::iso_from_ur_pose;
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
-use mocomp_geom::{iso_from_ur_pose, rotation_error, translation_error};
 use mocomp_kin::{Arm, Selection};
 use mocomp_sim::{HeadMotion, TrackerModel};
 use mocomp_ur::{Robot, ServoParams};
@@ -431,7 +431,7 @@ struct Summary {
     delay_ms: Vec<f64>,
     deviation_mm: Vec<f64>,
     deviation_deg: Vec<f64>,
-    by_mode: [u64; 4],
+    by_mode: [u64; 5],
     events: Vec<(f64, Event)>,
 }
 
@@ -441,6 +441,7 @@ fn mode_index(m: &Mode) -> usize {
         Mode::Approaching => 1,
         Mode::Holding(_) => 2,
         Mode::Faulted(_) => 3,
+        Mode::Retreating(_) => 4,
     }
 }
 
@@ -450,6 +451,7 @@ fn mode_name(m: &Mode) -> String {
         Mode::Approaching => "approaching".into(),
         Mode::Holding(r) => format!("holding ({r:?})"),
         Mode::Faulted(r) => format!("faulted ({r:?})"),
+        Mode::Retreating(r) => format!("retreating ({r:?})"),
     }
 }
 
@@ -463,7 +465,6 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
 
 fn logger(
     rx: Receiver<CycleRecord>,
-    arm: Arm,
     period: f64,
     csv: Option<std::fs::File>,
     status: bool,
@@ -494,16 +495,9 @@ fn logger(
         s.by_mode[mode_index(&r.mode)] += 1;
         s.compute_us.push(r.compute_ns as f64 / 1e3);
         s.delay_ms.push(r.command_delay_s * 1e3);
-        let (dev_mm, dev_deg) = match (r.goal, r.q_actual[0].is_finite()) {
-            (Some(g), true) => {
-                let f = arm.fk_flange(&r.q_actual);
-                (
-                    translation_error(&f, &g) * 1e3,
-                    rotation_error(&f, &g).to_degrees(),
-                )
-            }
-            _ => (f64::NAN, f64::NAN),
-        };
+        // The measured flange against the goal for the head estimated at the same time (not the
+        // goal the command aims at, which is the head predicted a horizon ahead).
+        let (dev_mm, dev_deg) = (r.deviation.0 * 1e3, r.deviation.1.to_degrees());
         if r.mode == Mode::Tracking && dev_mm.is_finite() {
             s.deviation_mm.push(dev_mm);
             s.deviation_deg.push(dev_deg);
@@ -597,6 +591,7 @@ struct RunReport {
     approaching_percent: f64,
     holding_percent: f64,
     faulted_percent: f64,
+    retreating_percent: f64,
     deviation_rms_mm: f64,
     deviation_p95_mm: f64,
     deviation_max_mm: f64,
@@ -643,6 +638,7 @@ impl RunReport {
             approaching_percent: 100.0 * s.by_mode[1] as f64 / n,
             holding_percent: 100.0 * s.by_mode[2] as f64 / n,
             faulted_percent: 100.0 * s.by_mode[3] as f64 / n,
+            retreating_percent: 100.0 * s.by_mode[4] as f64 / n,
             deviation_rms_mm: rms,
             deviation_p95_mm: percentile(&mut s.deviation_mm, 0.95),
             deviation_max_mm: percentile(&mut s.deviation_mm, 1.0),
@@ -693,9 +689,10 @@ impl RunReport {
         )?;
         writeln!(
             out,
-            "  modes             tracking {:.1} %, approaching {:.1} %, holding {:.1} %, faulted {:.1} %",
+            "  modes             tracking {:.1} %, approaching {:.1} %, retreating {:.1} %, holding {:.1} %, faulted {:.1} %",
             self.tracking_percent,
             self.approaching_percent,
+            self.retreating_percent,
             self.holding_percent,
             self.faulted_percent
         )?;
@@ -816,7 +813,7 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
             // its core.
             mocomp_rt::set_normal().ok();
             mocomp_rt::unpin().ok();
-            logger(rx, arm, period, csv, status)
+            logger(rx, period, csv, status)
         })
         .context("logger thread")?;
 

@@ -1,74 +1,38 @@
 //! One compensation cycle, at the robot's rate, on an injectable clock: newest tracker sample and
-//! robot state → supervisor → predicted head pose → goal `base_from_flange = base_from_tracker ·
-//! tracker_from_head · head_from_coil_goal · coil_from_flange` → IK on the current branch →
-//! limits → collision check of the command → `servo`. No allocation, no lock, no logging: the
-//! caller gets a [`CycleRecord`] (`Copy`) to queue for a logger.
+//! robot state → the supervisor's rules ([`crate::supervisor`]) → predicted head pose → goal
+//! `base_from_flange = base_from_tracker · tracker_from_head · head_from_coil_goal ·
+//! coil_from_flange`, backed off by the standoff the safety filter asks for
+//! ([`crate::safety`]) → IK on the current branch → limits → the filter and the collision checks
+//! on the command → `servo`. No allocation, no lock, no logging: the caller gets a
+//! [`CycleRecord`] (`Copy`) to queue for a logger.
 
 use crate::config::LoopConfig;
 use crate::goal::{GoalError, check_goal};
 use crate::planner::{PlanError, ShellPath};
 use crate::predict::PosePredictor;
+use crate::safety::{backed_off, required_clearance, standoff_for};
+pub use crate::supervisor::Reason;
+use crate::supervisor::{
+    Reaction, TrackerInputs, TrackerVerdict, reaction, robot_rules, tracker_rules,
+};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, Selection};
-use mocomp_ur::{Robot, RobotFault};
-
-/// Why the loop holds (or stopped) the robot. Each is a named, tested rule.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Reason {
-    /// No tracker sample yet.
-    NoTracker,
-    /// The newest sample is older than `tracker_stale_s` (s).
-    TrackerStale(f64),
-    /// `frozen_samples` identical samples in a row.
-    TrackerFrozen,
-    /// The tracker marks the marker invalid (lost, out of view, error too large).
-    MarkerInvalid,
-    /// The head moves faster than the robot may follow (m/s, rad/s).
-    HeadTooFast(f64, f64),
-    /// The robot reports a fault.
-    Robot(RobotFault),
-    /// The robot's state was received longer ago than `robot_stale_s`.
-    RobotStale,
-    /// The goal is at or near a singularity (its margin).
-    Singular(f64),
-    /// No IK solution on the current branch within the joint limits.
-    Unreachable,
-    /// The goal puts the coil closer to the head than `coil_min_distance_m` (its distance, m).
-    GoalInsideHead(f64),
-    /// The command would bring a link (index) closer than the clearance (distance, m).
-    LinkCollision(usize, f64),
-    /// The command would bring the coil closer than `coil_min_distance_m` (m).
-    CoilCollision(f64),
-    /// The coil near the head but off its approach axis (lateral offset, m).
-    OffApproachAxis(f64),
-    /// The goal's approach axis (+z of the coil) points out of the head.
-    GoalAxisOutward,
-    /// The goal is not a finite transform.
-    GoalNotFinite,
-    /// No safe path to the goal: unreachable, a branch change or a collision at this arc
-    /// length along it (m), or no retreat to the shell (NaN).
-    NoPath(f64),
-}
-
-impl From<GoalError> for Reason {
-    fn from(e: GoalError) -> Self {
-        match e {
-            GoalError::InsideHead { distance_m, .. } => Reason::GoalInsideHead(distance_m),
-            GoalError::AxisOutward => Reason::GoalAxisOutward,
-            GoalError::NotFinite => Reason::GoalNotFinite,
-        }
-    }
-}
+use mocomp_ur::Robot;
 
 /// What the loop is doing.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Mode {
-    /// Following the goal with the servo.
+    /// Following the goal with the servo (backed off along the approach axis by the standoff
+    /// the safety filter asks for, usually none).
     Tracking,
     /// Following a planned path (retreat, shell, approach along the axis) to a goal far from the
     /// coil: at the start, after a hold, after a large head movement.
     Approaching,
+    /// Following the head from `retreat_distance_m` back along the approach axis, for a reason
+    /// (head too fast, head into the coil); comes back in when it has been clear for
+    /// `resume_after_s`.
+    Retreating(Reason),
     /// Holding the last safe command (decelerating to standstill) for a reason; resumes by
     /// itself when the reason has been clear for `resume_after_s`.
     Holding(Reason),
@@ -81,12 +45,16 @@ pub enum Mode {
 pub enum Event {
     /// The loop started holding (or stopped) for a reason.
     Hold(Reason),
+    /// The loop started retreating for a reason.
+    Retreat(Reason),
     /// The loop resumed tracking.
     Resume,
     /// A tracker sample was rejected as an outlier (implied m/s, rad/s).
     Outlier(f64, f64),
     /// The loop switched from approaching to tracking.
     Reached,
+    /// A tracker dropout began; the loop coasts on the prediction (the newest sample's age, s).
+    Coasting(f64),
 }
 
 /// One cycle, for the log.
@@ -114,6 +82,20 @@ pub struct CycleRecord {
     pub head_speed: (f64, f64),
     /// While approaching: arc length travelled and the path's length, m.
     pub path: Option<(f64, f64)>,
+    /// The standoff along the approach axis the goal was backed off by, m.
+    pub standoff_m: f64,
+    /// How far the safety filter moved this cycle's command back along the approach axis, m.
+    pub filtered_m: f64,
+    /// The commanded coil's clearance from the head predicted for the time it acts, m (NaN
+    /// without a head estimate).
+    pub clearance_m: f64,
+    /// The clearance the filter required this cycle, m.
+    pub required_m: f64,
+    /// The loop coasts on the prediction through a tracker dropout.
+    pub coasting: bool,
+    /// The measured flange's distance from the goal for the head as estimated now (the state's
+    /// time), m and rad: the deviation a live system can report. NaN without a head estimate.
+    pub deviation: (f64, f64),
     /// Compute time of the cycle, ns (filled by the caller that owns a clock for it).
     pub compute_ns: u64,
 }
@@ -124,6 +106,10 @@ const PATH_CHECKS: usize = 40;
 /// Largest joint change between neighbouring path samples before it counts as a branch change,
 /// rad.
 const MAX_PATH_JOINT_STEP: f64 = 0.35;
+/// Deceleration of a standoff shrinking back to the goal, m/s².
+const STANDOFF_LANDING_M_S2: f64 = 1.0;
+/// Corrections of one command by the safety filter (each re-solves IK and the limits).
+const FILTER_PASSES: usize = 2;
 
 /// The compensation loop's state.
 #[derive(Debug, Clone)]
@@ -139,6 +125,8 @@ pub struct Compensator {
     q_cmd: [f64; 6],
     v_cmd: [f64; 6],
     have_cmd: bool,
+    /// The previous cycle's target joints (for the target's speed).
+    last_desired: Option<[f64; 6]>,
     mode: Mode,
     clear_since: Option<f64>,
     stop_sent: bool,
@@ -158,12 +146,23 @@ pub struct Compensator {
     /// The controller time between the previous command and this one, s: the time the command
     /// is stepped by.
     dt: f64,
+    /// The standoff along the approach axis the anchor is backed off by, m.
+    standoff: f64,
+    /// The coil pose (`head_from_coil`) the standoff backs off from: the goal, or where the coil
+    /// was when it had to give way away from the goal (approaching, holding).
+    anchor: Isometry3<f64>,
+    /// Whether the previous cycle coasted through a dropout.
+    coasting: bool,
+    /// Distance from the head marker to the coil at the goal, m: the lever that turns rotation
+    /// uncertainty into position uncertainty at the coil.
+    coil_lever: f64,
 }
 
 impl Compensator {
     /// A loop for `arm` (its model fixes the speeds and limits) at the robot's `period_s`.
     pub fn new(cfg: LoopConfig, arm: Arm, period_s: f64) -> Self {
         let coil_from_flange = cfg.flange_from_coil.inverse();
+        let cfg_goal = cfg.head_from_coil_goal;
         let predictor = PosePredictor::new(cfg.predictor);
         let goal_check = check_goal(
             &cfg.head,
@@ -173,6 +172,7 @@ impl Compensator {
         );
         Self {
             command_delay: period_s,
+            coil_lever: cfg.head_from_coil_goal.translation.vector.norm(),
             cfg,
             arm,
             coil_from_flange,
@@ -184,6 +184,7 @@ impl Compensator {
             q_cmd: [0.0; 6],
             v_cmd: [0.0; 6],
             have_cmd: false,
+            last_desired: None,
             mode: Mode::Holding(Reason::NoTracker),
             clear_since: None,
             stop_sent: false,
@@ -198,6 +199,9 @@ impl Compensator {
             last_controller_s: f64::NAN,
             dt: period_s,
             goal_check,
+            standoff: 0.0,
+            anchor: cfg_goal,
+            coasting: false,
         }
     }
 
@@ -232,6 +236,15 @@ impl Compensator {
                 self.identical = 0;
             }
         }
+        let p = &self.cfg.params;
+        if self.predictor.is_initialised()
+            && s.acquired_s - self.predictor.time_s() > p.tracker_stale_s + p.coast_s
+        {
+            // Back after the tracker was lost: the old rates mean nothing for the head now.
+            self.predictor.reset();
+            self.last_raw = None;
+            self.identical = 0;
+        }
         if let Some(pred) = self.predictor.predict(s.acquired_s) {
             let dt = (s.acquired_s - self.predictor.time_s()).max(self.period);
             let lin = (pred.translation.vector - s.tracker_from_marker.translation.vector).norm();
@@ -246,32 +259,65 @@ impl Compensator {
         None
     }
 
-    fn tracker_reason(&mut self, now: f64) -> Option<Reason> {
-        if !self.predictor.is_initialised() {
-            return Some(Reason::NoTracker);
-        }
-        if !self.last_valid {
-            return Some(Reason::MarkerInvalid);
-        }
+    /// The tracker rules' verdict now (see [`crate::supervisor::tracker_rules`]).
+    fn tracker_verdict(&mut self, now: f64) -> TrackerVerdict {
+        let p = &self.cfg.params;
         let age = now - self.predictor.time_s();
-        if age > self.cfg.params.tracker_stale_s {
-            if age > 10.0 * self.cfg.params.tracker_stale_s {
-                // A long dropout: the velocity estimate means nothing any more.
-                self.predictor.reset();
-                self.last_raw = None;
-            }
-            return Some(Reason::TrackerStale(age));
-        }
-        if self.identical >= self.cfg.params.frozen_samples {
-            return Some(Reason::TrackerFrozen);
+        if self.predictor.is_initialised() && age > 10.0 * (p.tracker_stale_s + p.coast_s) {
+            // A long dropout: the velocity estimate means nothing any more.
+            self.predictor.reset();
+            self.last_raw = None;
         }
         let (v, w) = self.predictor.velocity();
-        if v.norm() > self.cfg.params.max_head_speed_m_s
-            || w.norm() > self.cfg.params.max_head_speed_rad_s
-        {
-            return Some(Reason::HeadTooFast(v.norm(), w.norm()));
-        }
-        None
+        tracker_rules(
+            &TrackerInputs {
+                initialised: self.predictor.is_initialised(),
+                valid: self.last_valid,
+                age_s: age,
+                identical: self.identical,
+                speed: (v.norm(), w.norm()),
+            },
+            p,
+        )
+    }
+
+    /// The flange target for the head at `base_from_head`: the anchor (usually the goal),
+    /// backed off by the current standoff.
+    fn standoff_target(&self, base_from_head: &Isometry3<f64>) -> Isometry3<f64> {
+        base_from_head * backed_off(&self.anchor, self.standoff) * self.coil_from_flange
+    }
+
+    /// The coil at joints `q` seen from the head at `base_from_head`.
+    fn head_from_coil_at(&self, q: &[f64; 6], base_from_head: &Isometry3<f64>) -> Isometry3<f64> {
+        base_from_head.inverse() * self.arm.fk_flange(q) * self.cfg.flange_from_coil
+    }
+
+    /// Re-solves this cycle's command for the current standoff plus `extra` (m), from the state
+    /// before the limits ran (`saved`), so a correction is limited like any command. The
+    /// target's speed stays the uncorrected target's (`nominal`): a correction is not a motion to
+    /// keep. `None` when the IK fails.
+    fn retarget(
+        &mut self,
+        base_from_head: &Isometry3<f64>,
+        extra: f64,
+        saved: ([f64; 6], [f64; 6], Option<[f64; 6]>),
+        nominal: &[f64; 6],
+        speed_fraction: f64,
+    ) -> Option<[f64; 6]> {
+        let s = (self.standoff + extra).min(self.cfg.params.max_standoff_m);
+        let target = base_from_head * backed_off(&self.anchor, s) * self.coil_from_flange;
+        let c = self
+            .arm
+            .ik_closest(
+                &target,
+                &saved.0,
+                &Selection::tracking(self.cfg.params.joint_margin_rad),
+            )
+            .ok()?;
+        (self.q_cmd, self.v_cmd, self.last_desired) = saved;
+        let q = self.limit(&c.joints, speed_fraction);
+        self.last_desired = Some(*nominal);
+        Some(q)
     }
 
     fn note_command(&mut self, seq: i32, t: f64) {
@@ -300,7 +346,9 @@ impl Compensator {
     }
 
     /// Rate- and acceleration-limits the command towards `desired`, joint by joint, so that each
-    /// joint can still stop at `desired` within its acceleration. The step is over the controller
+    /// joint can still stop at `desired` within its acceleration, relative to the target's own
+    /// motion: a moving target is followed at its speed (feed-forward), not approached as if it
+    /// stood still, which would lag it by the braking distance. The step is over the controller
     /// time since the previous command (`self.dt`): a late cycle moves as far as the time that
     /// really passed and no further, so the controller never sees a setpoint faster than the
     /// limits (URControl's C204A3), and a cycle with no controller time passed moves nothing.
@@ -312,16 +360,25 @@ impl Compensator {
         let a = self.cfg.params.max_joint_accel_rad_s2;
         let mut q = self.q_cmd;
         let mut v = self.v_cmd;
+        let previous = self.last_desired.replace(*desired);
         for j in 0..6 {
             let vmax = self.arm.spec().max_speed[j] * speed_fraction;
+            // The target's speed, from its last two values; a jump (a new mode, a retreat) is
+            // not a speed to keep.
+            let v_target = previous
+                .map(|p| (desired[j] - p[j]) / dt)
+                .filter(|v| v.abs() <= vmax)
+                .unwrap_or(0.0);
             let delta = desired[j] - self.q_cmd[j];
-            // Largest speed from which the joint can still stop at the target in whole cycles
-            // of deceleration a·dt each: n·a·dt with a·dt²·n(n+1)/2 ≤ |delta| (the continuous
-            // √(2a|delta|) overshoots by up to a cycle and chatters around a still target).
+            // Largest speed relative to the target from which the joint can still stop on it in
+            // whole cycles of deceleration a·dt each: n·a·dt with a·dt²·n(n+1)/2 ≤ |delta| (the
+            // continuous √(2a|delta|) overshoots by up to a cycle and chatters around a still
+            // target).
             let adt2 = a * dt * dt;
             let n = 0.5 * ((1.0 + 8.0 * delta.abs() / adt2).sqrt() - 1.0);
             let v_stop = n * a * dt;
-            let want = (delta / dt).clamp(-v_stop, v_stop).clamp(-vmax, vmax);
+            let want =
+                (v_target + (delta / dt - v_target).clamp(-v_stop, v_stop)).clamp(-vmax, vmax);
             v[j] = want.clamp(self.v_cmd[j] - a * dt, self.v_cmd[j] + a * dt);
             q[j] = self.q_cmd[j] + v[j] * dt;
         }
@@ -353,6 +410,20 @@ impl Compensator {
         q: &[f64; 6],
         head_prev: &Isometry3<f64>,
         head_now: &Isometry3<f64>,
+    ) -> Option<Reason> {
+        self.check_motion(q_prev, q, head_prev, head_now, true)
+    }
+
+    /// [`Self::collision`], with the approach rule optional: a coil that follows the head near
+    /// its goal deviates sideways by its tracking error, which is no approach from the side (its
+    /// clearance is the safety filter's, on the whole coil model).
+    fn check_motion(
+        &self,
+        q_prev: &[f64; 6],
+        q: &[f64; 6],
+        head_prev: &Isometry3<f64>,
+        head_now: &Isometry3<f64>,
+        approach_rule: bool,
     ) -> Option<Reason> {
         let now_from_base = head_now.inverse();
         let prev_from_base = head_prev.inverse();
@@ -419,7 +490,7 @@ impl Compensator {
             head.distance(&Point3::from(p1))
                 .min(head.distance(&Point3::from(p2)))
         };
-        if d < zone && d < d_prev() - 1e-6 {
+        if approach_rule && d < zone && d < d_prev() - 1e-6 {
             let g = &self.cfg.head_from_coil_goal;
             let axis = g.rotation * Vector3::z();
             let lateral_of = |c: Vector3<f64>| {
@@ -512,12 +583,17 @@ impl Compensator {
             return None;
         }
         let event = match mode {
-            Mode::Holding(r) | Mode::Faulted(r) => {
+            Mode::Holding(r) | Mode::Faulted(r) | Mode::Retreating(r) => {
                 // Report a new reason only when the kind changes (values move every cycle).
                 let same_kind = matches!((self.mode, mode),
-                    (Mode::Holding(a), Mode::Holding(b)) | (Mode::Faulted(a), Mode::Faulted(b))
+                    (Mode::Holding(a), Mode::Holding(b))
+                    | (Mode::Faulted(a), Mode::Faulted(b))
+                    | (Mode::Retreating(a), Mode::Retreating(b))
                         if std::mem::discriminant(&a) == std::mem::discriminant(&b));
-                (!same_kind).then_some(Event::Hold(r))
+                (!same_kind).then_some(match mode {
+                    Mode::Retreating(_) => Event::Retreat(r),
+                    _ => Event::Hold(r),
+                })
             }
             Mode::Tracking => Some(if self.mode == Mode::Approaching {
                 Event::Reached
@@ -550,25 +626,25 @@ impl Compensator {
             goal: None,
             head_speed: (0.0, 0.0),
             path: None,
+            standoff_m: self.standoff,
+            filtered_m: 0.0,
+            clearance_m: f64::NAN,
+            required_m: f64::NAN,
+            coasting: false,
+            deviation: (f64::NAN, f64::NAN),
             compute_ns: 0,
         };
         // Tracker first: samples are taken even while the robot is faulted.
         let mut event = source.latest().and_then(|s| self.take_sample(s));
 
-        // Robot.
+        // The robot rules.
         let state = robot.state();
-        let robot_reason = match state {
-            None => Some(Reason::RobotStale),
-            Some(s) if now - s.received_s > self.cfg.params.robot_stale_s => {
-                Some(Reason::RobotStale)
-            }
-            Some(s) => s.fault().map(Reason::Robot),
-        };
         if let Some(s) = state {
             rec.q_actual = s.actual_q;
             self.measure_delay(s.acked_seq, s.received_s);
         }
-        if let Some(r) = robot_reason {
+        if let Some(r) = robot_rules(state.as_ref(), now, &self.cfg.params) {
+            // Reaction::Fault, the only reaction of the robot rules.
             if !self.stop_sent {
                 // Best effort: the robot may be unreachable.
                 let _ = robot.stop(self.cfg.params.stop_decel_rad_s2);
@@ -602,10 +678,11 @@ impl Compensator {
             });
             self.dt = self.period;
             self.have_cmd = true;
+            self.last_desired = None;
         }
 
-        // Tracker rules and the goal.
-        let mut reason = self.tracker_reason(now);
+        // The tracker rules.
+        let verdict = self.tracker_verdict(now);
         let (v, w) = self.predictor.velocity();
         rec.head_speed = (v.norm(), w.norm());
         // No sample yet: no age (not the time since the predictor's t = 0).
@@ -614,62 +691,153 @@ impl Compensator {
         } else {
             f64::NAN
         };
-        let mut goal_q = None;
+        let coasting = matches!(verdict, TrackerVerdict::Coasting(_));
+        if let TrackerVerdict::Coasting(age) = verdict
+            && !self.coasting
+        {
+            event = event.or(Some(Event::Coasting(age)));
+        }
+        self.coasting = coasting;
+        rec.coasting = coasting;
+        let mut reason = match verdict {
+            TrackerVerdict::Refused(r) => Some(r),
+            TrackerVerdict::Fresh | TrackerVerdict::Coasting(_) => None,
+        };
+
+        // The head where it will be when this cycle's command acts, and the clearance the coil
+        // must keep from it then. Known while tracking, coasting, and retreating from a head too
+        // fast to follow.
+        let head_known =
+            reason.is_none() || reason.is_some_and(|r| reaction(&r) == Reaction::Retreat);
         let mut base_from_head = None;
-        if reason.is_none() {
-            let head = if self.cfg.params.predict {
-                let target_t = now + self.command_delay + self.cfg.servo.lookahead_s;
+        let mut required = self.cfg.params.coil_min_distance_m;
+        if head_known {
+            let (head, sigma) = if self.cfg.params.predict {
+                // The servo follows its setpoint with a lag of the lookahead less one controller
+                // period (the cycle that takes a setpoint already moves towards it; measured on
+                // the simulated controller: 22 ms for 30 ms on a CB3, 28 ms on an e-Series).
+                let servo_lag = (self.cfg.servo.lookahead_s - self.period).max(0.0);
+                let target_t = now + self.command_delay + servo_lag;
                 rec.horizon_s = target_t - self.predictor.time_s();
-                self.predictor.predict(target_t)
+                (
+                    self.predictor.predict(target_t),
+                    self.predictor.sigma(target_t),
+                )
             } else {
-                self.last_raw.map(|s| s.tracker_from_marker)
+                (
+                    self.last_raw.map(|s| s.tracker_from_marker),
+                    self.predictor.sigma(self.predictor.time_s()),
+                )
             };
             if let Some(tracker_from_head) = head {
-                let bh = self.cfg.base_from_tracker * tracker_from_head;
-                base_from_head = Some(bh);
-                let goal = bh * self.cfg.head_from_coil_goal * self.coil_from_flange;
-                rec.goal = Some(goal);
-                if let Err(e) = self.goal_check {
-                    reason = Some(Reason::from(e));
-                } else {
-                    match self.arm.ik_closest(
-                        &goal,
-                        &self.q_cmd,
-                        &Selection::tracking(self.cfg.params.joint_margin_rad),
-                    ) {
-                        Err(_) => reason = Some(Reason::Unreachable),
-                        Ok(c) => {
-                            let m = self.arm.singularity_margin(&c.joints);
-                            if m < self.cfg.params.singularity_hold {
-                                reason = Some(Reason::Singular(m));
-                            } else {
-                                goal_q = Some((c.joints, m));
-                            }
-                        }
+                base_from_head = Some(self.cfg.base_from_tracker * tracker_from_head);
+                required = required_clearance(&self.cfg.params, sigma.0, sigma.1, self.coil_lever);
+            }
+        }
+        rec.required_m = required;
+        if head_known && let Some(tracker_from_head) = self.predictor.predict(now) {
+            let goal_now = self.goal_for(&tracker_from_head);
+            let flange = self.arm.fk_flange(&state.actual_q);
+            rec.deviation = (
+                (flange.translation.vector - goal_now.translation.vector).norm(),
+                flange.rotation.angle_to(&goal_now.rotation),
+            );
+        }
+        if let Err(e) = self.goal_check {
+            // A wrong goal outranks everything but a fault.
+            reason = Some(Reason::from(e));
+        }
+        let mut react = reason.map_or(Reaction::Track, |r| reaction(&r));
+
+        // The standoff the goal needs: the filter's, and the retreat's while retreating. It
+        // grows at once and shrinks at `standoff_return_m_s`.
+        if let Some(bh) = base_from_head {
+            let p = &self.cfg.params;
+            let mut need = standoff_for(
+                &self.cfg.head,
+                &self.cfg.coil,
+                &self.cfg.head_from_coil_goal,
+                required,
+                p.max_standoff_m,
+            );
+            if react == Reaction::Retreat || matches!(self.mode, Mode::Retreating(_)) {
+                need = need.max(p.retreat_distance_m);
+            }
+            // Coming back in, the coil lands softly: its speed falls with the standoff left, so
+            // it stops on the goal instead of overshooting into the scalp.
+            let back = p
+                .standoff_return_m_s
+                .min((2.0 * STANDOFF_LANDING_M_S2 * self.standoff).sqrt());
+            self.standoff = need.max(self.standoff - back * self.dt);
+            rec.standoff_m = self.standoff;
+            rec.goal = Some(bh * self.cfg.head_from_coil_goal * self.coil_from_flange);
+        }
+
+        // The goal's joints.
+        let mut goal_q = None;
+        if let (Reaction::Track | Reaction::Retreat, Some(bh)) = (react, base_from_head) {
+            match self.arm.ik_closest(
+                &self.standoff_target(&bh),
+                &self.q_cmd,
+                &Selection::tracking(self.cfg.params.joint_margin_rad),
+            ) {
+                Err(_) => reason = Some(Reason::Unreachable),
+                Ok(c) => {
+                    let m = self.arm.singularity_margin(&c.joints);
+                    if m < self.cfg.params.singularity_hold {
+                        reason = Some(Reason::Singular(m));
+                    } else {
+                        goal_q = Some((c.joints, m));
                     }
                 }
             }
+            if goal_q.is_none() {
+                react = Reaction::Hold;
+            }
         }
 
-        // Mode.
+        // The mode and this cycle's target.
         let mut speed_fraction = self.cfg.params.speed_fraction;
-        let desired = match (reason, goal_q, base_from_head) {
-            (None, Some((q, margin)), Some(bh)) => {
+        let desired = match (react, reason, goal_q, base_from_head) {
+            (Reaction::Retreat, Some(r), Some((q, _)), Some(_)) => {
+                // Keep following the head from the standoff.
+                self.clear_since = None;
+                self.path = None;
+                event = event.or(self.enter(Mode::Retreating(r)));
+                q
+            }
+            (Reaction::Track, _, Some((q, margin)), Some(bh)) => {
                 let since = *self.clear_since.get_or_insert(now);
-                let ready = !matches!(self.mode, Mode::Holding(_) | Mode::Faulted(_))
-                    || now - since >= self.cfg.params.resume_after_s;
-                if !ready {
-                    self.q_cmd
+                let p = &self.cfg.params;
+                let waiting = match self.mode {
+                    Mode::Holding(_) | Mode::Faulted(_) => now - since < p.resume_after_s,
+                    Mode::Retreating(_) => now - since < p.retreat_resume_s,
+                    Mode::Tracking | Mode::Approaching => false,
+                };
+                if waiting {
+                    // A retreat keeps following from its standoff; a hold stays.
+                    if matches!(self.mode, Mode::Retreating(_)) {
+                        q
+                    } else {
+                        self.q_cmd
+                    }
                 } else {
                     if self.mode != Mode::Approaching {
                         let cmd = self.arm.fk_flange(&self.q_cmd);
-                        let far = rec.goal.is_some_and(|g| {
-                            (cmd.translation.vector - g.translation.vector).norm()
-                                > self.cfg.params.servo_deviation_m
-                                || cmd.rotation.angle_to(&g.rotation)
-                                    > self.cfg.params.plan_rotation_rad
-                        });
-                        if far || self.replan {
+                        let target = self.standoff_target(&bh);
+                        let far = (cmd.translation.vector - target.translation.vector).norm()
+                            > self.cfg.params.servo_deviation_m
+                            || cmd.rotation.angle_to(&target.rotation)
+                                > self.cfg.params.plan_rotation_rad;
+                        // Back from a retreat the coil is on the goal's axis and comes straight
+                        // in; one that gave way elsewhere goes by a path.
+                        let from_retreat = matches!(self.mode, Mode::Retreating(_));
+                        if from_retreat && self.anchor != self.cfg.head_from_coil_goal {
+                            self.anchor = self.cfg.head_from_coil_goal;
+                            self.standoff = 0.0;
+                            self.replan = true;
+                        }
+                        if (far && !from_retreat && self.mode != Mode::Tracking) || self.replan {
                             match self.plan(&bh) {
                                 Ok(p) => {
                                     self.path = Some(p);
@@ -724,7 +892,11 @@ impl Compensator {
                     }
                 }
             }
-            (r, _, _) => {
+            (react, r, _, _) => {
+                // Hold (Plan included: hold now, go by a path once clear).
+                if react == Reaction::Plan {
+                    self.replan = true;
+                }
                 self.clear_since = None;
                 self.path = None;
                 event = event.or(self.enter(Mode::Holding(r.unwrap_or(Reason::NoTracker))));
@@ -732,25 +904,87 @@ impl Compensator {
             }
         };
 
-        // Limits, then the collision check on the commanded motion.
-        let saved = (self.q_cmd, self.v_cmd);
+        // Limits, then the safety filter: a command whose coil would come closer to the
+        // predicted head than required is moved back along the approach axis by the deficit.
+        let saved = (self.q_cmd, self.v_cmd, self.last_desired);
         let mut q_next = self.limit(&desired, speed_fraction);
+        if let Some(bh) = base_from_head
+            && matches!(self.mode, Mode::Tracking | Mode::Retreating(_))
+        {
+            let max_standoff = self.cfg.params.max_standoff_m;
+            let mut extra = 0.0;
+            for _ in 0..FILTER_PASSES {
+                let coil = self.head_from_coil_at(&q_next, &bh);
+                let deficit = standoff_for(
+                    &self.cfg.head,
+                    &self.cfg.coil,
+                    &coil,
+                    required,
+                    max_standoff,
+                );
+                if deficit <= 0.0 {
+                    break;
+                }
+                extra += deficit;
+                match self.retarget(&bh, extra, saved, &desired, speed_fraction) {
+                    Some(q) => q_next = q,
+                    None => break,
+                }
+            }
+            rec.filtered_m = extra;
+        }
+
+        // The collision checks on the commanded motion (links, the coil's contact tolerance, the
+        // approach rule), each answered by its reaction.
         let refused = base_from_head.and_then(|bh| {
             let prev = self.last_head.unwrap_or(bh);
             self.last_head = Some(bh);
-            self.collision(&saved.0, &q_next, &prev, &bh)
+            let approach_rule = !matches!(self.mode, Mode::Tracking | Mode::Retreating(_));
+            self.check_motion(&saved.0, &q_next, &prev, &bh, approach_rule)
         });
         if let Some(r) = refused {
-            // Refuse: decelerate along the last command instead.
-            (self.q_cmd, self.v_cmd) = saved;
-            let hold = self.q_cmd;
-            q_next = self.limit(&hold, speed_fraction);
-            self.clear_since = None;
-            // A hold outranks a resume decided earlier in the same cycle. A coil refused near
-            // the head goes round by the shell when it resumes, never straight on.
-            self.path = None;
-            self.replan |= matches!(r, Reason::CoilCollision(_) | Reason::OffApproachAxis(_));
-            event = self.enter(Mode::Holding(r)).or(event);
+            let mut gave_way = false;
+            if reaction(&r) == Reaction::Retreat
+                && let Some(bh) = base_from_head
+            {
+                // The head comes into the coil: back off now, along the coil's axis (from the
+                // goal when following it, else from where the coil is).
+                if !matches!(self.mode, Mode::Tracking | Mode::Retreating(_)) {
+                    self.anchor = self.head_from_coil_at(&saved.0, &bh);
+                    self.standoff = 0.0;
+                    self.path = None;
+                }
+                self.standoff = self.standoff.max(self.cfg.params.retreat_distance_m);
+                // The most the limits allow this cycle, even if that is not yet clear of the head
+                // (holding instead would let the head push in further); only a link the retreat
+                // would bring into the head stops it.
+                if let Some(q) = self.retarget(&bh, 0.0, saved, &desired, speed_fraction)
+                    && !matches!(
+                        self.check_motion(&saved.0, &q, &bh, &bh, false),
+                        Some(Reason::LinkCollision(..))
+                    )
+                {
+                    q_next = q;
+                    gave_way = true;
+                    self.clear_since = None;
+                    event = self.enter(Mode::Retreating(r)).or(event);
+                }
+            }
+            if !gave_way {
+                // Refuse: decelerate along the last command instead.
+                (self.q_cmd, self.v_cmd, self.last_desired) = saved;
+                let hold = self.q_cmd;
+                q_next = self.limit(&hold, speed_fraction);
+                self.clear_since = None;
+                // A hold outranks a resume decided earlier in the same cycle. A coil refused
+                // near the head goes round by the shell when it resumes, never straight on.
+                self.path = None;
+                self.replan |= matches!(r, Reason::CoilCollision(_) | Reason::OffApproachAxis(_));
+                event = self.enter(Mode::Holding(r)).or(event);
+            }
+        }
+        if let Some(bh) = base_from_head {
+            rec.clearance_m = self.coil_distance(&self.head_from_coil_at(&q_next, &bh));
         }
         self.q_cmd = q_next;
         rec.q_command = q_next;

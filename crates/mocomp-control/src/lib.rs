@@ -1,5 +1,6 @@
 //! The compensation loop (the seed paper's section V, at the robot's rate), with what the paper
-//! left out: prediction that hides latency, a safety supervisor, and a collision model of the
+//! left out: prediction that hides latency, a supervisor whose rules each name their reaction, a safety
+//! filter on every command, and a collision model of the
 //! head, the coil and the arm.
 //!
 //! It talks to the robot and the tracker only through [`mocomp_ur::Robot`] and
@@ -12,10 +13,13 @@ pub mod geometry;
 pub mod goal;
 pub mod planner;
 pub mod predict;
+pub mod safety;
+pub mod supervisor;
 
 pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
 pub use config::{LoopConfig, LoopParams, ParamError};
 pub use geometry::{CoilModel, HeadModel};
 pub use goal::{GoalError, check_goal};
 pub use planner::{PlanError, ShellPath};
-pub use predict::{PosePredictor, PredictorConfig};
+pub use predict::{MotionModel, PosePredictor, PredictorConfig};
+pub use supervisor::{Reaction, reaction};

@@ -202,13 +202,8 @@ impl ExperimentConfig {
             calibration_samples: 10,
             goal_e2_from_e1: paper_goal()?,
             loop_params: mocomp_control::LoopParams::default(),
-            // Slow random motion: less angular process noise than the default (tuned for
-            // 35°/s nods) smooths the tracker's 1 mrad rotation noise, which the 0.44 m between
-            // the end-effectors turns into millimetres (30 s run: 0.51 → 0.38 mm RMS).
-            predictor: mocomp_control::PredictorConfig {
-                angular_accel_noise: 0.003,
-                ..Default::default()
-            },
+            // The loop's own: its adaptive noise smooths a slow head and follows a fast one.
+            predictor: mocomp_control::PredictorConfig::default(),
         })
     }
 
@@ -378,6 +373,9 @@ fn placed(
     }
 }
 
+/// Head poses along the motion at which a candidate placement of the coil robot is checked.
+const MOTION_SAMPLES: u32 = 300;
+
 /// Chooses the phantom's mounting from the paper's goal and the coil's design pose, then places
 /// the head and both robots so that the start is well inside both arms' workspaces.
 pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
@@ -412,25 +410,52 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
         cfg.head_robot,
         "hold the phantom",
     )?;
-    // U1 upright, beside the head: search its yaw, distance and height.
+    // U1 upright, beside the head: search its yaw, distance and height, for the start pose
+    // farthest from a singularity over the whole head motion (the coil follows the head through
+    // all of it: a start chosen alone can put the arm at its reach, where the elbow races).
     let world_from_e1 = world_from_head_rest * e2_from_head.inverse() * cfg.goal_e2_from_e1;
     let target = world_from_e1.translation.vector;
     let g = arm1.geometry();
     let reach = g.a2.abs() + g.a3.abs();
-    let bases = yaws().flat_map(|yaw| {
-        [0.45, 0.6, 0.75].into_iter().flat_map(move |r| {
-            [-0.3, -0.15, 0.0, 0.15].map(|h| {
+    let trajectory = cfg.motion.trajectory();
+    let e1_along_motion: Vec<Isometry3<f64>> = (0..=MOTION_SAMPLES)
+        .map(|k| {
+            let t = cfg.duration_s * f64::from(k) / f64::from(MOTION_SAMPLES);
+            world_from_head_rest
+                * trajectory.rest_from_head(t)
+                * e2_from_head.inverse()
+                * cfg.goal_e2_from_e1
+        })
+        .collect();
+    let mut best: Option<(f64, Isometry3<f64>, [f64; 6])> = None;
+    for yaw in yaws() {
+        for r in [0.45, 0.6, 0.75] {
+            for h in [-0.3, -0.15, 0.0, 0.15] {
                 let offset = Vector3::new(yaw.cos(), yaw.sin(), 0.0) * r * reach;
                 let base = upright(target - offset + Vector3::z() * h, yaw);
-                (base, base.inverse() * world_from_e1)
-            })
-        })
-    });
-    let (world_from_base1, q1_start) = placed(
-        best_placement(&arm1, &seed, &select, bases),
-        cfg.coil_robot,
-        "reach the goal",
-    )?;
+                let Ok(start) = arm1.ik_closest(&(base.inverse() * world_from_e1), &seed, &select)
+                else {
+                    continue;
+                };
+                // Follow the motion on the start's branch; the least margin on the way counts.
+                let mut q = start.joints;
+                let mut margin = arm1.singularity(&q).margin(arm1.geometry());
+                for e1 in &e1_along_motion {
+                    match arm1.ik_closest(&(base.inverse() * e1), &q, &Selection::tracking(0.05)) {
+                        Ok(c) => {
+                            q = c.joints;
+                            margin = margin.min(arm1.singularity(&q).margin(arm1.geometry()));
+                        }
+                        Err(_) => margin = f64::NEG_INFINITY,
+                    }
+                }
+                if best.as_ref().is_none_or(|b| margin > b.0) {
+                    best = Some((margin, base, start.joints));
+                }
+            }
+        }
+    }
+    let (world_from_base1, q1_start) = placed(best, cfg.coil_robot, "reach the goal")?;
     // The tracker 1.3 m from the head, above and in front, looking at it.
     let h = world_from_head_rest.translation.vector;
     let world_from_tracker = look_at(h + Vector3::new(0.9, 0.5, 0.8), h);

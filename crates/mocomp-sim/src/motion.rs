@@ -92,7 +92,8 @@ impl Default for Drift {
 }
 
 /// Nods and turns: sideways sway with a turn (yaw) at `frequency_hz`, and a nod (pitch) at 0.7 of
-/// it, ramped in over half a second.
+/// it, ramped in over a second by a smoothstep (a head does not start with a step in its
+/// acceleration; the linear half-second ramp before gave two).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Nods {
@@ -107,6 +108,9 @@ pub struct Nods {
     /// Frequency of sway and turn, Hz.
     pub frequency_hz: f64,
 }
+
+/// How long nods take to ramp in, s.
+const NODS_RAMP_S: f64 = 1.0;
 
 impl Default for Nods {
     /// Peaks of about 89 mm/s and 34°/s (the patient studies' fast movements).
@@ -567,7 +571,7 @@ impl Trajectory {
             }
             (HeadMotion::Nods(n), _) => {
                 let t = (t - n.start_s).max(0.0);
-                let ramp = (t / 0.5).min(1.0);
+                let ramp = smoothstep(t / NODS_RAMP_S);
                 let w = TAU * n.frequency_hz;
                 let x = n.sway_m * ramp * (w * t).sin();
                 let yaw = n.turn_rad * ramp * (w * t).sin();

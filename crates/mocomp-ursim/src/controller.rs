@@ -61,7 +61,7 @@ impl ControllerConfig {
             model,
             version: None,
             serial: "20235500001".into(),
-            max_accel: [15.0; 6],
+            max_accel: [40.0; 6],
             stop_decel: 10.0,
             setpoint_speed_factor: 1.2,
             unlock_delay_s: 0.0,

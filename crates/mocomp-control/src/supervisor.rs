@@ -1,0 +1,340 @@
+//! The supervisor: rules in, one reaction out.
+//!
+//! Each cycle the loop evaluates its rules (the tracker's, the robot's, the goal's, the command's
+//! clearance checks); each rule that fires names a [`Reason`], and [`reaction`] maps it to what
+//! the loop does. That mapping is the table below, the one place to read or change the policy:
+//!
+//! | rule ([`Reason`]) | reaction | why |
+//! |---|---|---|
+//! | `NoTracker` | hold | nothing to follow yet |
+//! | `TrackerStale` (lost longer than `tracker_stale_s + coast_s`) | hold | where the head is is unknown; moving blind is worse than staying |
+//! | `TrackerFrozen` | hold | a frozen stream looks like a still head but is not one |
+//! | `MarkerInvalid` (longer than the coast time) | hold | as a lost tracker |
+//! | `HeadTooFast` | retreat | a head faster than the robot may follow must not catch the coil: back off along the approach axis, keep following from there |
+//! | `Robot` (a fault) | fault | the robot stopped; commands resume when it is healthy |
+//! | `RobotStale` | fault | the robot's state is too old to command on |
+//! | `Singular` | hold | no safe joint motion near a singularity |
+//! | `Unreachable` | hold | no IK solution on the current branch |
+//! | `GoalInsideHead`, `GoalAxisOutward`, `GoalNotFinite` | hold | the goal itself is wrong: fix the configuration |
+//! | `LinkCollision` | hold | an arm link near the head: the closing motion is refused, moving away stays allowed |
+//! | `CoilCollision` | retreat | the head comes into the coil: the coil gives way along its axis, never the patient |
+//! | `OffApproachAxis` | plan | near the head the coil comes in only along its axis: go round by the shell |
+//! | `NoPath` | hold | no safe path to the goal |
+//!
+//! Short tracker dropouts (up to `coast_s` beyond `tracker_stale_s`) are not a rule that fires:
+//! the loop coasts on the prediction, with a standoff that grows with its uncertainty
+//! (see [`crate::safety`]). The rule functions here are pure: no robot, no socket, no clock.
+
+use crate::config::LoopParams;
+use crate::goal::GoalError;
+use mocomp_ur::{RobotFault, RobotState};
+
+/// Why the loop does not simply track. Each is a named, tested rule.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Reason {
+    /// No tracker sample yet.
+    NoTracker,
+    /// The newest sample is older than `tracker_stale_s + coast_s` (its age, s).
+    TrackerStale(f64),
+    /// `frozen_samples` identical samples in a row.
+    TrackerFrozen,
+    /// The tracker has marked the marker invalid (lost, out of view) for longer than the coast
+    /// time.
+    MarkerInvalid,
+    /// The head moves faster than the robot may follow (m/s, rad/s).
+    HeadTooFast(f64, f64),
+    /// The robot reports a fault.
+    Robot(RobotFault),
+    /// The robot's state was received longer ago than `robot_stale_s`.
+    RobotStale,
+    /// The goal is at or near a singularity (its margin).
+    Singular(f64),
+    /// No IK solution on the current branch within the joint limits.
+    Unreachable,
+    /// The goal puts the coil closer to the head than `coil_min_distance_m` (its distance, m).
+    GoalInsideHead(f64),
+    /// The command would bring a link (index) closer than the clearance (distance, m).
+    LinkCollision(usize, f64),
+    /// The command would bring the coil deeper than the contact tolerance (its distance, m).
+    CoilCollision(f64),
+    /// The coil near the head but off its approach axis (lateral offset, m).
+    OffApproachAxis(f64),
+    /// The goal's approach axis (+z of the coil) points out of the head.
+    GoalAxisOutward,
+    /// The goal is not a finite transform.
+    GoalNotFinite,
+    /// No safe path to the goal: unreachable, a branch change or a collision at this arc
+    /// length along it (m), or no retreat to the shell (NaN).
+    NoPath(f64),
+}
+
+impl From<GoalError> for Reason {
+    fn from(e: GoalError) -> Self {
+        match e {
+            GoalError::InsideHead { distance_m, .. } => Reason::GoalInsideHead(distance_m),
+            GoalError::AxisOutward => Reason::GoalAxisOutward,
+            GoalError::NotFinite => Reason::GoalNotFinite,
+        }
+    }
+}
+
+/// What the loop does about a reason.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reaction {
+    /// Follow the goal (nothing fired).
+    Track,
+    /// Go to the goal by a planned path around the head.
+    Plan,
+    /// Back off along the coil's approach axis to `retreat_distance_m` and keep following the
+    /// head from there; come back in when the reason has been clear for `resume_after_s`.
+    Retreat,
+    /// Decelerate to standstill on the last safe command; resume when the reason has been clear
+    /// for `resume_after_s`.
+    Hold,
+    /// Stop the robot; resume when it reports healthy.
+    Fault,
+}
+
+/// The table: what the loop does for each rule.
+pub fn reaction(reason: &Reason) -> Reaction {
+    use Reaction::{Fault, Hold, Plan, Retreat};
+    match reason {
+        Reason::NoTracker => Hold,
+        Reason::TrackerStale(_) => Hold,
+        Reason::TrackerFrozen => Hold,
+        Reason::MarkerInvalid => Hold,
+        Reason::HeadTooFast(..) => Retreat,
+        Reason::Robot(_) => Fault,
+        Reason::RobotStale => Fault,
+        Reason::Singular(_) => Hold,
+        Reason::Unreachable => Hold,
+        Reason::GoalInsideHead(_) => Hold,
+        Reason::GoalAxisOutward => Hold,
+        Reason::GoalNotFinite => Hold,
+        Reason::LinkCollision(..) => Hold,
+        Reason::CoilCollision(_) => Retreat,
+        Reason::OffApproachAxis(_) => Plan,
+        Reason::NoPath(_) => Hold,
+    }
+}
+
+/// What the tracker rules see.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerInputs {
+    /// Whether any sample has been taken.
+    pub initialised: bool,
+    /// Whether the newest sample marks the marker valid.
+    pub valid: bool,
+    /// Age of the newest valid sample (by its acquisition time), s.
+    pub age_s: f64,
+    /// Identical samples in a row.
+    pub identical: u32,
+    /// The estimated head speed, m/s and rad/s.
+    pub speed: (f64, f64),
+}
+
+/// The tracker rules' verdict.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TrackerVerdict {
+    /// A fresh sample: follow it.
+    Fresh,
+    /// A dropout short enough to coast on the prediction (the newest sample's age, s).
+    Coasting(f64),
+    /// A rule fired.
+    Refused(Reason),
+}
+
+/// The tracker rules, in order: none yet, lost past the coast time, frozen, too fast; a short
+/// dropout (late or invalid samples) is coasted.
+pub fn tracker_rules(t: &TrackerInputs, p: &LoopParams) -> TrackerVerdict {
+    if !t.initialised {
+        return TrackerVerdict::Refused(Reason::NoTracker);
+    }
+    let lost_after = p.tracker_stale_s + p.coast_s;
+    if t.age_s > lost_after {
+        return TrackerVerdict::Refused(if t.valid {
+            Reason::TrackerStale(t.age_s)
+        } else {
+            Reason::MarkerInvalid
+        });
+    }
+    if t.identical >= p.frozen_samples {
+        return TrackerVerdict::Refused(Reason::TrackerFrozen);
+    }
+    if t.speed.0 > p.max_head_speed_m_s || t.speed.1 > p.max_head_speed_rad_s {
+        return TrackerVerdict::Refused(Reason::HeadTooFast(t.speed.0, t.speed.1));
+    }
+    if !t.valid || t.age_s > p.tracker_stale_s {
+        return TrackerVerdict::Coasting(t.age_s);
+    }
+    TrackerVerdict::Fresh
+}
+
+/// The robot rules: no state or one older than `robot_stale_s` (by the loop's clock), or a
+/// fault the robot reports.
+pub fn robot_rules(state: Option<&RobotState>, now_s: f64, p: &LoopParams) -> Option<Reason> {
+    match state {
+        None => Some(Reason::RobotStale),
+        Some(s) if now_s - s.received_s > p.robot_stale_s => Some(Reason::RobotStale),
+        Some(s) => s.fault().map(Reason::Robot),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::*;
+    use mocomp_ur::{RobotMode, RuntimeState, SafetyMode};
+
+    fn fresh() -> TrackerInputs {
+        TrackerInputs {
+            initialised: true,
+            valid: true,
+            age_s: 0.03,
+            identical: 0,
+            speed: (0.05, 0.3),
+        }
+    }
+
+    fn verdict(f: impl FnOnce(&mut TrackerInputs)) -> TrackerVerdict {
+        let mut t = fresh();
+        f(&mut t);
+        tracker_rules(&t, &LoopParams::default())
+    }
+
+    #[test]
+    fn a_fresh_sample_of_a_moving_head_is_followed() {
+        assert_eq!(verdict(|_| {}), TrackerVerdict::Fresh);
+    }
+
+    #[test]
+    fn no_sample_yet_holds() {
+        let v = verdict(|t| t.initialised = false);
+        assert_eq!(v, TrackerVerdict::Refused(Reason::NoTracker));
+        assert_eq!(reaction(&Reason::NoTracker), Reaction::Hold);
+    }
+
+    #[test]
+    fn a_short_dropout_is_coasted_and_a_long_one_holds() {
+        let p = LoopParams::default();
+        // Just late: coasted.
+        let late = p.tracker_stale_s + 0.01;
+        assert_eq!(verdict(|t| t.age_s = late), TrackerVerdict::Coasting(late));
+        // An invalid marker within the coast time: coasted too.
+        assert_eq!(
+            verdict(|t| t.valid = false),
+            TrackerVerdict::Coasting(fresh().age_s)
+        );
+        // Past the coast time: lost, held.
+        let lost = p.tracker_stale_s + p.coast_s + 0.001;
+        assert_eq!(
+            verdict(|t| t.age_s = lost),
+            TrackerVerdict::Refused(Reason::TrackerStale(lost))
+        );
+        assert_eq!(
+            verdict(|t| {
+                t.age_s = lost;
+                t.valid = false;
+            }),
+            TrackerVerdict::Refused(Reason::MarkerInvalid)
+        );
+        assert_eq!(reaction(&Reason::TrackerStale(lost)), Reaction::Hold);
+        assert_eq!(reaction(&Reason::MarkerInvalid), Reaction::Hold);
+    }
+
+    #[test]
+    fn a_frozen_stream_holds() {
+        let p = LoopParams::default();
+        let v = verdict(|t| t.identical = p.frozen_samples);
+        assert_eq!(v, TrackerVerdict::Refused(Reason::TrackerFrozen));
+        assert_eq!(
+            verdict(|t| t.identical = p.frozen_samples - 1),
+            TrackerVerdict::Fresh
+        );
+        assert_eq!(reaction(&Reason::TrackerFrozen), Reaction::Hold);
+    }
+
+    #[test]
+    fn a_head_too_fast_retreats_by_translation_or_rotation() {
+        let p = LoopParams::default();
+        let fast = (p.max_head_speed_m_s + 0.01, 0.1);
+        assert!(matches!(
+            verdict(|t| t.speed = fast),
+            TrackerVerdict::Refused(Reason::HeadTooFast(..))
+        ));
+        let spinning = (0.01, p.max_head_speed_rad_s + 0.1);
+        assert!(matches!(
+            verdict(|t| t.speed = spinning),
+            TrackerVerdict::Refused(Reason::HeadTooFast(..))
+        ));
+        assert_eq!(reaction(&Reason::HeadTooFast(1.0, 1.0)), Reaction::Retreat);
+    }
+
+    fn healthy() -> RobotState {
+        RobotState {
+            controller_s: 1.0,
+            received_s: 1.0,
+            actual_q: [0.0; 6],
+            actual_qd: [0.0; 6],
+            target_q: [0.0; 6],
+            base_from_tcp: mocomp_geom::nalgebra::Isometry3::identity(),
+            robot_mode: RobotMode::Running,
+            safety_mode: SafetyMode::Normal,
+            runtime_state: RuntimeState::Playing,
+            robot_status_bits: 0,
+            safety_status_bits: 0,
+            speed_scaling: 1.0,
+            program_mode: 1,
+            acked_seq: 0,
+            move_done_seq: 0,
+            program_ours: true,
+            connected: true,
+        }
+    }
+
+    #[test]
+    fn a_stale_or_faulted_robot_is_a_fault_and_a_late_one_is_not() {
+        let p = LoopParams::default();
+        let s = healthy();
+        assert_eq!(robot_rules(Some(&s), 1.0 + p.robot_stale_s * 0.9, &p), None);
+        assert_eq!(
+            robot_rules(Some(&s), 1.0 + p.robot_stale_s * 1.1, &p),
+            Some(Reason::RobotStale)
+        );
+        assert_eq!(robot_rules(None, 1.0, &p), Some(Reason::RobotStale));
+        let mut stopped = healthy();
+        stopped.safety_mode = SafetyMode::ProtectiveStop;
+        let r = robot_rules(Some(&stopped), 1.0, &p).unwrap();
+        assert!(matches!(r, Reason::Robot(_)));
+        assert_eq!(reaction(&r), Reaction::Fault);
+        assert_eq!(reaction(&Reason::RobotStale), Reaction::Fault);
+    }
+
+    #[test]
+    fn the_coil_gives_way_and_links_are_refused() {
+        assert_eq!(reaction(&Reason::CoilCollision(-0.001)), Reaction::Retreat);
+        assert_eq!(reaction(&Reason::LinkCollision(3, 0.005)), Reaction::Hold);
+        assert_eq!(reaction(&Reason::OffApproachAxis(0.02)), Reaction::Plan);
+    }
+
+    #[test]
+    fn a_wrong_goal_holds_whatever_its_fault() {
+        for e in [
+            GoalError::InsideHead {
+                distance_m: -0.01,
+                min_m: 0.0,
+            },
+            GoalError::AxisOutward,
+            GoalError::NotFinite,
+        ] {
+            assert_eq!(reaction(&Reason::from(e)), Reaction::Hold, "{e:?}");
+        }
+        for r in [
+            Reason::Singular(0.01),
+            Reason::Unreachable,
+            Reason::NoPath(0.1),
+        ] {
+            assert_eq!(reaction(&r), Reaction::Hold);
+        }
+    }
+}
