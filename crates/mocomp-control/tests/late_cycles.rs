@@ -149,7 +149,7 @@ fn after_a_stop_the_loop_continues_the_arms_motion_instead_of_jerking_it() {
     let r = w.cycle_at(t);
     // The first command carries the arm on by about its speed × one period (the limiter then
     // brakes it within its acceleration), not back to where it is.
-    let accel = 12.0 * PERIOD * PERIOD;
+    let accel = w.comp.config().params.max_joint_accel_rad_s2 * PERIOD * PERIOD;
     for j in 0..6 {
         let step = r.q_command[j] - q[j];
         assert!(
