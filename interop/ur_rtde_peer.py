@@ -35,8 +35,12 @@ def receive(req):
             stamps.append(ts)
             last = ts
         time.sleep(0.0002)
+    steps = [b - a for a, b in zip(stamps, stamps[1:]) if b > a]
     out = {
         "distinct": len(stamps),
+        # The smallest step between timestamps seen: one controller period when the stream comes
+        # at the controller's rate, however many of them a busy machine's polling missed.
+        "min_step": min(steps) if steps else None,
         "first_ts": stamps[0],
         "last_ts": stamps[-1],
         "actual_q": list(r.getActualQ()),
