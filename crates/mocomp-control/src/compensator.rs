@@ -153,6 +153,10 @@ pub struct Compensator {
     anchor: Isometry3<f64>,
     /// Whether the previous cycle coasted through a dropout.
     coasting: bool,
+    /// Whether this cycle's command gives way to the head (retreating): its speed limit is
+    /// `retreat_tcp_speed_m_s`. (Not for the filter's small corrections: at that speed they
+    /// overshoot and the servo's lag brings the coil back in.)
+    giving_way: bool,
     /// Distance from the head marker to the coil at the goal, m: the lever that turns rotation
     /// uncertainty into position uncertainty at the coil.
     coil_lever: f64,
@@ -202,6 +206,7 @@ impl Compensator {
             standoff: 0.0,
             anchor: cfg_goal,
             coasting: false,
+            giving_way: false,
         }
     }
 
@@ -386,8 +391,14 @@ impl Compensator {
         let p0 = self.arm.fk(&self.q_cmd).translation.vector;
         let p1 = self.arm.fk(&q).translation.vector;
         let speed = (p1 - p0).norm() / dt;
-        if speed > self.cfg.params.max_tcp_speed_m_s {
-            let k = self.cfg.params.max_tcp_speed_m_s / speed;
+        let p = &self.cfg.params;
+        let tcp_limit = if self.giving_way {
+            p.max_tcp_speed_m_s.max(p.retreat_tcp_speed_m_s)
+        } else {
+            p.max_tcp_speed_m_s
+        };
+        if speed > tcp_limit {
+            let k = tcp_limit / speed;
             for j in 0..6 {
                 v[j] *= k;
                 q[j] = self.q_cmd[j] + v[j] * dt;
@@ -907,6 +918,7 @@ impl Compensator {
         // Limits, then the safety filter: a command whose coil would come closer to the
         // predicted head than required is moved back along the approach axis by the deficit.
         let saved = (self.q_cmd, self.v_cmd, self.last_desired);
+        self.giving_way = matches!(self.mode, Mode::Retreating(_));
         let mut q_next = self.limit(&desired, speed_fraction);
         if let Some(bh) = base_from_head
             && matches!(self.mode, Mode::Tracking | Mode::Retreating(_))
@@ -955,6 +967,7 @@ impl Compensator {
                     self.path = None;
                 }
                 self.standoff = self.standoff.max(self.cfg.params.retreat_distance_m);
+                self.giving_way = true;
                 // The most the limits allow this cycle, even if that is not yet clear of the head
                 // (holding instead would let the head push in further); only a link the retreat
                 // would bring into the head stops it.

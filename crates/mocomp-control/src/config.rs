@@ -67,6 +67,9 @@ pub struct LoopParams {
     /// How fast a standoff shrinks again once no longer needed (the coil coming back in along
     /// its axis), m/s. [0.25]
     pub standoff_return_m_s: f64,
+    /// The coil's speed limit while it retreats, m/s: moving away from the head may be faster than moving otherwise, so a head
+    /// faster than `max_tcp_speed_m_s` never catches it. [0.5]
+    pub retreat_tcp_speed_m_s: f64,
     /// A retreat ends when its reason has been clear this long, s (shorter than a hold's
     /// `resume_after_s`: the coil is following the head already, only further out). [0.1]
     pub retreat_resume_s: f64,
@@ -134,6 +137,7 @@ impl Default for LoopParams {
             retreat_distance_m: 0.03,
             standoff_return_m_s: 0.25,
             retreat_resume_s: 0.1,
+            retreat_tcp_speed_m_s: 0.5,
             max_standoff_m: 0.1,
             frozen_samples: 20,
             outlier_speed_m_s: 1.0,
@@ -247,6 +251,7 @@ impl LoopParams {
             ("standoff_return_m_s", self.standoff_return_m_s),
             ("max_standoff_m", self.max_standoff_m),
             ("retreat_resume_s", self.retreat_resume_s),
+            ("retreat_tcp_speed_m_s", self.retreat_tcp_speed_m_s),
         ] {
             if !(value.is_finite() && value > 0.0) {
                 return err(key, value, "must be finite and > 0");

@@ -5,6 +5,8 @@
 //!   install it, never a skip.
 //! - [`SplitMix64`]: a tiny seeded generator for tests that must not depend on a RNG crate's
 //!   version.
+//! - [`mem`]: an in-memory robot (wherever it was commanded) and a scripted pose source, for the
+//!   loop's rules and filter without sockets.
 //! - [`TempDir`]: a scratch directory removed when dropped; [`listening_port`] (the port a child
 //!   process bound itself, for peers that cannot print it) and [`wait_until`] for socket and
 //!   thread tests; [`proptest_config`] with a fixed seed.
@@ -12,6 +14,8 @@
 //! There is deliberately no "find a free port" helper: a port probed free and bound later can be
 //! taken in between. Servers bind port 0 (or an address of their own) and report what they got.
 #![allow(clippy::panic)] // test support: failures are panics with a message
+
+pub mod mem;
 
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Write};

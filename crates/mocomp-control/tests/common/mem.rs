@@ -7,7 +7,7 @@ use mocomp_control::{Compensator, CycleRecord, LoopConfig, Mode};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, Model, Selection};
-use mocomp_ur::{Robot, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, UrError};
+pub use mocomp_testkit::mem::MemRobot;
 
 use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
 
@@ -33,44 +33,6 @@ pub fn coil_on_head_joints(arm: &Arm) -> [f64; 6] {
     )
     .unwrap()
     .joints
-}
-
-/// A robot that is wherever it was last commanded.
-pub struct MemRobot {
-    /// What it reports (tests change times, speeds and faults).
-    pub state: RobotState,
-    seq: i32,
-}
-
-impl Robot for MemRobot {
-    fn state(&self) -> Option<RobotState> {
-        Some(self.state)
-    }
-    fn state_count(&self) -> u64 {
-        self.seq as u64
-    }
-    fn period_s(&self) -> f64 {
-        PERIOD
-    }
-    fn servo(&mut self, q: &[f64; 6], _: &ServoParams) -> Result<i32, UrError> {
-        self.seq += 1;
-        self.state.actual_q = *q;
-        self.state.target_q = *q;
-        self.state.acked_seq = self.seq;
-        Ok(self.seq)
-    }
-    fn move_joints(&mut self, _: &[f64; 6], _: f64, _: f64) -> Result<i32, UrError> {
-        Ok(self.seq)
-    }
-    fn speed_joints(&mut self, _: &[f64; 6], _: f64) -> Result<i32, UrError> {
-        Ok(self.seq)
-    }
-    fn stop(&mut self, _: f64) -> Result<i32, UrError> {
-        Ok(self.seq)
-    }
-    fn keep_alive(&mut self) -> Result<(), UrError> {
-        Ok(())
-    }
 }
 
 /// 60 Hz samples of the nodding head with 0.1 mm of deterministic noise, 20 ms old.
@@ -122,28 +84,9 @@ impl World {
             head_from_coil_goal(),
             PERIOD,
         );
-        let state = RobotState {
-            controller_s: 0.0,
-            received_s: 0.0,
-            actual_q: q0,
-            actual_qd: [0.0; 6],
-            target_q: q0,
-            base_from_tcp: arm.fk(&q0),
-            robot_mode: RobotMode::Running,
-            safety_mode: SafetyMode::Normal,
-            runtime_state: RuntimeState::Playing,
-            robot_status_bits: 0,
-            safety_status_bits: 0,
-            speed_scaling: 1.0,
-            program_mode: 1,
-            acked_seq: 0,
-            move_done_seq: 0,
-            program_ours: true,
-            connected: true,
-        };
         let mut w = Self {
             comp: Compensator::new(cfg, arm, PERIOD),
-            robot: MemRobot { state, seq: 0 },
+            robot: MemRobot::at(q0, arm.fk(&q0), PERIOD),
             tracker: MemTracker {
                 now: 0.0,
                 k: 0,

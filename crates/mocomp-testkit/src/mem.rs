@@ -1,0 +1,198 @@
+//! An in-memory robot and pose source, for testing the compensation loop's rules and filter
+//! without sockets, threads or clocks: time is whatever the test says.
+
+use mocomp_geom::nalgebra::Isometry3;
+use mocomp_geom::{PoseSample, PoseSource};
+use mocomp_ur::{Robot, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, UrError};
+
+/// A robot that is wherever it was last commanded (a perfect servo), healthy, its state's times
+/// and faults set by the test through [`MemRobot::state`].
+#[derive(Debug, Clone)]
+pub struct MemRobot {
+    /// What it reports (tests change times, speeds and faults).
+    pub state: RobotState,
+    /// The controller period it reports, s.
+    pub period_s: f64,
+    /// Commands taken (the last one's sequence number).
+    pub seq: i32,
+    /// `stop` calls.
+    pub stops: u32,
+}
+
+impl MemRobot {
+    /// A healthy robot at rest at `q`, whose flange is `base_from_tcp`, with `period_s`.
+    pub fn at(q: [f64; 6], base_from_tcp: Isometry3<f64>, period_s: f64) -> Self {
+        Self {
+            state: RobotState {
+                controller_s: 0.0,
+                received_s: 0.0,
+                actual_q: q,
+                actual_qd: [0.0; 6],
+                target_q: q,
+                base_from_tcp,
+                robot_mode: RobotMode::Running,
+                safety_mode: SafetyMode::Normal,
+                runtime_state: RuntimeState::Playing,
+                robot_status_bits: 0,
+                safety_status_bits: 0,
+                speed_scaling: 1.0,
+                program_mode: 1,
+                acked_seq: 0,
+                move_done_seq: 0,
+                program_ours: true,
+                connected: true,
+            },
+            period_s,
+            seq: 0,
+            stops: 0,
+        }
+    }
+
+    /// A fresh state at `t` (controller and receive time alike), as a robot on time sends.
+    pub fn tick(&mut self, t: f64) {
+        self.state.controller_s = t;
+        self.state.received_s = t;
+    }
+}
+
+impl Robot for MemRobot {
+    fn state(&self) -> Option<RobotState> {
+        Some(self.state)
+    }
+    fn state_count(&self) -> u64 {
+        u64::try_from(self.seq).unwrap_or(0)
+    }
+    fn period_s(&self) -> f64 {
+        self.period_s
+    }
+    fn servo(&mut self, q: &[f64; 6], _: &ServoParams) -> Result<i32, UrError> {
+        self.seq += 1;
+        self.state.actual_q = *q;
+        self.state.target_q = *q;
+        self.state.acked_seq = self.seq;
+        Ok(self.seq)
+    }
+    fn move_joints(&mut self, _: &[f64; 6], _: f64, _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn speed_joints(&mut self, _: &[f64; 6], _: f64) -> Result<i32, UrError> {
+        Ok(self.seq)
+    }
+    fn stop(&mut self, _: f64) -> Result<i32, UrError> {
+        self.stops += 1;
+        Ok(self.seq)
+    }
+    fn keep_alive(&mut self) -> Result<(), UrError> {
+        Ok(())
+    }
+}
+
+/// The marker pose at a time, or `None` while it is out of view.
+pub type Truth = Box<dyn Fn(f64) -> Option<Isometry3<f64>>>;
+
+/// A tracker sampling `truth` at `rate_hz`, each sample available `latency_s` after its
+/// acquisition; a sample out of view is sent as invalid, as trackers do.
+pub struct ScriptedPoses {
+    /// Now, s (the test advances it).
+    pub now: f64,
+    /// Samples per second.
+    pub rate_hz: f64,
+    /// Acquisition to availability, s.
+    pub latency_s: f64,
+    truth: Truth,
+    k: u64,
+}
+
+impl std::fmt::Debug for ScriptedPoses {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ScriptedPoses")
+            .field("now", &self.now)
+            .field("rate_hz", &self.rate_hz)
+            .field("latency_s", &self.latency_s)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ScriptedPoses {
+    /// A tracker of `truth` from t = 0.
+    pub fn new(rate_hz: f64, latency_s: f64, truth: Truth) -> Self {
+        Self {
+            now: 0.0,
+            rate_hz,
+            latency_s,
+            truth,
+            k: 0,
+        }
+    }
+}
+
+impl PoseSource for ScriptedPoses {
+    fn latest(&mut self) -> Option<PoseSample> {
+        let mut newest = None;
+        loop {
+            let t = self.k as f64 / self.rate_hz;
+            if t + self.latency_s > self.now {
+                return newest;
+            }
+            self.k += 1;
+            newest = Some(match (self.truth)(t) {
+                Some(pose) => PoseSample {
+                    tracker_from_marker: pose,
+                    acquired_s: t,
+                    valid: true,
+                    error_m: f64::NAN,
+                },
+                None => PoseSample {
+                    tracker_from_marker: Isometry3::identity(),
+                    acquired_s: t,
+                    valid: false,
+                    error_m: f64::NAN,
+                },
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)] // test code
+    use super::*;
+    use mocomp_geom::nalgebra::Vector3;
+
+    #[test]
+    fn samples_come_after_their_latency_newest_first_and_out_of_view_as_invalid() {
+        let mut s = ScriptedPoses::new(
+            10.0,
+            0.05,
+            Box::new(|t| (t < 0.25).then(|| Isometry3::translation(t, 0.0, 0.0))),
+        );
+        assert!(s.latest().is_none());
+        s.now = 0.26;
+        // Acquired at 0.0, 0.1, 0.2 (0.2 + 0.05 ≤ 0.26): the newest is returned.
+        let p = s.latest().unwrap();
+        assert_eq!(p.acquired_s, 0.2);
+        assert!(p.valid);
+        assert_eq!(
+            p.tracker_from_marker.translation.vector,
+            Vector3::new(0.2, 0.0, 0.0)
+        );
+        assert!(s.latest().is_none());
+        s.now = 0.36;
+        let p = s.latest().unwrap();
+        assert!(!p.valid, "out of view at 0.3");
+    }
+
+    #[test]
+    fn the_robot_is_where_it_was_commanded() {
+        let mut r = MemRobot::at([0.1; 6], Isometry3::identity(), 0.002);
+        let q = [0.2, 0.1, 0.0, -0.1, 0.3, 0.4];
+        let seq = r.servo(&q, &ServoParams::for_period(0.002)).unwrap();
+        let s = r.state().unwrap();
+        assert_eq!(s.actual_q, q);
+        assert_eq!(s.acked_seq, seq);
+        r.tick(1.5);
+        assert_eq!(r.state().unwrap().received_s, 1.5);
+        r.stop(4.0).unwrap();
+        assert_eq!(r.stops, 1);
+    }
+}
