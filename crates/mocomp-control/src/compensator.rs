@@ -87,7 +87,7 @@ pub struct CycleRecord {
     /// How far the safety filter moved this cycle's command back along the approach axis, m.
     pub filtered_m: f64,
     /// The commanded coil's clearance from the head predicted for the time it acts, m (NaN
-    /// without a head estimate).
+    /// without a head estimate; exact below 5 cm, at least 5 cm otherwise).
     pub clearance_m: f64,
     /// The clearance the filter required this cycle, m.
     pub required_m: f64,
@@ -106,6 +106,9 @@ const PATH_CHECKS: usize = 40;
 /// Largest joint change between neighbouring path samples before it counts as a branch change,
 /// rad.
 const MAX_PATH_JOINT_STEP: f64 = 0.35;
+/// The logged clearance is exact below this, a lower bound above (sparing the exact solve when
+/// the coil is far), m.
+const CLEARANCE_EXACT_BELOW_M: f64 = 0.05;
 /// Deceleration of a standoff shrinking back to the goal, m/s².
 const STANDOFF_LANDING_M_S2: f64 = 1.0;
 /// Corrections of one command by the safety filter (each re-solves IK and the limits).
@@ -764,13 +767,20 @@ impl Compensator {
         // grows at once and shrinks at `standoff_return_m_s`.
         if let Some(bh) = base_from_head {
             let p = &self.cfg.params;
-            let mut need = standoff_for(
-                &self.cfg.head,
-                &self.cfg.coil,
-                &self.cfg.head_from_coil_goal,
-                required,
-                p.max_standoff_m,
-            );
+            // The goal's own clearance is fixed (the goal check's); only a larger requirement
+            // asks for a standoff.
+            let goal_clear = self.goal_check.unwrap_or(f64::NEG_INFINITY);
+            let mut need = if required <= goal_clear {
+                0.0
+            } else {
+                standoff_for(
+                    &self.cfg.head,
+                    &self.cfg.coil,
+                    &self.cfg.head_from_coil_goal,
+                    required,
+                    p.max_standoff_m,
+                )
+            };
             if react == Reaction::Retreat || matches!(self.mode, Mode::Retreating(_)) {
                 need = need.max(p.retreat_distance_m);
             }
@@ -997,7 +1007,11 @@ impl Compensator {
             }
         }
         if let Some(bh) = base_from_head {
-            rec.clearance_m = self.coil_distance(&self.head_from_coil_at(&q_next, &bh));
+            rec.clearance_m = self.cfg.coil.distance_below(
+                &self.cfg.head,
+                &self.head_from_coil_at(&q_next, &bh),
+                CLEARANCE_EXACT_BELOW_M,
+            );
         }
         self.q_cmd = q_next;
         rec.q_command = q_next;

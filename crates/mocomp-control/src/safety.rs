@@ -43,7 +43,8 @@ pub fn standoff_for(
     max_m: f64,
 ) -> f64 {
     let gap = |s: f64| coil.distance(head, &backed_off(head_from_coil, s)) - required_m;
-    let g0 = gap(0.0);
+    // Most commands are clear: the bounded distance says so without the exact solve.
+    let g0 = coil.distance_below(head, head_from_coil, required_m) - required_m;
     if g0 >= 0.0 || g0.is_nan() {
         // Clear, or not a number (a non-finite pose is the goal check's to refuse).
         return 0.0;
