@@ -101,7 +101,7 @@ macro_rules! counters {
         pub struct ClientCounters { $(#[doc = $doc] pub $name: u64,)* }
         impl Counters {
             fn snapshot(&self) -> ClientCounters {
-                ClientCounters { $($name: self.$name.load(Ordering::Relaxed),)* }
+                ClientCounters { $($name: self.$name.load(Ordering::Acquire),)* }
             }
         }
     };
@@ -483,18 +483,6 @@ impl Worker {
         let shared = Arc::clone(&self.shared);
         let c = &shared.counters;
         let now = self.clock.now_s();
-        c.messages.fetch_add(1, Ordering::Relaxed);
-        match &m.body {
-            Body::Transform(_) => c.transforms.fetch_add(1, Ordering::Relaxed),
-            Body::Position { .. } => c.positions.fetch_add(1, Ordering::Relaxed),
-            Body::TData(_) => c.tdata.fetch_add(1, Ordering::Relaxed),
-            Body::Status(_) => c.statuses.fetch_add(1, Ordering::Relaxed),
-            Body::String { .. } => c.strings.fetch_add(1, Ordering::Relaxed),
-            Body::StartTData { .. } | Body::RtsTData { .. } | Body::Query(_) => {
-                c.queries.fetch_add(1, Ordering::Relaxed)
-            }
-            Body::Unknown { .. } => c.unknown.fetch_add(1, Ordering::Relaxed),
-        };
         let acquired = self.acquired(&m, now);
         if let Some(device) = self.device {
             let floats = match &m.body {
@@ -541,15 +529,29 @@ impl Worker {
                 } else {
                     c.invalid_poses.fetch_add(1, Ordering::Relaxed);
                 }
-                c.poses.fetch_add(1, Ordering::Relaxed);
                 self.shared.latest.publish(&PoseSample {
                     tracker_from_marker: pose,
                     acquired_s: acquired,
                     valid,
                     error_m: f64::NAN,
                 });
+                c.poses.fetch_add(1, Ordering::Relaxed);
             }
         }
+        // Counted once handled: whoever waits for a count (a stepped simulation) then finds the
+        // pose published, never the one before it.
+        c.messages.fetch_add(1, Ordering::Relaxed);
+        match &m.body {
+            Body::Transform(_) => c.transforms.fetch_add(1, Ordering::Release),
+            Body::Position { .. } => c.positions.fetch_add(1, Ordering::Release),
+            Body::TData(_) => c.tdata.fetch_add(1, Ordering::Release),
+            Body::Status(_) => c.statuses.fetch_add(1, Ordering::Relaxed),
+            Body::String { .. } => c.strings.fetch_add(1, Ordering::Relaxed),
+            Body::StartTData { .. } | Body::RtsTData { .. } | Body::Query(_) => {
+                c.queries.fetch_add(1, Ordering::Relaxed)
+            }
+            Body::Unknown { .. } => c.unknown.fetch_add(1, Ordering::Relaxed),
+        };
         if let Some(tx) = &self.tx {
             match tx.try_send(Received {
                 message: m,
