@@ -323,8 +323,12 @@ pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()>
     })();
     bar.finish_and_clear();
     if let Err(e) = result {
-        let _ = world.robot.stop(4.0);
-        return Err(e.context("calibrate collect stopped the robot"));
+        return Err(match world.robot.stop(4.0) {
+            Ok(_) => e.context("calibrate collect stopped the robot"),
+            Err(stop) => e.context(format!(
+                "calibrate collect could not stop the robot either ({stop})"
+            )),
+        });
     }
     let simulated_robot = world.simulated_robot();
     let _ = world.robot.close();

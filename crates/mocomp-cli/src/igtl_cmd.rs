@@ -206,7 +206,7 @@ fn read_feed(path: &Path) -> Result<Vec<Isometry3<f64>>> {
         );
     }
     if poses.is_empty() {
-        bail!("--from {name}: no poses");
+        return Err(crate::UsageError(format!("--from {name}: no poses")).into());
     }
     Ok(poses)
 }
@@ -214,7 +214,9 @@ fn read_feed(path: &Path) -> Result<Vec<Isometry3<f64>>> {
 /// `mocomp serve-poses`.
 pub fn serve(out: &mut impl Write, a: &ServeArgs<'_>) -> Result<()> {
     if !(a.rate_hz.is_finite() && a.rate_hz > 0.0 && a.rate_hz <= 10_000.0) {
-        bail!("--rate {}: must be in (0, 10000] Hz", a.rate_hz);
+        return Err(
+            crate::UsageError(format!("--rate {}: must be in (0, 10000] Hz", a.rate_hz)).into(),
+        );
     }
     let file = match &a.feed {
         PoseFeed::File(p) => Some(read_feed(p)?),

@@ -1,6 +1,6 @@
 //! `mocomp fk`, `mocomp ik` and `mocomp models`: printing what `mocomp-kin` computes.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use mocomp_geom::{iso_from_ur_pose, rows_from_iso, ur_pose_from_iso};
 use mocomp_kin::{Arm, BranchPolicy, DhCalibration, MODELS, Metric, Model, Selection};
 use serde::Serialize;
@@ -16,12 +16,13 @@ pub fn arm(model: Model, calibration: Option<&Path>, tool: Option<[f64; 6]>) -> 
             let cal = DhCalibration::from_toml_str(&text)
                 .with_context(|| format!("--calibration {}", path.display()))?;
             if cal.model != model {
-                bail!(
+                return Err(crate::UsageError(format!(
                     "--calibration {}: the file is for a {}, but --robot is {}",
                     path.display(),
                     cal.model,
                     model
-                );
+                ))
+                .into());
             }
             Arm::calibrated(&cal).with_context(|| format!("--calibration {}", path.display()))?
         }

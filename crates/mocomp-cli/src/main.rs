@@ -793,47 +793,81 @@ impl std::fmt::Display for Refused {
 
 impl std::error::Error for Refused {}
 
+/// Exit 2 for bad input (an argument, a file, a configuration value), 1 for everything that
+/// fails at run time. Each error in the cause chain is asked in turn; the first that knows says.
+/// An error nobody classifies is a run-time failure: calling a broken robot or a full disk "bad
+/// input" would send the user to check arguments that are fine.
 fn exit_code(err: &anyhow::Error) -> u8 {
-    if err.downcast_ref::<UsageError>().is_some() {
-        return EXIT_USAGE;
+    err.chain().find_map(classify).unwrap_or(EXIT_FAILURE)
+}
+
+/// Whether one error is bad input (2) or a run-time failure (1); `None`: not known here.
+fn classify(e: &(dyn std::error::Error + 'static)) -> Option<u8> {
+    use mocomp_sim::experiment::ExperimentError;
+    if e.is::<UsageError>()
+        || e.is::<mocomp_vision::VisionError>()
+        || e.is::<mocomp_control::ParamError>()
+        || e.is::<mocomp_geom::GeomError>()
+        || e.is::<mocomp_igtl::name::NameError>()
+        || e.is::<mocomp_control::GoalError>()
+        || e.is::<mocomp_sim::MotionError>()
+        || e.is::<mocomp_sim::trace::TraceError>()
+        || e.is::<toml::de::Error>()
+        || e.is::<toml_edit::TomlError>()
+        || e.is::<serde_json::Error>()
+    {
+        return Some(EXIT_USAGE);
     }
-    if err.downcast_ref::<Refused>().is_some() {
-        return EXIT_FAILURE;
-    }
-    if err.downcast_ref::<igtl_cmd::NothingReceived>().is_some() {
-        return EXIT_FAILURE;
+    if e.is::<Refused>() || e.is::<igtl_cmd::NothingReceived>() || e.is::<mocomp_ursim::SimError>()
+    {
+        return Some(EXIT_FAILURE);
     }
     // A robot that is unreachable, refuses or faults is an outcome; a bad argument is not.
-    if let Some(e) = err.downcast_ref::<mocomp_ur::UrError>() {
-        return match e {
+    if let Some(e) = e.downcast_ref::<mocomp_ur::UrError>() {
+        return Some(match e {
             mocomp_ur::UrError::OutOfRange { .. } => EXIT_USAGE,
             _ => EXIT_FAILURE,
-        };
+        });
     }
-    if err.downcast_ref::<mocomp_ursim::SimError>().is_some() {
-        return EXIT_FAILURE;
-    }
-    if err.downcast_ref::<mocomp_vision::VisionError>().is_some() {
-        return EXIT_USAGE;
+    // The experiment: its configuration is input; simulators, timeouts and calibration runs
+    // are outcomes.
+    if let Some(e) = e.downcast_ref::<ExperimentError>() {
+        return Some(match e {
+            ExperimentError::Config(_) | ExperimentError::Goal(_) | ExperimentError::Scene(_) => {
+                EXIT_USAGE
+            }
+            ExperimentError::Io { .. }
+            | ExperimentError::Timeout(_)
+            | ExperimentError::Calibration { .. } => EXIT_FAILURE,
+        });
     }
     // Calibration: bad or degenerate input is exit 2; a plan that cannot be met is exit 1.
-    if let Some(e) = err.downcast_ref::<mocomp_calib::CalibError>() {
-        return match e {
+    if let Some(e) = e.downcast_ref::<mocomp_calib::CalibError>() {
+        return Some(match e {
             mocomp_calib::CalibError::PlanShort { .. } => EXIT_FAILURE,
             _ => EXIT_USAGE,
-        };
+        });
     }
-    // Errors about a pose that cannot be reached are outcomes, not bad input.
-    match err.downcast_ref::<KinError>() {
-        Some(
+    // A pose that cannot be reached is an outcome; a malformed one is input.
+    if let Some(e) = e.downcast_ref::<KinError>() {
+        return Some(match e {
             KinError::Unreachable(_)
             | KinError::OutsideJointLimits { .. }
             | KinError::BranchUnavailable { .. }
-            | KinError::NotConverged { .. },
-        ) => EXIT_FAILURE,
-        // Everything else comes from arguments or files the user gave.
-        _ => EXIT_USAGE,
+            | KinError::NotConverged { .. } => EXIT_FAILURE,
+            _ => EXIT_USAGE,
+        });
     }
+    // A file given that is not there or not readable as asked is input; any other I/O failure
+    // (a full disk, a lost connection) happened at run time.
+    if let Some(e) = e.downcast_ref::<std::io::Error>() {
+        use std::io::ErrorKind;
+        return Some(match e.kind() {
+            ErrorKind::NotFound | ErrorKind::InvalidInput | ErrorKind::InvalidData => EXIT_USAGE,
+            _ => EXIT_FAILURE,
+        });
+    }
+    None
 }
 
 fn main() -> ExitCode {
@@ -872,5 +906,33 @@ fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             ExitCode::from(exit_code(&e))
         }
+    }
+}
+
+#[cfg(test)]
+mod exit_code_tests {
+    #![allow(clippy::unwrap_used)] // test code
+    use super::*;
+    use mocomp_sim::experiment::ExperimentError;
+
+    #[test]
+    fn bad_input_is_2_and_everything_failing_at_run_time_is_1() {
+        let usage = anyhow::Error::new(UsageError("--seconds: must be positive".into()));
+        assert_eq!(exit_code(&usage), EXIT_USAGE);
+        // Wrapped in context, the cause still decides.
+        assert_eq!(exit_code(&usage.context("demo")), EXIT_USAGE);
+        let missing = std::io::Error::from(std::io::ErrorKind::NotFound);
+        assert_eq!(
+            exit_code(&anyhow::Error::new(missing).context("--config f.toml")),
+            EXIT_USAGE
+        );
+        // A full disk, a simulator that timed out, an error nobody classified: run time.
+        let full = std::io::Error::from(std::io::ErrorKind::StorageFull);
+        assert_eq!(exit_code(&anyhow::Error::new(full)), EXIT_FAILURE);
+        let timeout = ExperimentError::Timeout("the robots' states");
+        assert_eq!(exit_code(&anyhow::Error::new(timeout)), EXIT_FAILURE);
+        assert_eq!(exit_code(&anyhow::anyhow!("something odd")), EXIT_FAILURE);
+        let cfg = ExperimentError::Config("seconds = -1".into());
+        assert_eq!(exit_code(&anyhow::Error::new(cfg)), EXIT_USAGE);
     }
 }

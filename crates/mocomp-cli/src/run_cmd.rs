@@ -433,7 +433,12 @@ struct Summary {
     deviation_deg: Vec<f64>,
     by_mode: [u64; 5],
     events: Vec<(f64, Event)>,
+    /// Why the CSV log stopped being written, if it did.
+    log_error: Option<String>,
 }
+
+/// How long the run waits for standstill after its stop.
+const STANDSTILL_WAIT: Duration = Duration::from_secs(3);
 
 fn mode_index(m: &Mode) -> usize {
     match m {
@@ -470,12 +475,40 @@ fn logger(
     status: bool,
 ) -> Summary {
     let mut s = Summary::default();
-    let mut w = csv.map(std::io::BufWriter::new);
+    let mut w = csv.map(csv::Writer::from_writer);
+    // A log that cannot be written (a full disk) is not dropped silently: it stops logging, and
+    // the run reports it and fails once the robot is stopped.
+    let mut log_error: Option<csv::Error> = None;
     if let Some(w) = w.as_mut() {
-        let _ = writeln!(
-            w,
-            "t_s,mode,event,sample_age_ms,horizon_ms,command_delay_ms,head_speed_mm_s,head_speed_deg_s,deviation_mm,deviation_deg,path_m,compute_us,q1_cmd,q2_cmd,q3_cmd,q4_cmd,q5_cmd,q6_cmd,q1,q2,q3,q4,q5,q6"
-        );
+        let header = [
+            "t_s",
+            "mode",
+            "event",
+            "sample_age_ms",
+            "horizon_ms",
+            "command_delay_ms",
+            "head_speed_mm_s",
+            "head_speed_deg_s",
+            "deviation_mm",
+            "deviation_deg",
+            "path_m",
+            "compute_us",
+            "q1_cmd",
+            "q2_cmd",
+            "q3_cmd",
+            "q4_cmd",
+            "q5_cmd",
+            "q6_cmd",
+            "q1",
+            "q2",
+            "q3",
+            "q4",
+            "q5",
+            "q6",
+        ];
+        if let Err(e) = w.write_record(header) {
+            log_error = Some(e);
+        }
     }
     let mut last_status = Instant::now();
     // Since the last status line: cycles and the largest deviation while tracking (mm).
@@ -509,30 +542,31 @@ fn logger(
                 eprintln!("{:9.3} s  event {e:?}", r.t);
             }
         }
-        if let Some(w) = w.as_mut() {
+        if let Some(w) = w.as_mut().filter(|_| log_error.is_none()) {
             let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
-            let _ = write!(
-                w,
-                "{:.6},{},{},{:.3},{:.3},{:.3},{:.2},{:.2},{:.4},{:.4},{:.4},{:.2}",
-                r.t,
-                mode_name(&r.mode).replace(',', ";"),
-                r.event
-                    .map(|e| format!("{e:?}").replace(',', ";"))
-                    .unwrap_or_default(),
-                r.sample_age_s * 1e3,
-                r.horizon_s * 1e3,
-                r.command_delay_s * 1e3,
-                r.head_speed.0 * 1e3,
-                r.head_speed.1.to_degrees(),
-                dev_mm,
-                dev_deg,
-                path,
-                r.compute_ns as f64 / 1e3
+            let mut row = vec![
+                format!("{:.6}", r.t),
+                mode_name(&r.mode),
+                r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
+                format!("{:.3}", r.sample_age_s * 1e3),
+                format!("{:.3}", r.horizon_s * 1e3),
+                format!("{:.3}", r.command_delay_s * 1e3),
+                format!("{:.2}", r.head_speed.0 * 1e3),
+                format!("{:.2}", r.head_speed.1.to_degrees()),
+                format!("{dev_mm:.4}"),
+                format!("{dev_deg:.4}"),
+                format!("{path:.4}"),
+                format!("{:.2}", r.compute_ns as f64 / 1e3),
+            ];
+            row.extend(
+                r.q_command
+                    .iter()
+                    .chain(r.q_actual.iter())
+                    .map(|q| format!("{q:.6}")),
             );
-            for q in r.q_command.iter().chain(r.q_actual.iter()) {
-                let _ = write!(w, ",{q:.6}");
+            if let Err(e) = w.write_record(&row) {
+                log_error = Some(e);
             }
-            let _ = writeln!(w);
         }
         if status && last_status.elapsed() >= Duration::from_secs(1) {
             let rate = window_cycles as f64 / last_status.elapsed().as_secs_f64();
@@ -550,9 +584,13 @@ fn logger(
             (window_cycles, window_max) = (0, 0.0);
         }
     }
-    if let Some(w) = w.as_mut() {
-        let _ = w.flush();
+    if let Some(w) = w.as_mut()
+        && log_error.is_none()
+        && let Err(e) = w.flush()
+    {
+        log_error = Some(e.into());
     }
+    s.log_error = log_error.map(|e| e.to_string());
     s
 }
 
@@ -569,6 +607,49 @@ pub struct RunOptions {
     pub status: bool,
     /// Print the summary as one JSON object instead of text.
     pub json: bool,
+}
+
+/// How the run's final stop went, as it happened.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(tag = "outcome", rename_all = "snake_case")]
+enum StopOutcome {
+    /// stopj was sent and the arm stood still after `after_s`.
+    Standstill { after_s: f64 },
+    /// stopj was refused (the robot had stopped itself: a fault, a lost program), and the arm
+    /// stands still.
+    AlreadyStopped { why: String },
+    /// The arm was still moving `after_s` after the stop (stopj sent, or refused for `refused`).
+    StillMoving {
+        after_s: f64,
+        refused: Option<String>,
+    },
+}
+
+impl std::fmt::Display for StopOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Standstill { after_s } => {
+                write!(f, "stopj sent, standstill after {after_s:.2} s")
+            }
+            Self::AlreadyStopped { why } => {
+                write!(f, "stopj refused ({why}); the arm stands still")
+            }
+            Self::StillMoving {
+                after_s,
+                refused: None,
+            } => write!(
+                f,
+                "stopj sent, but the arm still moved after {after_s:.1} s"
+            ),
+            Self::StillMoving {
+                after_s,
+                refused: Some(why),
+            } => write!(
+                f,
+                "stopj refused ({why}), and the arm still moved after {after_s:.1} s"
+            ),
+        }
+    }
 }
 
 /// The run's summary (also `--json`): what an operator, and `scripts/stress.sh`, reads.
@@ -603,12 +684,21 @@ struct RunReport {
     /// Each event: loop time (s) and what happened.
     event_log: Vec<(f64, String)>,
     final_mode: String,
+    /// How the final stop went.
+    stop: StopOutcome,
+    /// Why the CSV log stopped being written, if it did.
+    log_error: Option<String>,
     realtime: String,
     realtime_complete: bool,
 }
 
 impl RunReport {
-    fn new(s: &mut Summary, rt: Option<&mocomp_rt::RtReport>, final_mode: &Mode) -> Self {
+    fn new(
+        s: &mut Summary,
+        rt: Option<&mocomp_rt::RtReport>,
+        final_mode: &Mode,
+        stop: StopOutcome,
+    ) -> Self {
         let span = s.last_t - s.first_t.unwrap_or(s.last_t);
         let n = s.cycles.max(1) as f64;
         let rms = (s.deviation_mm.iter().map(|d| d * d).sum::<f64>()
@@ -655,6 +745,8 @@ impl RunReport {
                 .map(|(t, e)| (*t, format!("{e:?}")))
                 .collect(),
             final_mode: mode_name(final_mode),
+            stop,
+            log_error: s.log_error.clone(),
             realtime: rt.map_or_else(|| "normal scheduling".into(), mocomp_rt::RtReport::describe),
             realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
         }
@@ -724,7 +816,10 @@ impl RunReport {
             writeln!(out, "    {t:9.3} s  {e}")?;
         }
         writeln!(out, "  final mode        {}", self.final_mode)?;
-        writeln!(out, "  robot stopped     stopj sent")?;
+        writeln!(out, "  robot stop        {}", self.stop)?;
+        if let Some(e) = &self.log_error {
+            writeln!(out, "  log error         {e}")?;
+        }
         if let Some(p) = log {
             writeln!(out, "  log               {p}")?;
         }
@@ -859,17 +954,26 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     }
     // Stop the robot in a defined way, and wait for standstill.
     let decel = comp.config().params.stop_decel_rad_s2;
-    let _ = robot.stop(decel);
+    let sent = robot.stop(decel);
     let t_stop = Instant::now();
-    while t_stop.elapsed() < Duration::from_secs(3) {
+    let still = loop {
         let still = robot
             .state()
             .is_some_and(|s| s.actual_qd.iter().all(|v| v.abs() < 1e-3));
-        if still {
-            break;
+        if still || t_stop.elapsed() >= STANDSTILL_WAIT {
+            break still;
         }
         std::thread::sleep(Duration::from_millis(5));
-    }
+    };
+    let after_s = t_stop.elapsed().as_secs_f64();
+    let stop = match (sent, still) {
+        (Ok(_), true) => StopOutcome::Standstill { after_s },
+        (Err(e), true) => StopOutcome::AlreadyStopped { why: e.to_string() },
+        (sent, false) => StopOutcome::StillMoving {
+            after_s,
+            refused: sent.err().map(|e| e.to_string()),
+        },
+    };
     let final_mode = comp.mode();
     drop(tx);
     let mut s = log_thread
@@ -879,11 +983,21 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     let _ = robot.close();
     drop(client);
 
-    let report = RunReport::new(&mut s, realtime.as_ref(), &final_mode);
+    let report = RunReport::new(&mut s, realtime.as_ref(), &final_mode, stop);
     if opts.json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {
         report.print(out, file.log_csv.as_deref())?;
+    }
+    // The summary is out; what went wrong at the end still fails the run.
+    if let StopOutcome::StillMoving { .. } = &report.stop {
+        refuse!("the robot did not stop: {}", report.stop);
+    }
+    if let Some(e) = &report.log_error {
+        refuse!(
+            "the cycle log {} is incomplete: {e}",
+            file.log_csv.as_deref().unwrap_or("")
+        );
     }
     Ok(())
 }

@@ -3,7 +3,7 @@
 //! A frames directory holds `<name>_ir.png` and `<name>_depth.png` (16-bit grayscale; depth in
 //! mm, 0 = no reading) for each frame; `render` also writes `intrinsics.toml` and `truth.jsonl`.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use mocomp_geom::matrix_mm_from_iso;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::units::m_to_mm;
@@ -51,20 +51,22 @@ fn list_frames(dir: &Path) -> Result<Vec<(String, PathBuf, PathBuf)>> {
         if let Some(name) = file.strip_suffix("_ir.png") {
             let depth = dir.join(format!("{name}_depth.png"));
             if !depth.exists() {
-                bail!(
+                return Err(crate::UsageError(format!(
                     "{}: no matching depth image {}",
                     path.display(),
                     depth.display()
-                );
+                ))
+                .into());
             }
             frames.push((name.to_string(), path.clone(), depth));
         }
     }
     if frames.is_empty() {
-        bail!(
+        return Err(crate::UsageError(format!(
             "--frames {}: no <name>_ir.png / <name>_depth.png pairs",
             dir.display()
-        );
+        ))
+        .into());
     }
     frames.sort_by(|a, b| a.0.cmp(&b.0));
     Ok(frames)
@@ -145,7 +147,7 @@ pub fn track(out: &mut impl Write, a: &TrackArgs<'_>) -> Result<()> {
         let frame = Frame::new(ir.width, ir.height, &ir.data, &depth.data)?;
         let result = tracker
             .process(&frame)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", ir_path.display()))?;
+            .map_err(|e| crate::UsageError(format!("{}: {e}", ir_path.display())))?;
         if let Some(dir) = a.overlay {
             let img = overlay(&frame, tracker.scan_area(), &result);
             let path = dir.join(format!("{name}_overlay.png"));
@@ -236,10 +238,11 @@ pub fn render_frames(out: &mut impl Write, a: &RenderArgs<'_>) -> Result<()> {
     if let Some(h) = a.hide
         && (h == 0 || h > geometry.len())
     {
-        bail!(
+        return Err(crate::UsageError(format!(
             "--hide {h}: the geometry has fiducials 1..{}",
             geometry.len()
-        );
+        ))
+        .into());
     }
     std::fs::create_dir_all(a.out_dir)
         .with_context(|| format!("--out {}: cannot create", a.out_dir.display()))?;

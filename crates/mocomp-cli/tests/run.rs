@@ -42,21 +42,62 @@ fn the_example_config_compensates_on_the_simulated_robot() {
     // Late cycles, however late, never make a step the controller refuses.
     assert_eq!(v["protective_stops"], 0, "{v}");
     assert!(v["realtime"].as_str().unwrap().contains("SCHED"), "{v}");
-    let rows: Vec<String> = std::fs::read_to_string(&csv)
-        .unwrap()
-        .lines()
-        .map(str::to_string)
-        .collect();
-    assert!(rows[0].starts_with("t_s,mode,event"));
+    // The stop as it happened: stopj sent and the arm still within the wait.
+    assert_eq!(v["stop"]["outcome"], "standstill", "{v}");
+    assert!(v["stop"]["after_s"].as_f64().unwrap() < 3.0, "{v}");
+    assert!(v["log_error"].is_null(), "{v}");
+    let mut reader = csv::Reader::from_path(&csv).unwrap();
+    let header = reader.headers().unwrap().clone();
+    assert_eq!(&header[0], "t_s");
+    assert_eq!(&header[1], "mode");
+    assert_eq!(&header[8], "deviation_mm");
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
     // 500 Hz for 6 s; a loaded CI machine may lose a few cycles, not many.
     assert!(rows.len() > 2700 && rows.len() < 3100, "{}", rows.len());
-    let tracking = rows.iter().filter(|r| r.contains(",tracking,")).count();
-    assert!(tracking > 200, "{tracking}");
-    // Deviation from the loop's goal while tracking (column 9) stays within a centimetre.
-    for r in rows.iter().filter(|r| r.contains(",tracking,")) {
-        let dev: f64 = r.split(',').nth(8).unwrap().parse().unwrap();
-        assert!(dev < 10.0, "{r}");
+    let tracking: Vec<_> = rows.iter().filter(|r| &r[1] == "tracking").collect();
+    assert!(tracking.len() > 200, "{}", tracking.len());
+    // The deviation while tracking stays within a centimetre.
+    for r in tracking {
+        let dev: f64 = r[8].parse().unwrap();
+        assert!(dev < 10.0, "{r:?}");
     }
+}
+
+#[test]
+fn a_log_that_cannot_be_written_fails_the_run_after_the_robot_is_stopped() {
+    let dir = TempDir::new("mocomp-run-full");
+    let cfg = example().replace("host = \"127.0.0.2\"", "host = \"127.0.0.46\"");
+    let path = dir.path("run.toml");
+    std::fs::write(&path, cfg).unwrap();
+    // /dev/full: every write fails with "no space left on device", like a full disk.
+    let out = mocomp(&[
+        "run",
+        "--config",
+        &path,
+        "--seconds",
+        "1",
+        "--log-csv",
+        "/dev/full",
+        "--quiet",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("/dev/full") && err.contains("incomplete"),
+        "{err}"
+    );
+    // The summary still came out, with the stop and the log's error in it.
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["stop"]["outcome"], "standstill", "{v}");
+    assert!(
+        v["log_error"]
+            .as_str()
+            .unwrap()
+            .to_lowercase()
+            .contains("space"),
+        "{v}"
+    );
 }
 
 #[test]
