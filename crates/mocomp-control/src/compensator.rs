@@ -677,7 +677,17 @@ impl Compensator {
         // held the previous setpoint. Several states that arrive together give one longer step;
         // a cycle on the same state (woken without a new one) gives none.
         self.dt = if self.last_controller_s.is_finite() {
-            (state.controller_s - self.last_controller_s).clamp(0.0, self.cfg.params.robot_stale_s)
+            let raw = state.controller_s - self.last_controller_s;
+            // The controller's clock advances in whole periods: the difference of two large
+            // times carries rounding that depends on how long the controller has been up, which
+            // would make the same run differ in its last bits from one start to the next.
+            let periods = (raw / self.period).round();
+            let dt = if (raw - periods * self.period).abs() < 1e-6 {
+                periods * self.period
+            } else {
+                raw
+            };
+            dt.clamp(0.0, self.cfg.params.robot_stale_s)
         } else {
             self.period
         };
