@@ -411,22 +411,47 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
         "hold the phantom",
     )?;
     // U1 upright, beside the head: search its yaw, distance and height, for the start pose
-    // farthest from a singularity over the whole head motion (the coil follows the head through
-    // all of it: a start chosen alone can put the arm at its reach, where the elbow races).
+    // farthest from a singularity over the whole head motion, its links clear of the head all
+    // the way (the coil follows the head through all of it: a start chosen alone can put the
+    // arm at its reach, where the elbow races, or a link beside the head).
     let world_from_e1 = world_from_head_rest * e2_from_head.inverse() * cfg.goal_e2_from_e1;
     let target = world_from_e1.translation.vector;
     let g = arm1.geometry();
     let reach = g.a2.abs() + g.a3.abs();
     let trajectory = cfg.motion.trajectory();
-    let e1_along_motion: Vec<Isometry3<f64>> = (0..=MOTION_SAMPLES)
+    // Along the motion: the head, and the coil robot's flange at the goal on it.
+    let along_motion: Vec<(Isometry3<f64>, Isometry3<f64>)> = (0..=MOTION_SAMPLES)
         .map(|k| {
             let t = cfg.duration_s * f64::from(k) / f64::from(MOTION_SAMPLES);
-            world_from_head_rest
-                * trajectory.rest_from_head(t)
-                * e2_from_head.inverse()
-                * cfg.goal_e2_from_e1
+            let head = world_from_head_rest * trajectory.rest_from_head(t);
+            (head, head * e2_from_head.inverse() * cfg.goal_e2_from_e1)
         })
         .collect();
+    // The loop's collision model: a placement whose arm would pass its links closer to the head
+    // than the loop allows would make the loop hold, not follow.
+    let model = LoopConfig::new(
+        Isometry3::identity(),
+        e1_from_coil,
+        head_from_coil_design(),
+        cfg.coil_robot.spec().series.period_s(),
+    );
+    let (head_model, link_radius, clearance) = (
+        model.head,
+        cfg.loop_params.link_radius_m,
+        cfg.loop_params.link_clearance_m,
+    );
+    let links_clear = |base: &Isometry3<f64>, q: &[f64; 6], world_from_head: &Isometry3<f64>| {
+        let head_from_base = world_from_head.inverse() * base;
+        let f = arm1.link_frames(q);
+        (1..6).all(|i| {
+            (0..=4).all(|k| {
+                let a = f[i - 1].translation.vector;
+                let b = f[i].translation.vector;
+                let p = mocomp_geom::nalgebra::Point3::from(a + (b - a) * (f64::from(k) / 4.0));
+                head_model.distance(&(head_from_base * p)) - link_radius > clearance
+            })
+        })
+    };
     let mut best: Option<(f64, Isometry3<f64>, [f64; 6])> = None;
     for yaw in yaws() {
         for r in [0.45, 0.6, 0.75] {
@@ -440,13 +465,13 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
                 // Follow the motion on the start's branch; the least margin on the way counts.
                 let mut q = start.joints;
                 let mut margin = arm1.singularity(&q).margin(arm1.geometry());
-                for e1 in &e1_along_motion {
+                for (head, e1) in &along_motion {
                     match arm1.ik_closest(&(base.inverse() * e1), &q, &Selection::tracking(0.05)) {
-                        Ok(c) => {
+                        Ok(c) if links_clear(&base, &c.joints, head) => {
                             q = c.joints;
                             margin = margin.min(arm1.singularity(&q).margin(arm1.geometry()));
                         }
-                        Err(_) => margin = f64::NEG_INFINITY,
+                        _ => margin = f64::NEG_INFINITY,
                     }
                 }
                 if best.as_ref().is_none_or(|b| margin > b.0) {
