@@ -244,3 +244,20 @@ fn the_demo_replays_a_recorded_motion_file() {
         "{err}"
     );
 }
+
+#[test]
+fn the_same_options_give_the_same_csv_byte_for_byte() {
+    // The experiment runs in lockstep on a stepped clock: nothing the machine does (how long
+    // the simulators took to connect, how busy the cores are) may change a bit of the result.
+    let dir = TempDir::new("mocomp-demo-same");
+    let (a, b) = (dir.path("a"), dir.path("b"));
+    let extra = ["--motion", "nods", "--tracker-dropouts-per-s", "1"];
+    for out in [&a, &b] {
+        let o = demo_json(out, "4", ("127.0.0.61", "127.0.0.62"), &extra);
+        assert_success(&o);
+    }
+    let read = |d: &str| std::fs::read(std::path::Path::new(d).join("demo.csv")).unwrap();
+    let (csv_a, csv_b) = (read(&a), read(&b));
+    assert!(csv_a.len() > 10_000, "{}", csv_a.len());
+    assert!(csv_a == csv_b, "two runs of the same options differ");
+}
