@@ -100,6 +100,33 @@ pub struct CycleRecord {
     pub compute_ns: u64,
 }
 
+impl CycleRecord {
+    /// A record of a cycle at `t` in `mode` that commanded `q_command`, with nothing else known
+    /// yet (NaN, none, zero).
+    pub fn new(t: f64, mode: Mode, q_command: [f64; 6]) -> Self {
+        Self {
+            t,
+            mode,
+            event: None,
+            sample_age_s: f64::NAN,
+            horizon_s: 0.0,
+            command_delay_s: f64::NAN,
+            q_command,
+            q_actual: [f64::NAN; 6],
+            goal: None,
+            head_speed: (0.0, 0.0),
+            path: None,
+            standoff_m: 0.0,
+            filtered_m: 0.0,
+            clearance_m: f64::NAN,
+            required_m: f64::NAN,
+            coasting: false,
+            deviation: (f64::NAN, f64::NAN),
+            compute_ns: 0,
+        }
+    }
+}
+
 const ACK_RING: usize = 64;
 /// Samples along a planned path checked for reachability and collisions.
 const PATH_CHECKS: usize = 40;

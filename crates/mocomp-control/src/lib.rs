@@ -9,6 +9,7 @@
 
 pub mod compensator;
 pub mod config;
+pub mod controller;
 pub mod geometry;
 pub mod goal;
 pub mod planner;
@@ -18,6 +19,7 @@ pub mod supervisor;
 
 pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
 pub use config::{LoopConfig, LoopParams, ParamError};
+pub use controller::Controller;
 pub use geometry::{CoilModel, HeadModel};
 pub use goal::{GoalError, check_goal};
 pub use planner::{PlanError, ShellPath};

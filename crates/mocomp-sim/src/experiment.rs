@@ -17,12 +17,17 @@
 //! Then each controller compensates the same head trajectory with the same tracker noise:
 //! - `paper`: a model of the original MATLAB pipeline. Every `period_s` it takes the newest
 //!   tracker sample, computes the IK solution nearest by angle sum, and `compute_delay_s` later
-//!   sends a point-to-point joint move (movej) to it. No prediction, no servoing.
+//!   sends a point-to-point joint move (movej) to it. No prediction, no servoing
+//!   ([`crate::baseline::PaperPipeline`]).
 //! - `mocomp`: the compensation loop of `mocomp-control` at the robot's rate.
+//!
+//! Both are [`mocomp_control::Controller`]s: the experiment drives whichever it runs the same
+//! way, one cycle and one command per robot period.
 //!
 //! The score is the paper's `d(t) = ‖E2_T_E1,g − E2_T_E1‖_F` (translation in mm), computed from the
 //! simulators' true joints, with the translation and rotation errors of `E2_T_E1`.
 
+use crate::baseline::PaperPipeline;
 use crate::motion::HeadMotion;
 use crate::tracker::{TrackerModel, TrackerSim};
 use mocomp_calib::plan::{PlanOptions, plan};
@@ -36,7 +41,7 @@ use mocomp_geom::{
 use mocomp_igtl::client::{Client, ClientConfig, IgtlPoseSource, TimestampMode};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
-use mocomp_kin::{Arm, BranchPolicy, Metric, Model, Selection};
+use mocomp_kin::{Arm, Model, Selection};
 use mocomp_ur::{Robot, ServoParams, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
 use std::net::IpAddr;
@@ -1115,18 +1120,12 @@ impl World {
         let rest = self.scene.world_from_head_rest;
         let head_from_e2 = self.scene.e2_from_head.inverse();
         let head_servo = ServoParams::for_period(self.period);
-        let paper_select = Selection {
-            metric: Metric::WeightedSum([1.0; 6]),
-            branch: BranchPolicy::Any,
-            limit_margin: 0.0,
-        };
         let (head, coil) = (loop_cfg.head, loop_cfg.coil);
-        let mut comp = Compensator::new(loop_cfg, self.arm1, self.period);
+        let mut ctl: Box<dyn mocomp_control::Controller> = match controller {
+            Controller::Mocomp => Box::new(Compensator::new(loop_cfg, self.arm1, self.period)),
+            Controller::Paper => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
+        };
         let mut q2_cmd = self.scene.q2_start;
-        let mut next_loop = 0.0;
-        let mut newest: Option<mocomp_geom::PoseSample> = None;
-        let mut pending: Option<(f64, [f64; 6], f64)> = None;
-        let mut last_horizon = f64::NAN;
         let n = (cfg.duration_s / self.period).round() as usize;
         let mut records = Vec::with_capacity(n);
         for k in 0..n {
@@ -1143,57 +1142,21 @@ impl World {
             }
             let (robot2, q2) = (&mut self.robot2, q2_cmd);
             Self::sent(&self.sim2, || robot2.servo(&q2, &head_servo).map(|_| ()))?;
-            // The coil robot's controller.
-            let (mode, event, age, horizon) = match controller {
-                Controller::Mocomp => {
-                    let inputs = self.sim1.stats().inputs;
-                    let rec = comp.cycle(t, &mut self.robot1, &mut self.head_source);
-                    if matches!(rec.mode, Mode::Faulted(_)) {
-                        self.robot1
-                            .keep_alive()
-                            .map_err(|e| io("commanding the coil robot", e))?;
-                    }
-                    let sim1 = &self.sim1;
-                    spin(Duration::from_secs(5), "a command to arrive", || {
-                        sim1.stats().inputs > inputs
-                    })?;
-                    (rec.mode, rec.event, rec.sample_age_s, rec.horizon_s)
-                }
-                Controller::Paper => {
-                    while let Some(s) = self.head_source.latest() {
-                        if s.valid {
-                            newest = Some(s);
-                        }
-                    }
-                    if tr + 1e-9 >= next_loop {
-                        next_loop += cfg.paper.period_s;
-                        if let Some(s) = newest {
-                            // Z = Y · S_T_H · H_T_C,g · X⁻¹, to the IK solution of least angle sum.
-                            let z = comp.goal_for(&s.tracker_from_marker);
-                            if let Ok(c) = self.arm1.ik_closest(&z, &self.q_now.0, &paper_select) {
-                                let due = t + cfg.paper.compute_delay_s;
-                                pending = Some((due, c.joints, s.acquired_s));
-                            }
-                        }
-                    }
-                    let robot1 = &mut self.robot1;
-                    match pending {
-                        Some((due, q, acquired)) if t + 1e-9 >= due => {
-                            let p = cfg.paper;
-                            Self::sent(&self.sim1, || {
-                                robot1
-                                    .move_joints(&q, p.joint_speed_rad_s, p.joint_accel_rad_s2)
-                                    .map(|_| ())
-                            })?;
-                            last_horizon = t - acquired;
-                            pending = None;
-                        }
-                        _ => Self::sent(&self.sim1, || robot1.keep_alive())?,
-                    }
-                    let age = newest.map_or(f64::NAN, |s| t - s.acquired_s);
-                    (Mode::Tracking, None, age, last_horizon)
-                }
-            };
+            // The coil robot's controller: one cycle, one command, taken by the simulator
+            // before the clock moves on.
+            let inputs = self.sim1.stats().inputs;
+            let rec = ctl.cycle(t, &mut self.robot1, &mut self.head_source);
+            if matches!(rec.mode, Mode::Faulted(_)) {
+                self.robot1
+                    .keep_alive()
+                    .map_err(|e| io("commanding the coil robot", e))?;
+            }
+            let sim1 = &self.sim1;
+            spin(Duration::from_secs(5), "a command to arrive", || {
+                sim1.stats().inputs > inputs
+            })?;
+            let (mode, event, age, horizon) =
+                (rec.mode, rec.event, rec.sample_age_s, rec.horizon_s);
             self.advance()?;
             let e2 = self.world_from_e2(&self.q_now.1);
             let e1 = self.world_from_e1(&self.q_now.0);

@@ -8,6 +8,7 @@
 //! - [`experiment`]: the paper's two-robot experiment, with hand-eye calibration in the loop and
 //!   two controllers (a model of the paper's pipeline, and mocomp's loop) on the same trajectory.
 
+pub mod baseline;
 pub mod config;
 pub mod experiment;
 pub mod motion;

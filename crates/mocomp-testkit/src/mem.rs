@@ -17,6 +17,10 @@ pub struct MemRobot {
     pub seq: i32,
     /// `stop` calls.
     pub stops: u32,
+    /// The last movej target taken.
+    pub last_move: Option<[f64; 6]>,
+    /// `keep_alive` calls.
+    pub keep_alives: u32,
 }
 
 impl MemRobot {
@@ -45,6 +49,8 @@ impl MemRobot {
             period_s,
             seq: 0,
             stops: 0,
+            last_move: None,
+            keep_alives: 0,
         }
     }
 
@@ -72,7 +78,9 @@ impl Robot for MemRobot {
         self.state.acked_seq = self.seq;
         Ok(self.seq)
     }
-    fn move_joints(&mut self, _: &[f64; 6], _: f64, _: f64) -> Result<i32, UrError> {
+    fn move_joints(&mut self, q: &[f64; 6], _: f64, _: f64) -> Result<i32, UrError> {
+        self.seq += 1;
+        self.last_move = Some(*q);
         Ok(self.seq)
     }
     fn speed_joints(&mut self, _: &[f64; 6], _: f64) -> Result<i32, UrError> {
@@ -83,6 +91,7 @@ impl Robot for MemRobot {
         Ok(self.seq)
     }
     fn keep_alive(&mut self) -> Result<(), UrError> {
+        self.keep_alives += 1;
         Ok(())
     }
 }

@@ -1,0 +1,38 @@
+//! What drives the coil robot, one call per robot cycle: mocomp's [`crate::Compensator`], and
+//! any other controller compared with it (the paper's pipeline, in `mocomp-sim`). The driver (a
+//! live loop or a lockstep experiment) calls [`Controller::cycle`] and owns the clock and the
+//! logging.
+
+use crate::compensator::{Compensator, CycleRecord};
+use mocomp_geom::PoseSource;
+use mocomp_ur::Robot;
+
+/// A controller of the coil robot.
+pub trait Controller {
+    /// Its name in reports.
+    fn name(&self) -> &'static str;
+
+    /// One cycle at time `now` (s, the clock of the robot's state and the tracker's samples):
+    /// takes the newest samples and state and sends at most one command.
+    fn cycle(
+        &mut self,
+        now: f64,
+        robot: &mut dyn Robot,
+        source: &mut dyn PoseSource,
+    ) -> CycleRecord;
+}
+
+impl Controller for Compensator {
+    fn name(&self) -> &'static str {
+        "mocomp"
+    }
+
+    fn cycle(
+        &mut self,
+        now: f64,
+        robot: &mut dyn Robot,
+        source: &mut dyn PoseSource,
+    ) -> CycleRecord {
+        Compensator::cycle(self, now, robot, source)
+    }
+}
