@@ -12,8 +12,9 @@ use mocomp_geom::units::{m_to_mm, rad_to_deg};
 use std::fmt;
 use std::str::FromStr;
 
-/// Which solver.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Which solver (`"li"`, `"shah"`, `"refined"` in configuration files).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Method {
     /// The seed paper's linear 24-unknown method, with the translation re-solve.
     Li,

@@ -50,7 +50,7 @@ pub struct CollectSection {
     /// Give up on a move after this long, s.
     pub move_timeout_s: f64,
     /// Solver: li, shah or refined.
-    pub method: String,
+    pub method: mocomp_calib::Method,
     /// Expected tracker noise per axis (1σ), m.
     pub tracker_noise_m: f64,
     /// Expected tracker rotation noise per axis (1σ), rad.
@@ -81,7 +81,7 @@ impl Default for CollectSection {
             joint_speed_rad_s: 0.8,
             joint_accel_rad_s2: 1.5,
             move_timeout_s: 20.0,
-            method: "refined".into(),
+            method: mocomp_calib::Method::Refined,
             tracker_noise_m: 1e-4,
             tracker_noise_rad: 1e-3,
             robot_noise_m: 3e-5,
@@ -140,12 +140,6 @@ impl CollectSection {
             if !(v.is_finite() && v > 0.0 && v <= hi) {
                 return Err(bad(k, v, &format!("must be in (0, {hi}]")));
             }
-        }
-        if !["li", "shah", "refined"].contains(&self.method.as_str()) {
-            return Err(UsageError(format!(
-                "calibrate.method = {:?}: must be li, shah or refined",
-                self.method
-            )));
         }
         Ok(())
     }
@@ -358,10 +352,7 @@ pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()>
         robot_translation_m: c.robot_noise_m,
         robot_rotation_rad: c.robot_noise_rad,
     };
-    let method = c
-        .method
-        .parse()
-        .map_err(|e| UsageError(format!("calibrate.method: {e}")))?;
+    let method = c.method;
     let solved = solve(
         &pairs,
         &SolveOptions {
@@ -403,7 +394,7 @@ pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()>
         rotation_error(&solved.base_from_tracker, &y_old).to_degrees()
     )?;
     let s = &setup.file.tracker.simulated;
-    if setup.file.tracker.source == "simulated" && simulated_robot {
+    if setup.file.tracker.source == crate::run_cmd::TrackerSource::Simulated && simulated_robot {
         let true_y = match &s.base_from_tracker {
             Some(y) => pose("tracker.simulated.base_from_tracker", y)?,
             None => y_old,

@@ -75,7 +75,7 @@ pub struct RunFile {
 #[serde(deny_unknown_fields)]
 pub struct RobotSection {
     /// ur3, ur5, ur10 (CB3), ur3e … ur30 (e-Series).
-    pub model: String,
+    pub model: mocomp_kin::Model,
     /// The controller's address.
     pub host: String,
     /// Start an in-process simulated controller on `host` (a loopback address).
@@ -90,8 +90,8 @@ pub struct RobotSection {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrackerSection {
-    /// "openigtlink" (a server at `igtl`) or "simulated".
-    pub source: String,
+    /// Where the head's poses come from.
+    pub source: TrackerSource,
     /// The OpenIGTLink server, host:port.
     #[serde(default)]
     pub igtl: Option<String>,
@@ -102,8 +102,8 @@ pub struct TrackerSection {
     /// offset is estimated from the smallest delay, which hides the sender's constant latency;
     /// give it as `fixed_latency_s`) or "synchronized" (same host, or PTP/NTP). The simulated
     /// tracker runs on this host and is always read as synchronized.
-    #[serde(default = "default_timestamps")]
-    pub timestamps: String,
+    #[serde(default)]
+    pub timestamps: Timestamps,
     /// The sender's constant latency from acquisition to sending, s (with "estimated").
     #[serde(default)]
     pub fixed_latency_s: f64,
@@ -112,8 +112,35 @@ pub struct TrackerSection {
     pub simulated: SimTrackerSection,
 }
 
-fn default_timestamps() -> String {
-    "estimated".into()
+/// `tracker.source`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TrackerSource {
+    /// An OpenIGTLink server at `tracker.igtl` (PLUS, 3D Slicer, a navigation system).
+    Openigtlink,
+    /// The simulated tracker, served over OpenIGTLink on loopback.
+    Simulated,
+}
+
+impl std::fmt::Display for TrackerSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Openigtlink => "openigtlink",
+            Self::Simulated => "simulated",
+        })
+    }
+}
+
+/// `tracker.timestamps`: how the sender's timestamps map onto our clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Timestamps {
+    /// Unsynchronised clocks: the offset is estimated from the smallest delay (which hides the
+    /// sender's constant latency: give it as `fixed_latency_s`).
+    #[default]
+    Estimated,
+    /// The same host, or clocks synchronised by PTP/NTP.
+    Synchronized,
 }
 
 fn default_device() -> String {
@@ -243,12 +270,12 @@ fn positive(key: &str, v: f64) -> anyhow::Result<()> {
 impl RunFile {
     /// Parses and checks a configuration; errors name the file and the key.
     pub fn parse(path: &str, text: &str) -> anyhow::Result<Self> {
-        let mut f: Self = toml::from_str(text).map_err(|e| {
-            UsageError(format!(
-                "{path}: {}",
-                e.to_string().trim_end().replace('\n', " ")
-            ))
-        })?;
+        let one_line = |e: &dyn std::fmt::Display| e.to_string().trim_end().replace('\n', " ");
+        let de = toml::Deserializer::parse(text)
+            .map_err(|e| UsageError(format!("{path}: {}", one_line(&e))))?;
+        // The key's whole path in the message (`tracker.timestamps`), not just its line.
+        let mut f: Self = serde_path_to_error::deserialize(de)
+            .map_err(|e| UsageError(format!("{path}: {}: {}", e.path(), one_line(e.inner()))))?;
         // A recorded motion's file is relative to this file's directory.
         let dir = std::path::Path::new(path)
             .parent()
@@ -267,8 +294,6 @@ impl RunFile {
     }
 
     fn check(&self) -> anyhow::Result<()> {
-        crate::args::model(&self.robot.model)
-            .map_err(|e| UsageError(format!("robot.model: {e}")))?;
         self.calibrate.check()?;
         self.params
             .validate()
@@ -279,26 +304,10 @@ impl RunFile {
         self.realtime
             .validate()
             .map_err(|e| UsageError(e.to_string()))?;
-        match self.tracker.source.as_str() {
-            "openigtlink" if self.tracker.igtl.is_none() => {
-                return Err(UsageError(
-                    "tracker.igtl: needed (host:port) for source \"openigtlink\"".into(),
-                )
-                .into());
-            }
-            "openigtlink" | "simulated" => {}
-            other => {
-                return Err(UsageError(format!(
-                    "tracker.source = {other:?}: must be \"openigtlink\" or \"simulated\""
-                ))
-                .into());
-            }
-        }
-        if !["estimated", "synchronized"].contains(&self.tracker.timestamps.as_str()) {
-            return Err(UsageError(format!(
-                "tracker.timestamps = {:?}: must be \"estimated\" or \"synchronized\"",
-                self.tracker.timestamps
-            ))
+        if self.tracker.source == TrackerSource::Openigtlink && self.tracker.igtl.is_none() {
+            return Err(UsageError(
+                "tracker.igtl: needed (host:port) for source \"openigtlink\"".into(),
+            )
             .into());
         }
         if !(self.tracker.fixed_latency_s.is_finite()

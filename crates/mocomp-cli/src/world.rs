@@ -4,7 +4,7 @@
 //! marker and the flange's calibration marker over OpenIGTLink on loopback).
 
 use crate::UsageError;
-use crate::run_cmd::{RunFile, pose};
+use crate::run_cmd::{RunFile, Timestamps, TrackerSource, pose};
 use anyhow::Context;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, MonotonicClock};
@@ -41,7 +41,7 @@ impl Setup {
             .parent()
             .map(Path::to_path_buf)
             .unwrap_or_default();
-        let model: Model = crate::args::model(&file.robot.model).map_err(UsageError)?;
+        let model: Model = file.robot.model;
         let base_from_tracker = file.base_from_tracker(&dir)?;
         Ok(Self {
             file,
@@ -120,7 +120,7 @@ impl World {
         } else {
             (None, UrConfig::new(host))
         };
-        let tracker = if file.tracker.source == "simulated" {
+        let tracker = if file.tracker.source == TrackerSource::Simulated {
             Some(start_tracker(setup, sim.clone())?)
         } else {
             None
@@ -163,7 +163,7 @@ impl World {
         let mut icfg = ClientConfig::new(&self.tracker_addr);
         icfg.device = Some(device.to_string());
         icfg.fixed_latency_s = t.fixed_latency_s;
-        icfg.timestamps = if self.tracker.is_some() || t.timestamps == "synchronized" {
+        icfg.timestamps = if self.tracker.is_some() || t.timestamps == Timestamps::Synchronized {
             TimestampMode::Synchronized
         } else {
             TimestampMode::Estimated

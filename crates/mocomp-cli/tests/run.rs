@@ -141,6 +141,23 @@ fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
             "realtime.simulator_priority",
         ),
         ("lock_memory = true", "lock_memry = true", "lock_memry"),
+        // Choices are types: the key's path and the allowed values are named.
+        (
+            "source = \"simulated\"",
+            "source = \"kinect\"",
+            "tracker.source: TOML parse error at line",
+        ),
+        (
+            "method = \"refined\"",
+            "method = \"best\"",
+            "calibrate.method",
+        ),
+        ("model = \"ur3e\"", "model = \"ur4\"", "known: ur3, ur5"),
+        (
+            "speed_fraction = 0.5",
+            "speed_fraction = \"half\"",
+            "loop.speed_fraction",
+        ),
     ] {
         let cfg = example();
         assert!(cfg.contains(from), "{from}");

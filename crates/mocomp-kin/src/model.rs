@@ -269,6 +269,20 @@ impl FromStr for Model {
     }
 }
 
+/// From its name in a configuration file (`"ur5e"`, case-insensitive); an unknown name is refused
+/// with every known one.
+impl<'de> serde::Deserialize<'de> for Model {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = <std::borrow::Cow<'de, str>>::deserialize(d)?;
+        name.parse().map_err(|_| {
+            serde::de::Error::custom(format!(
+                "unknown robot model {name:?} (known: {})",
+                model_names()
+            ))
+        })
+    }
+}
+
 /// The names of every model, comma-separated, for error messages and help texts.
 pub fn model_names() -> String {
     MODELS.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")
