@@ -76,13 +76,16 @@ pub enum ExperimentError {
     /// No placement of the robots reaches the goal.
     #[error("cannot place the robots: {0}")]
     Scene(String),
-    /// A simulator or connection failed.
-    #[error("{what}: {detail}")]
+    /// A simulator or connection failed (its cause kept as the error's source).
+    #[error("{what}{}", simulators_said(.simulators))]
     Io {
         /// What was being done.
         what: &'static str,
+        /// What the simulators recorded meanwhile, when known.
+        simulators: Option<String>,
         /// Why it failed.
-        detail: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
     },
     /// Something did not happen in time (a message, a state).
     #[error("timed out waiting for {0}")]
@@ -97,11 +100,21 @@ pub enum ExperimentError {
     },
 }
 
-fn io(what: &'static str, e: impl std::fmt::Display) -> ExperimentError {
+fn io(
+    what: &'static str,
+    e: impl Into<Box<dyn std::error::Error + Send + Sync>>,
+) -> ExperimentError {
     ExperimentError::Io {
         what,
-        detail: e.to_string(),
+        simulators: None,
+        source: e.into(),
     }
+}
+
+fn simulators_said(s: &Option<String>) -> String {
+    s.as_deref()
+        .map(|s| format!(" (simulators: {s})"))
+        .unwrap_or_default()
 }
 
 /// The `paper` controller's model of the original pipeline.
@@ -742,18 +755,16 @@ impl World {
                 .collect::<Vec<_>>()
                 .join("; ")
         };
-        let robot1 = r1.map_err(|e| {
-            io(
-                "connecting to the coil robot",
-                format!("{e} (simulator: {})", events(&sim1)),
-            )
+        let robot1 = r1.map_err(|e| ExperimentError::Io {
+            what: "connecting to the coil robot",
+            simulators: Some(events(&sim1)),
+            source: Box::new(e),
         })?;
         let r2 = r2.map_err(|_| io("connecting to the head robot", "the thread panicked"))?;
-        let robot2 = r2.map_err(|e| {
-            io(
-                "connecting to the head robot",
-                format!("{e} (simulator: {})", events(&sim2)),
-            )
+        let robot2 = r2.map_err(|e| ExperimentError::Io {
+            what: "connecting to the head robot",
+            simulators: Some(events(&sim2)),
+            source: Box::new(e),
         })?;
         let server = Server::bind("127.0.0.1:0", ServerConfig::default())
             .map_err(|e| io("starting the tracker's OpenIGTLink server", e))?;
@@ -926,7 +937,7 @@ impl World {
             };
             if let Some(s) = s {
                 if let Some(f) = s.fault() {
-                    return Err(io("a calibration move", f));
+                    return Err(io("a calibration move", f.to_string()));
                 }
                 let there = s.actual_q.iter().zip(q).all(|(a, b)| (a - b).abs() < 1e-4);
                 let still = s.actual_qd.iter().all(|v| v.abs() < 1e-4);
@@ -1099,9 +1110,10 @@ impl World {
     ) -> Result<Run, ExperimentError> {
         self.compensate_inner(controller, cfg, loop_cfg, progress)
             .map_err(|e| match e {
-                ExperimentError::Io { what, detail } => ExperimentError::Io {
+                ExperimentError::Io { what, source, .. } => ExperimentError::Io {
                     what,
-                    detail: format!("{detail} (simulators: {})", self.events()),
+                    simulators: Some(self.events()),
+                    source,
                 },
                 other => other,
             })
@@ -1225,4 +1237,26 @@ pub fn run_experiment(
         head_peak_speed,
         runs,
     })
+}
+
+#[cfg(test)]
+mod error_tests {
+    use super::*;
+
+    #[test]
+    fn a_failure_keeps_its_cause_as_the_source() {
+        let cause = mocomp_ur::UrError::Closed {
+            what: "RTDE at 127.0.0.2".into(),
+        };
+        let mut e = io("commanding the coil robot", cause);
+        if let ExperimentError::Io { simulators, .. } = &mut e {
+            *simulators = Some("0.016 s: program started".into());
+        }
+        assert_eq!(
+            e.to_string(),
+            "commanding the coil robot (simulators: 0.016 s: program started)"
+        );
+        let source = std::error::Error::source(&e).map(|s| s.is::<mocomp_ur::UrError>());
+        assert_eq!(source, Some(true), "the cause is the source, not a string");
+    }
 }
