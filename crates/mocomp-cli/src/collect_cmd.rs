@@ -3,8 +3,7 @@
 //! solves `AX = YB`, prints the report and saves the calibration (and the pairs, for
 //! `calibrate solve`).
 
-use crate::UsageError;
-use crate::run_cmd::{initial_joints, pose};
+use crate::run_config::{CollectSection, initial_joints, pose};
 use crate::world::{Setup, World};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -13,137 +12,9 @@ use mocomp_calib::{NoiseModel, Pair, PairsFormat, SolveOptions, solve, write_pai
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSource, rotation_error, translation_error};
 use mocomp_ur::{Robot, UrRobot};
-use serde::Deserialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-
-/// `[calibrate]`: how `calibrate collect` runs. Units: metres, radians, seconds.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct CollectSection {
-    /// The flange marker's device name (TRANSFORM device or TDATA tool).
-    pub device: String,
-    /// Number of poses.
-    pub poses: usize,
-    /// Smallest rotation from the centre pose, rad.
-    pub min_rotation_rad: f64,
-    /// Largest rotation from the centre pose, rad.
-    pub max_rotation_rad: f64,
-    /// Shift of the flange per axis, up to ±this, m.
-    pub spread_m: f64,
-    /// The centre flange pose, base_from_flange (default: where the robot is).
-    pub center: Option<[f64; 6]>,
-    /// A rough flange_from_marker: the poses turn about the marker's centre (default: 5 cm off
-    /// the flange's axis, facing back along it).
-    pub flange_from_marker_guess: [f64; 6],
-    /// Keep the marker in the tracker's view, judged with the configured base_from_tracker.
-    pub check_view: bool,
-    /// Tracker samples averaged at each pose.
-    pub samples_per_pose: usize,
-    /// Wait this long after each move before measuring, s.
-    pub settle_s: f64,
-    /// Joint speed of the moves, rad/s.
-    pub joint_speed_rad_s: f64,
-    /// Joint acceleration of the moves, rad/s².
-    pub joint_accel_rad_s2: f64,
-    /// Give up on a move after this long, s.
-    pub move_timeout_s: f64,
-    /// Solver: li, shah or refined.
-    pub method: mocomp_calib::Method,
-    /// Expected tracker noise per axis (1σ), m.
-    pub tracker_noise_m: f64,
-    /// Expected tracker rotation noise per axis (1σ), rad.
-    pub tracker_noise_rad: f64,
-    /// Expected robot noise per axis (1σ), m.
-    pub robot_noise_m: f64,
-    /// Expected robot rotation noise per axis (1σ), rad.
-    pub robot_noise_rad: f64,
-    /// Where to save the calibration (relative to the configuration file's directory).
-    pub out: String,
-    /// Where to save the measured pairs (relative to the configuration file's directory).
-    pub pairs_csv: Option<String>,
-}
-
-impl Default for CollectSection {
-    fn default() -> Self {
-        Self {
-            device: "MarkerToTracker".into(),
-            poses: 15,
-            min_rotation_rad: 15f64.to_radians(),
-            max_rotation_rad: 35f64.to_radians(),
-            spread_m: 0.06,
-            center: None,
-            flange_from_marker_guess: [0.0, 0.05, 0.0, std::f64::consts::PI, 0.0, 0.0],
-            check_view: true,
-            samples_per_pose: 10,
-            settle_s: 0.3,
-            joint_speed_rad_s: 0.8,
-            joint_accel_rad_s2: 1.5,
-            move_timeout_s: 20.0,
-            method: mocomp_calib::Method::Refined,
-            tracker_noise_m: 1e-4,
-            tracker_noise_rad: 1e-3,
-            robot_noise_m: 3e-5,
-            robot_noise_rad: 2e-4,
-            out: "calibration.toml".into(),
-            pairs_csv: Some("calibration-pairs.csv".into()),
-        }
-    }
-}
-
-impl CollectSection {
-    /// Checks every value; errors name the key.
-    pub fn check(&self) -> Result<(), UsageError> {
-        let bad = |k: &str, v: f64, what: &str| UsageError(format!("calibrate.{k} = {v}: {what}"));
-        if self.poses < 3 {
-            return Err(bad("poses", self.poses as f64, "must be at least 3"));
-        }
-        if self.samples_per_pose == 0 {
-            return Err(bad("samples_per_pose", 0.0, "must be at least 1"));
-        }
-        for (k, v) in [
-            ("min_rotation_rad", self.min_rotation_rad),
-            ("spread_m", self.spread_m),
-            ("settle_s", self.settle_s),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(bad(k, v, "must be finite and ≥ 0"));
-            }
-        }
-        // Zero noise would weight the solver's residuals infinitely.
-        for (k, v) in [
-            ("tracker_noise_m", self.tracker_noise_m),
-            ("tracker_noise_rad", self.tracker_noise_rad),
-            ("robot_noise_m", self.robot_noise_m),
-            ("robot_noise_rad", self.robot_noise_rad),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(bad(k, v, "must be finite and > 0"));
-            }
-        }
-        if !(self.max_rotation_rad.is_finite()
-            && self.max_rotation_rad > self.min_rotation_rad
-            && self.max_rotation_rad <= std::f64::consts::PI)
-        {
-            return Err(bad(
-                "max_rotation_rad",
-                self.max_rotation_rad,
-                "must be above min_rotation_rad and at most π",
-            ));
-        }
-        for (k, v, hi) in [
-            ("joint_speed_rad_s", self.joint_speed_rad_s, 3.0),
-            ("joint_accel_rad_s2", self.joint_accel_rad_s2, 40.0),
-            ("move_timeout_s", self.move_timeout_s, 600.0),
-        ] {
-            if !(v.is_finite() && v > 0.0 && v <= hi) {
-                return Err(bad(k, v, &format!("must be in (0, {hi}]")));
-            }
-        }
-        Ok(())
-    }
-}
 
 /// Options from the command line.
 #[derive(Debug, Clone)]
@@ -394,7 +265,7 @@ pub fn collect(out: &mut dyn Write, opts: &CollectOptions) -> anyhow::Result<()>
         rotation_error(&solved.base_from_tracker, &y_old).to_degrees()
     )?;
     let s = &setup.file.tracker.simulated;
-    if setup.file.tracker.source == crate::run_cmd::TrackerSource::Simulated && simulated_robot {
+    if setup.file.tracker.source == crate::run_config::TrackerSource::Simulated && simulated_robot {
         let true_y = match &s.base_from_tracker {
             Some(y) => pose("tracker.simulated.base_from_tracker", y)?,
             None => y_old,

@@ -19,6 +19,7 @@ mod plots;
 mod print;
 mod robot_cmd;
 mod run_cmd;
+mod run_config;
 mod teach_cmd;
 mod track_cmd;
 mod world;

@@ -7,7 +7,7 @@
 //! into the head (the planner approaches along it).
 
 use crate::UsageError;
-use crate::run_cmd::{initial_joints, pose};
+use crate::run_config::{initial_joints, pose};
 use crate::world::{Setup, World};
 use anyhow::Context;
 use mocomp_control::{GoalError, check_goal};

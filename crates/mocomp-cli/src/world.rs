@@ -4,7 +4,7 @@
 //! marker and the flange's calibration marker over OpenIGTLink on loopback).
 
 use crate::UsageError;
-use crate::run_cmd::{RunFile, Timestamps, TrackerSource, pose};
+use crate::run_config::{RunFile, Timestamps, TrackerSource, pose};
 use anyhow::Context;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, MonotonicClock};
