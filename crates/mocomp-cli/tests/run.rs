@@ -11,13 +11,19 @@ fn example() -> String {
     std::fs::read_to_string(workspace_root().join("examples/run-sim.toml")).unwrap()
 }
 
+/// Writes the example configuration with its simulated robot on `host` (each test its own
+/// loopback address, so tests in parallel do not share the UR ports); returns its path.
+fn example_at(dir: &TempDir, host: &str) -> String {
+    let path = dir.path("run.toml");
+    let cfg = example().replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
+    std::fs::write(&path, cfg).unwrap();
+    path
+}
+
 #[test]
 fn the_example_config_compensates_on_the_simulated_robot() {
     let dir = TempDir::new("mocomp-run");
-    // Its own loopback address, so tests in parallel do not share the UR ports.
-    let cfg = example().replace("host = \"127.0.0.2\"", "host = \"127.0.0.41\"");
-    let path = dir.path("run.toml");
-    std::fs::write(&path, cfg).unwrap();
+    let path = example_at(&dir, "127.0.0.41");
     let csv = dir.path("run.csv");
     let out = mocomp(&[
         "run",
@@ -66,9 +72,7 @@ fn the_example_config_compensates_on_the_simulated_robot() {
 #[test]
 fn a_log_that_cannot_be_written_fails_the_run_after_the_robot_is_stopped() {
     let dir = TempDir::new("mocomp-run-full");
-    let cfg = example().replace("host = \"127.0.0.2\"", "host = \"127.0.0.46\"");
-    let path = dir.path("run.toml");
-    std::fs::write(&path, cfg).unwrap();
+    let path = example_at(&dir, "127.0.0.46");
     // /dev/full: every write fails with "no space left on device", like a full disk.
     let out = mocomp(&[
         "run",

@@ -655,26 +655,9 @@ impl Compensator {
         robot: &mut R,
         source: &mut S,
     ) -> CycleRecord {
-        let mut rec = CycleRecord {
-            t: now,
-            mode: self.mode,
-            event: None,
-            sample_age_s: f64::NAN,
-            horizon_s: 0.0,
-            command_delay_s: self.command_delay,
-            q_command: self.q_cmd,
-            q_actual: [f64::NAN; 6],
-            goal: None,
-            head_speed: (0.0, 0.0),
-            path: None,
-            standoff_m: self.standoff,
-            filtered_m: 0.0,
-            clearance_m: f64::NAN,
-            required_m: f64::NAN,
-            coasting: false,
-            deviation: (f64::NAN, f64::NAN),
-            compute_ns: 0,
-        };
+        let mut rec = CycleRecord::new(now, self.mode, self.q_cmd);
+        rec.command_delay_s = self.command_delay;
+        rec.standoff_m = self.standoff;
         // Tracker first: samples are taken even while the robot is faulted.
         let mut event = source.latest().and_then(|s| self.take_sample(s));
 

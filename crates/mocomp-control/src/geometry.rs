@@ -127,6 +127,29 @@ impl CoilModel {
     }
 }
 
+/// The head and coil models the unit tests of the goal check and the safety filter share.
+#[cfg(test)]
+pub(crate) mod fixtures {
+    use super::{CoilModel, HeadModel};
+    use mocomp_geom::nalgebra::{Isometry3, Vector3};
+
+    /// An adult head: semi-axes 75, 95 and 110 mm, centred on the head frame.
+    pub(crate) fn head() -> HeadModel {
+        HeadModel {
+            head_from_ellipsoid: Isometry3::identity(),
+            radii: Vector3::new(0.075, 0.095, 0.11),
+        }
+    }
+
+    /// A figure-8 coil's envelope: 40 mm radius, 30 mm thick.
+    pub(crate) fn coil() -> CoilModel {
+        CoilModel {
+            radius: 0.04,
+            thickness: 0.03,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

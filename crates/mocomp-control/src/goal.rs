@@ -76,22 +76,9 @@ pub fn check_goal(
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
+    use crate::geometry::fixtures::{coil, head};
     use mocomp_geom::nalgebra::{Translation3, UnitQuaternion};
     use std::f64::consts::{FRAC_PI_2, PI};
-
-    fn head() -> HeadModel {
-        HeadModel {
-            head_from_ellipsoid: Isometry3::identity(),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        }
-    }
-
-    fn coil() -> CoilModel {
-        CoilModel {
-            radius: 0.04,
-            thickness: 0.03,
-        }
-    }
 
     /// On top of the head at `height` m, turned `tilt` rad about x from facing straight down.
     fn on_top(height: f64, tilt: f64) -> Isometry3<f64> {

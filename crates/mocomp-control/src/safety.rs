@@ -82,21 +82,8 @@ pub fn standoff_for(
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
+    use crate::geometry::fixtures::{coil, head};
     use mocomp_geom::nalgebra::{UnitQuaternion, Vector3};
-
-    fn head() -> HeadModel {
-        HeadModel {
-            head_from_ellipsoid: Isometry3::identity(),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        }
-    }
-
-    fn coil() -> CoilModel {
-        CoilModel {
-            radius: 0.04,
-            thickness: 0.03,
-        }
-    }
 
     /// The coil on top of the head, `gap` above the scalp, facing down, tilted by `tilt` rad.
     fn on_top(gap: f64, tilt: f64) -> Isometry3<f64> {

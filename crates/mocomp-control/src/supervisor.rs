@@ -184,7 +184,7 @@ pub fn robot_rules(state: Option<&RobotState>, now_s: f64, p: &LoopParams) -> Op
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
-    use mocomp_ur::{RobotMode, RuntimeState, SafetyMode};
+    use mocomp_ur::SafetyMode;
 
     fn fresh() -> TrackerInputs {
         TrackerInputs {
@@ -270,26 +270,15 @@ mod tests {
         assert_eq!(reaction(&Reason::HeadTooFast(1.0, 1.0)), Reaction::Retreat);
     }
 
+    /// A healthy robot's state received at t = 1 s (the in-memory robot's).
     fn healthy() -> RobotState {
-        RobotState {
-            controller_s: 1.0,
-            received_s: 1.0,
-            actual_q: [0.0; 6],
-            actual_qd: [0.0; 6],
-            target_q: [0.0; 6],
-            base_from_tcp: mocomp_geom::nalgebra::Isometry3::identity(),
-            robot_mode: RobotMode::Running,
-            safety_mode: SafetyMode::Normal,
-            runtime_state: RuntimeState::Playing,
-            robot_status_bits: 0,
-            safety_status_bits: 0,
-            speed_scaling: 1.0,
-            program_mode: 1,
-            acked_seq: 0,
-            move_done_seq: 0,
-            program_ours: true,
-            connected: true,
-        }
+        let mut r = mocomp_testkit::mem::MemRobot::at(
+            [0.0; 6],
+            mocomp_geom::nalgebra::Isometry3::identity(),
+            0.002,
+        );
+        r.tick(1.0);
+        r.state
     }
 
     #[test]

@@ -31,6 +31,15 @@ impl Run {
             .collect()
     }
 
+    /// The least true clearance once tracking (from 0.3 s), m.
+    fn least_clearance(&self) -> f64 {
+        self.clearance
+            .iter()
+            .skip(150)
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+    }
+
     fn holds(&self) -> usize {
         self.events()
             .iter()
@@ -146,12 +155,7 @@ fn away(t: f64) -> Option<Isometry3<f64>> {
 fn a_head_moving_into_the_coil_pushes_it_back_as_fast_without_a_hold() {
     let r = run(towards, 2.0);
     assert_eq!(r.holds(), 0, "{:?}", r.events());
-    let least = r
-        .clearance
-        .iter()
-        .skip(150)
-        .copied()
-        .fold(f64::INFINITY, f64::min);
+    let least = r.least_clearance();
     assert!(least > 0.0, "the coil entered the head: {least} m");
     // The coil keeps pace: at the time each command acts it is within 2.5 mm of its goal's 3 mm
     // above the scalp, all the way (a held coil would be pushed 50 mm in).
@@ -180,12 +184,7 @@ fn a_head_moving_away_is_followed_without_a_hold_or_a_retreat() {
             .all(|rec| rec.mode == Mode::Tracking)
     );
     assert_keeps_pace(&r);
-    let least = r
-        .clearance
-        .iter()
-        .skip(150)
-        .copied()
-        .fold(f64::INFINITY, f64::min);
+    let least = r.least_clearance();
     assert!(least > 0.0, "{least}");
 }
 
@@ -209,12 +208,7 @@ fn a_head_too_fast_makes_the_coil_retreat_then_come_back() {
     assert!(furthest >= p.retreat_distance_m, "{furthest}");
     // Three times the patient studies' fastest head, reaching it at 1.6 m/s²: before the
     // prediction has its acceleration the coil may dip into the scalp's give, never deeper.
-    let least = r
-        .clearance
-        .iter()
-        .skip(150)
-        .copied()
-        .fold(f64::INFINITY, f64::min);
+    let least = r.least_clearance();
     assert!(least > -p.coil_contact_tolerance_m, "{least}");
     // Back on the goal once the head has stopped (at about 1.13 s).
     let end = r.records.last().unwrap();
@@ -257,11 +251,6 @@ fn a_short_dropout_is_coasted_with_a_growing_margin_and_no_hold() {
             .filter(|x| x.t > 1.05 && x.t < 1.11)
             .all(|x| x.coasting && x.mode == Mode::Tracking)
     );
-    let least = r
-        .clearance
-        .iter()
-        .skip(150)
-        .copied()
-        .fold(f64::INFINITY, f64::min);
+    let least = r.least_clearance();
     assert!(least > 0.0, "{least}");
 }
