@@ -449,21 +449,10 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     // With --json, standard output is the summary alone; what starts goes to standard error.
     let mut stderr = std::io::stderr();
     let progress: &mut dyn Write = if opts.json { &mut stderr } else { out };
-    let world = World::connect(&setup, q0, progress, Some(&setup.file.realtime))?;
-    let realtime = world.realtime.clone();
-    if let Some(w) = realtime.as_ref().and_then(mocomp_rt::RtReport::warning) {
-        eprintln!("warning: {w}");
-    }
-    let file = &setup.file;
-    let clock = Arc::clone(&world.clock);
-    let client = world.client(&setup, &file.tracker.device);
-    // The simulators (the rest of `world`) stay up until the end of this function.
-    let mut robot = world.robot;
-    let mut source = client.pose_source();
-    out.flush()?;
-
-    // Logger.
-    let csv = match &file.log_csv {
+    // What the loop needs besides the world is made before the robot is connected: once
+    // connected, its control program stops when no command comes for 50 ms (the watchdog), and
+    // a thread started on a busy machine can take longer than that. The logger:
+    let csv = match &setup.file.log_csv {
         Some(p) => Some(std::fs::File::create(p).with_context(|| format!("log_csv {p}"))?),
         None => None,
     };
@@ -472,8 +461,8 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
     let log_thread = std::thread::Builder::new()
         .name("mocomp-log".into())
         .spawn(move || {
-            // Spawned by the real-time thread; the logger must not compete with it, nor sit on
-            // its core.
+            // Whatever the thread that starts it runs at, the logger must not compete with the
+            // real-time loop, nor sit on its core.
             mocomp_rt::set_normal().ok();
             mocomp_rt::unpin().ok();
             logger(rx, period, csv, status)
@@ -488,8 +477,22 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
             .context("installing the Ctrl-C handler")?;
     }
 
-    // The loop, at the robot's rate: one cycle per new state.
     let mut comp = Compensator::new(cfg, arm, period);
+
+    let world = World::connect(&setup, q0, progress, Some(&setup.file.realtime))?;
+    let realtime = world.realtime.clone();
+    if let Some(w) = realtime.as_ref().and_then(mocomp_rt::RtReport::warning) {
+        eprintln!("warning: {w}");
+    }
+    let file = &setup.file;
+    let clock = Arc::clone(&world.clock);
+    let client = world.client(&setup, &file.tracker.device);
+    // The simulators (the rest of `world`) stay up until the end of this function.
+    let mut robot = world.robot;
+    let mut source = client.pose_source();
+    out.flush()?;
+
+    // The loop, at the robot's rate: one cycle per new state.
     let t_end = if file.duration_s > 0.0 {
         clock.now_s() + file.duration_s
     } else {
@@ -509,6 +512,8 @@ pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
             .state()
             .is_some_and(|s| clock.now_s() - s.received_s < period)
     {
+        // Fed meanwhile: the program's watchdog does not wait for the first cycle.
+        robot.keep_alive().ok();
         seen = robot.wait_for_state(seen, patience);
     }
     while !stop.load(Ordering::Relaxed) && clock.now_s() < t_end {
