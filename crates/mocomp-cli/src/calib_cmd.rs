@@ -64,7 +64,7 @@ struct SolveJson {
 }
 
 /// `calibrate solve`.
-pub fn solve_cmd(out: &mut impl Write, args: &SolveArgs<'_>) -> Result<()> {
+pub fn solve_cmd(out: &mut dyn Write, args: &SolveArgs<'_>) -> Result<()> {
     let name = args.pairs.display().to_string();
     let text = std::fs::read_to_string(args.pairs)
         .with_context(|| format!("--pairs {name}: cannot read"))?;
@@ -118,7 +118,7 @@ pub fn solve_cmd(out: &mut impl Write, args: &SolveArgs<'_>) -> Result<()> {
     Ok(())
 }
 
-pub(crate) fn print_report(out: &mut impl Write, c: &Calibration, n: usize) -> Result<()> {
+pub(crate) fn print_report(out: &mut dyn Write, c: &Calibration, n: usize) -> Result<()> {
     writeln!(
         out,
         "method {}, {n} pairs ({} nonlinear iterations)",
@@ -243,7 +243,7 @@ struct PlanJson {
 }
 
 /// `calibrate plan`.
-pub fn plan_cmd(out: &mut impl Write, args: &PlanArgs) -> Result<()> {
+pub fn plan_cmd(out: &mut dyn Write, args: &PlanArgs) -> Result<()> {
     let flange_arm = args.arm.with_tool(Isometry3::identity());
     let current = match args.current {
         Some(q) => q,
@@ -318,7 +318,7 @@ pub struct SynthArgs<'a> {
 }
 
 /// `calibrate synth`.
-pub fn synth_cmd(out: &mut impl Write, args: &SynthArgs<'_>) -> Result<()> {
+pub fn synth_cmd(out: &mut dyn Write, args: &SynthArgs<'_>) -> Result<()> {
     let pairs = synthesize(&args.options)?;
     let mut text = String::new();
     let o = &args.options;

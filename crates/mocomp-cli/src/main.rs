@@ -2,27 +2,18 @@
 //! moving head. This binary wires the mocomp crates into subcommands; it computes nothing itself.
 #![allow(clippy::print_stdout, clippy::print_stderr)]
 
-/// Returns a [`Refused`] error (exit code 1) with a formatted message.
-macro_rules! refuse {
-    ($($arg:tt)*) => {
-        return Err($crate::Refused(format!($($arg)*)).into())
-    };
-}
-
 mod args;
 mod calib_cmd;
 mod collect_cmd;
+mod config_cmd;
 mod demo_cmd;
 mod igtl_cmd;
 mod kin_cmd;
-mod plots;
 mod print;
 mod robot_cmd;
 mod run_cmd;
-mod run_config;
 mod teach_cmd;
 mod track_cmd;
-mod world;
 
 use clap::{Args, Parser, Subcommand};
 use mocomp_kin::{KinError, Model};
@@ -148,46 +139,23 @@ enum Command {
         #[arg(long)]
         seconds: Option<f64>,
     },
-    /// Compensate head motion live: the configured robot (a UR, or a simulated one) keeps the
-    /// coil at its goal on the head seen by the configured tracker (OpenIGTLink, or simulated),
-    /// until Ctrl-C (which stops the robot) or `duration_s`. Prints a status line each second and
-    /// a summary; writes every cycle to a CSV log.
-    Run {
-        /// The configuration (TOML; see examples/run-sim.toml for every key, default and unit).
-        #[arg(long, value_name = "FILE")]
-        config: String,
-        /// Stop after this many seconds (overrides `duration_s`).
-        #[arg(long)]
-        seconds: Option<f64>,
-        /// Write every cycle to this CSV file (overrides `log_csv`).
-        #[arg(long, value_name = "FILE")]
-        log_csv: Option<String>,
-        /// No status line or event lines while running (the summary is still printed).
-        #[arg(long)]
-        quiet: bool,
-        /// Print the summary as one JSON object (figures, holds, protective stops, real time).
-        #[arg(long)]
-        json: bool,
-    },
-    /// The paper's two-robot experiment on the simulated world (UR5 moving a head phantom, UR3
-    /// compensating, tracker over OpenIGTLink, both robots calibrated first): the `paper`
-    /// pipeline and `mocomp` on the same trajectory; writes demo.csv, the figures (PNG and SVG),
-    /// summary.md and config.toml.
-    Demo(Box<demo_cmd::DemoArgs>),
-    /// Store the coil's current pose relative to the head as the goal: averages the head
-    /// marker while the robot holds still, checks the goal against the head model, and writes
-    /// `[goal] head_from_coil` into the configuration file in place (comments kept).
-    TeachGoal {
-        /// The configuration (as for `run`).
-        #[arg(long, value_name = "FILE")]
-        config: String,
-        /// Head marker samples to average.
-        #[arg(long, default_value_t = 30)]
-        samples: usize,
-        /// Print the goal, do not write it.
-        #[arg(long)]
-        dry_run: bool,
-    },
+    #[command(
+        about = "Compensate head motion live on the configured robot and tracker (simulated by default)",
+        long_about = None
+    )]
+    Run(run_cmd::RunCmd),
+    #[command(
+        about = "The paper's two-robot experiment on the simulated world: `paper` and `mocomp` on the same trajectory",
+        long_about = None
+    )]
+    Demo(Box<demo_cmd::DemoCmd>),
+    #[command(
+        about = "Store the coil's current pose relative to the head as the goal (written into the configuration)",
+        long_about = None
+    )]
+    TeachGoal(teach_cmd::TeachCmd),
+    /// The configuration every `--config` takes: print it with every key, or check it.
+    Config(config_cmd::ConfigCmd),
     /// Talk to a UR controller (a real one, or `mocomp ursim`) with mocomp's client.
     Robot {
         #[command(subcommand)]
@@ -256,21 +224,11 @@ enum TrackCommand {
 
 #[derive(Debug, Subcommand)]
 enum CalibrateCommand {
-    /// Run the planned calibration poses on the configured robot, measure the flange's marker
-    /// with the configured tracker at each (progress bar), solve, and save the calibration and
-    /// the pairs. Settings: the configuration's `[calibrate]` section. The arm moves: clear the
-    /// space.
-    Collect {
-        /// The configuration (as for `run`).
-        #[arg(long, value_name = "FILE")]
-        config: String,
-        /// Write the calibration here (default: `calibrate.out`, beside the configuration).
-        #[arg(long, value_name = "FILE")]
-        out: Option<PathBuf>,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
-    },
+    #[command(
+        about = "Run the planned calibration poses on the configured robot, measure, solve and save (the arm moves)",
+        long_about = None
+    )]
+    Collect(collect_cmd::CollectCmd),
     /// Solve for X and Y from a pairs file (CSV; see README.md for its columns).
     Solve {
         /// The pairs file.
@@ -470,22 +428,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             kin_cmd::ik(&mut out, &arm, &pose, &choice, json)?;
         }
         Command::Models { json } => kin_cmd::models(&mut out, json)?,
-        Command::Run {
-            config,
-            seconds,
-            log_csv,
-            quiet,
-            json,
-        } => run_cmd::run(
-            &mut out,
-            &run_cmd::RunOptions {
-                config,
-                seconds,
-                log_csv,
-                status: !quiet,
-                json,
-            },
-        )?,
+        Command::Run(c) => c.run(&mut out)?,
+        Command::Config(c) => c.run(&mut out)?,
         Command::Ursim {
             model,
             host,
@@ -496,19 +440,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             robot_cmd::ursim(&mut out, model, host, seconds)?;
         }
-        Command::Demo(a) => demo_cmd::demo(&mut out, &a)?,
-        Command::TeachGoal {
-            config,
-            samples,
-            dry_run,
-        } => teach_cmd::run(
-            &mut out,
-            &teach_cmd::TeachOptions {
-                config,
-                samples,
-                dry_run,
-            },
-        )?,
+        Command::Demo(c) => c.run(&mut out)?,
+        Command::TeachGoal(c) => c.run(&mut out)?,
         Command::Robot { command } => robot(&mut out, command)?,
         Command::Calibrate { command } => calibrate(&mut out, command)?,
         Command::Track(t) => track(&mut out, t)?,
@@ -661,22 +594,11 @@ fn track(out: &mut impl Write, t: TrackCli) -> anyhow::Result<()> {
     }
 }
 
-fn calibrate(out: &mut impl Write, command: CalibrateCommand) -> anyhow::Result<()> {
+fn calibrate(out: &mut dyn Write, command: CalibrateCommand) -> anyhow::Result<()> {
     use mocomp_calib::NoiseModel;
     let noise = |t: [f64; 2], r: [f64; 2]| NoiseModel::from_mm_deg(t[0], t[1], r[0], r[1]);
     match command {
-        CalibrateCommand::Collect {
-            config,
-            out: file,
-            quiet,
-        } => collect_cmd::collect(
-            out,
-            &collect_cmd::CollectOptions {
-                config,
-                out: file,
-                quiet,
-            },
-        ),
+        CalibrateCommand::Collect(c) => c.run(out),
         CalibrateCommand::Solve {
             pairs,
             method,
@@ -804,7 +726,15 @@ fn exit_code(err: &anyhow::Error) -> u8 {
 
 /// Whether one error is bad input (2) or a run-time failure (1); `None`: not known here.
 fn classify(e: &(dyn std::error::Error + 'static)) -> Option<u8> {
-    use mocomp_sim::experiment::ExperimentError;
+    use mocomp_app::experiment::ExperimentError;
+    if let Some(e) = e.downcast_ref::<mocomp_app::AppError>() {
+        // A failure's cause decides (a file not found is input; a lost robot is not).
+        return match e {
+            mocomp_app::AppError::Config(_) => Some(EXIT_USAGE),
+            mocomp_app::AppError::Refused(_) => Some(EXIT_FAILURE),
+            mocomp_app::AppError::Failed { .. } => None,
+        };
+    }
     if e.is::<UsageError>()
         || e.is::<mocomp_vision::VisionError>()
         || e.is::<mocomp_control::ParamError>()
@@ -814,7 +744,6 @@ fn classify(e: &(dyn std::error::Error + 'static)) -> Option<u8> {
         || e.is::<mocomp_sim::MotionError>()
         || e.is::<mocomp_sim::trace::TraceError>()
         || e.is::<toml::de::Error>()
-        || e.is::<toml_edit::TomlError>()
         || e.is::<serde_json::Error>()
     {
         return Some(EXIT_USAGE);
@@ -914,7 +843,7 @@ fn main() -> ExitCode {
 mod exit_code_tests {
     #![allow(clippy::unwrap_used)] // test code
     use super::*;
-    use mocomp_sim::experiment::ExperimentError;
+    use mocomp_app::experiment::ExperimentError;
 
     #[test]
     fn bad_input_is_2_and_everything_failing_at_run_time_is_1() {

@@ -14,7 +14,7 @@ pub fn row(v: &[f64]) -> String {
 
 /// A title, the 4×4 matrix of a transform and, when `with_pose`, its UR pose vector.
 pub fn transform(
-    out: &mut impl Write,
+    out: &mut (impl Write + ?Sized),
     title: &str,
     t: &Isometry3<f64>,
     with_pose: bool,

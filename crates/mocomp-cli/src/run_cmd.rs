@@ -1,576 +1,164 @@
-//! `mocomp run --config FILE`: the compensation loop, live, until Ctrl-C or `duration_s`.
-//!
-//! The robot is a UR controller at an address, or an in-process simulated controller
-//! (`mocomp-ursim`, real time, real RTDE over loopback). The tracker is an OpenIGTLink server
-//! (PLUS, Slicer, a tracker), or an in-process simulated tracker that serves the moving head over
-//! OpenIGTLink on loopback, so the loop always reads poses through the real client. The loop runs
-//! on this thread at the robot's rate; each cycle's record goes through a bounded lock-free
-//! channel to a logger thread that writes the CSV, prints a status line each second and keeps the
-//! summary printed at the end. Ctrl-C stops the robot (stopj) before the program exits.
+//! `mocomp run --config FILE`: the live session ([`mocomp_app::live`]) until Ctrl-C or
+//! `duration_s`; prints a status line each second, the events, and the summary.
 
-use crate::UsageError;
-use crate::run_config::initial_joints;
-use crate::world::{Setup, World};
-use anyhow::Context;
-use mocomp_control::{Compensator, CycleRecord, Event, Mode, Reason};
-use mocomp_ur::Robot;
+use clap::Args;
+use mocomp_app::live::{Observer, RunReport, Status, mode_name};
+use mocomp_app::{AppError, config::Setup};
+use mocomp_control::Event;
 use std::io::Write;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, TrySendError, sync_channel};
-use std::time::{Duration, Instant};
 
-/// What the logger keeps for the summary.
-#[derive(Debug, Default)]
-struct Summary {
-    cycles: u64,
-    /// Records the loop could not queue (the logger fell behind).
-    dropped: u64,
-    first_t: Option<f64>,
-    last_t: f64,
-    missed: u64,
-    period_ms: Vec<f64>,
-    compute_us: Vec<f64>,
-    delay_ms: Vec<f64>,
-    deviation_mm: Vec<f64>,
-    deviation_deg: Vec<f64>,
-    by_mode: [u64; 5],
-    events: Vec<(f64, Event)>,
-    /// Why the CSV log stopped being written, if it did.
-    log_error: Option<String>,
-}
-
-/// How long the run waits for standstill after its stop.
-const STANDSTILL_WAIT: Duration = Duration::from_secs(3);
-
-fn mode_index(m: &Mode) -> usize {
-    match m {
-        Mode::Tracking => 0,
-        Mode::Approaching => 1,
-        Mode::Holding(_) => 2,
-        Mode::Faulted(_) => 3,
-        Mode::Retreating(_) => 4,
-    }
-}
-
-fn mode_name(m: &Mode) -> String {
-    match m {
-        Mode::Tracking => "tracking".into(),
-        Mode::Approaching => "approaching".into(),
-        Mode::Holding(r) => format!("holding ({r:?})"),
-        Mode::Faulted(r) => format!("faulted ({r:?})"),
-        Mode::Retreating(r) => format!("retreating ({r:?})"),
-    }
-}
-
-fn percentile(v: &mut [f64], p: f64) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    v[((v.len() - 1) as f64 * p).round() as usize]
-}
-
-fn logger(
-    rx: Receiver<CycleRecord>,
-    period: f64,
-    csv: Option<std::fs::File>,
-    status: bool,
-) -> Summary {
-    let mut s = Summary::default();
-    let mut w = csv.map(csv::Writer::from_writer);
-    // A log that cannot be written (a full disk) is not dropped silently: it stops logging, and
-    // the run reports it and fails once the robot is stopped.
-    let mut log_error: Option<csv::Error> = None;
-    if let Some(w) = w.as_mut() {
-        let header = [
-            "t_s",
-            "mode",
-            "event",
-            "sample_age_ms",
-            "horizon_ms",
-            "command_delay_ms",
-            "head_speed_mm_s",
-            "head_speed_deg_s",
-            "deviation_mm",
-            "deviation_deg",
-            "path_m",
-            "compute_us",
-            "q1_cmd",
-            "q2_cmd",
-            "q3_cmd",
-            "q4_cmd",
-            "q5_cmd",
-            "q6_cmd",
-            "q1",
-            "q2",
-            "q3",
-            "q4",
-            "q5",
-            "q6",
-        ];
-        if let Err(e) = w.write_record(header) {
-            log_error = Some(e);
-        }
-    }
-    let mut last_status = Instant::now();
-    // Since the last status line: cycles and the largest deviation while tracking (mm).
-    let (mut window_cycles, mut window_max) = (0u64, 0.0f64);
-    for r in rx {
-        s.cycles += 1;
-        window_cycles += 1;
-        if s.first_t.is_none() {
-            s.first_t = Some(r.t);
-        } else {
-            s.period_ms.push((r.t - s.last_t) * 1e3);
-            if r.t - s.last_t > 1.5 * period {
-                s.missed += ((r.t - s.last_t) / period).round() as u64 - 1;
-            }
-        }
-        s.last_t = r.t;
-        s.by_mode[mode_index(&r.mode)] += 1;
-        s.compute_us.push(r.compute_ns as f64 / 1e3);
-        s.delay_ms.push(r.command_delay_s * 1e3);
-        // The measured flange against the goal for the head estimated at the same time (not the
-        // goal the command aims at, which is the head predicted a horizon ahead).
-        let (dev_mm, dev_deg) = (r.deviation.0 * 1e3, r.deviation.1.to_degrees());
-        if r.mode == Mode::Tracking && dev_mm.is_finite() {
-            s.deviation_mm.push(dev_mm);
-            s.deviation_deg.push(dev_deg);
-            window_max = window_max.max(dev_mm);
-        }
-        if let Some(e) = r.event {
-            s.events.push((r.t, e));
-            if status {
-                eprintln!("{:9.3} s  event {e:?}", r.t);
-            }
-        }
-        if let Some(w) = w.as_mut().filter(|_| log_error.is_none()) {
-            let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
-            let mut row = vec![
-                format!("{:.6}", r.t),
-                mode_name(&r.mode),
-                r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
-                format!("{:.3}", r.sample_age_s * 1e3),
-                format!("{:.3}", r.horizon_s * 1e3),
-                format!("{:.3}", r.command_delay_s * 1e3),
-                format!("{:.2}", r.head_speed.0 * 1e3),
-                format!("{:.2}", r.head_speed.1.to_degrees()),
-                format!("{dev_mm:.4}"),
-                format!("{dev_deg:.4}"),
-                format!("{path:.4}"),
-                format!("{:.2}", r.compute_ns as f64 / 1e3),
-            ];
-            row.extend(
-                r.q_command
-                    .iter()
-                    .chain(r.q_actual.iter())
-                    .map(|q| format!("{q:.6}")),
-            );
-            if let Err(e) = w.write_record(&row) {
-                log_error = Some(e);
-            }
-        }
-        if status && last_status.elapsed() >= Duration::from_secs(1) {
-            let rate = window_cycles as f64 / last_status.elapsed().as_secs_f64();
-            eprintln!(
-                "{:9.3} s  {:.0} Hz  horizon {:.1} ms (sample age {:.1} + command delay {:.1} + lookahead)  deviation max {:.2} mm  {}",
-                r.t,
-                rate,
-                r.horizon_s * 1e3,
-                r.sample_age_s * 1e3,
-                r.command_delay_s * 1e3,
-                window_max,
-                mode_name(&r.mode)
-            );
-            last_status = Instant::now();
-            (window_cycles, window_max) = (0, 0.0);
-        }
-    }
-    if let Some(w) = w.as_mut()
-        && log_error.is_none()
-        && let Err(e) = w.flush()
-    {
-        log_error = Some(e.into());
-    }
-    s.log_error = log_error.map(|e| e.to_string());
-    s
-}
-
-/// Options from the command line.
-#[derive(Debug, Clone)]
-pub struct RunOptions {
-    /// The configuration file.
-    pub config: String,
-    /// Overrides `duration_s`.
+/// Compensate head motion live: the configured robot (a UR, or a simulated one) keeps the coil at
+/// its goal on the head seen by the configured tracker (OpenIGTLink, or simulated), until Ctrl-C
+/// (which stops the robot) or `duration_s`. Prints a status line each second and a summary;
+/// writes every cycle to a CSV log.
+#[derive(Debug, Clone, Args)]
+pub struct RunCmd {
+    /// The configuration (TOML; `mocomp config print` shows every key, default and unit).
+    #[arg(long, value_name = "FILE")]
+    pub config: PathBuf,
+    /// Stop after this many seconds (overrides `duration_s`).
+    #[arg(long)]
     pub seconds: Option<f64>,
-    /// Overrides `log_csv`.
+    /// Write every cycle to this CSV file (overrides `log_csv`).
+    #[arg(long, value_name = "FILE")]
     pub log_csv: Option<String>,
-    /// Print the status line and events.
-    pub status: bool,
-    /// Print the summary as one JSON object instead of text.
+    /// No status line or event lines while running (the summary is still printed).
+    #[arg(long)]
+    pub quiet: bool,
+    /// Print the summary as one JSON object (figures, holds, protective stops, real time).
+    #[arg(long)]
     pub json: bool,
 }
 
-/// How the run's final stop went, as it happened.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-#[serde(tag = "outcome", rename_all = "snake_case")]
-enum StopOutcome {
-    /// stopj was sent and the arm stood still after `after_s`.
-    Standstill { after_s: f64 },
-    /// stopj was refused (the robot had stopped itself: a fault, a lost program), and the arm
-    /// stands still.
-    AlreadyStopped { why: String },
-    /// The arm was still moving `after_s` after the stop (stopj sent, or refused for `refused`).
-    StillMoving {
-        after_s: f64,
-        refused: Option<String>,
-    },
-}
+/// Status and events on standard error.
+struct Lines;
 
-impl std::fmt::Display for StopOutcome {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Standstill { after_s } => {
-                write!(f, "stopj sent, standstill after {after_s:.2} s")
-            }
-            Self::AlreadyStopped { why } => {
-                write!(f, "stopj refused ({why}); the arm stands still")
-            }
-            Self::StillMoving {
-                after_s,
-                refused: None,
-            } => write!(
-                f,
-                "stopj sent, but the arm still moved after {after_s:.1} s"
-            ),
-            Self::StillMoving {
-                after_s,
-                refused: Some(why),
-            } => write!(
-                f,
-                "stopj refused ({why}), and the arm still moved after {after_s:.1} s"
-            ),
-        }
+impl Observer for Lines {
+    fn event(&mut self, t: f64, e: &Event) {
+        eprintln!("{t:9.3} s  event {e:?}");
+    }
+    fn status(&mut self, s: &Status) {
+        eprintln!(
+            "{:9.3} s  {:.0} Hz  horizon {:.1} ms (sample age {:.1} + command delay {:.1} + lookahead)  deviation max {:.2} mm  {}",
+            s.t,
+            s.rate_hz,
+            s.horizon_s * 1e3,
+            s.sample_age_s * 1e3,
+            s.command_delay_s * 1e3,
+            s.deviation_max_m * 1e3,
+            mode_name(&s.mode)
+        );
     }
 }
 
-/// The run's summary (also `--json`): what an operator, and `scripts/stress.sh`, reads.
-#[derive(Debug, serde::Serialize)]
-struct RunReport {
-    cycles: u64,
-    seconds: f64,
-    rate_hz: f64,
-    missed_cycles: u64,
-    missed_percent: f64,
-    log_records_dropped: u64,
-    period_median_ms: f64,
-    period_p99_ms: f64,
-    period_max_ms: f64,
-    compute_median_us: f64,
-    compute_p99_us: f64,
-    compute_max_us: f64,
-    command_delay_median_ms: f64,
-    tracking_percent: f64,
-    approaching_percent: f64,
-    holding_percent: f64,
-    faulted_percent: f64,
-    retreating_percent: f64,
-    deviation_rms_mm: f64,
-    deviation_p95_mm: f64,
-    deviation_max_mm: f64,
-    rotation_p95_deg: f64,
-    holds: usize,
-    robot_stale_holds: usize,
-    protective_stops: usize,
-    events: usize,
-    /// Each event: loop time (s) and what happened.
-    event_log: Vec<(f64, String)>,
-    final_mode: String,
-    /// How the final stop went.
-    stop: StopOutcome,
-    /// Why the CSV log stopped being written, if it did.
-    log_error: Option<String>,
-    realtime: String,
-    realtime_complete: bool,
-}
-
-impl RunReport {
-    fn new(
-        s: &mut Summary,
-        rt: Option<&mocomp_rt::RtReport>,
-        final_mode: &Mode,
-        stop: StopOutcome,
-    ) -> Self {
-        let span = s.last_t - s.first_t.unwrap_or(s.last_t);
-        let n = s.cycles.max(1) as f64;
-        let rms = (s.deviation_mm.iter().map(|d| d * d).sum::<f64>()
-            / s.deviation_mm.len().max(1) as f64)
-            .sqrt();
-        let holds = |f: fn(&Reason) -> bool| {
-            s.events
-                .iter()
-                .filter(|(_, e)| matches!(e, Event::Hold(r) if f(r)))
-                .count()
+impl RunCmd {
+    /// Runs it.
+    pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
+        let mut setup = Setup::load(&self.config)?;
+        if let Some(s) = self.seconds {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(
+                    AppError::Config(format!("--seconds {s}: must be a positive number")).into(),
+                );
+            }
+            setup.file.duration_s = s;
+        }
+        if self.log_csv.is_some() {
+            setup.file.log_csv.clone_from(&self.log_csv);
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        {
+            let stop = Arc::clone(&stop);
+            ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))?;
+        }
+        let observer: Box<dyn Observer> = if self.quiet {
+            Box::new(mocomp_app::live::Silent)
+        } else {
+            Box::new(Lines)
         };
-        Self {
-            cycles: s.cycles,
-            seconds: span,
-            rate_hz: s.cycles.saturating_sub(1) as f64 / span.max(1e-9),
-            missed_cycles: s.missed,
-            missed_percent: 100.0 * s.missed as f64 / (s.cycles + s.missed).max(1) as f64,
-            log_records_dropped: s.dropped,
-            period_median_ms: percentile(&mut s.period_ms, 0.5),
-            period_p99_ms: percentile(&mut s.period_ms, 0.99),
-            period_max_ms: percentile(&mut s.period_ms, 1.0),
-            compute_median_us: percentile(&mut s.compute_us, 0.5),
-            compute_p99_us: percentile(&mut s.compute_us, 0.99),
-            compute_max_us: percentile(&mut s.compute_us, 1.0),
-            command_delay_median_ms: percentile(&mut s.delay_ms, 0.5),
-            tracking_percent: 100.0 * s.by_mode[0] as f64 / n,
-            approaching_percent: 100.0 * s.by_mode[1] as f64 / n,
-            holding_percent: 100.0 * s.by_mode[2] as f64 / n,
-            faulted_percent: 100.0 * s.by_mode[3] as f64 / n,
-            retreating_percent: 100.0 * s.by_mode[4] as f64 / n,
-            deviation_rms_mm: rms,
-            deviation_p95_mm: percentile(&mut s.deviation_mm, 0.95),
-            deviation_max_mm: percentile(&mut s.deviation_mm, 1.0),
-            rotation_p95_deg: percentile(&mut s.deviation_deg, 0.95),
-            holds: holds(|_| true),
-            robot_stale_holds: holds(|r| matches!(r, Reason::RobotStale)),
-            protective_stops: holds(|r| {
-                matches!(r, Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop))
-            }),
-            events: s.events.len(),
-            event_log: s
-                .events
-                .iter()
-                .map(|(t, e)| (*t, format!("{e:?}")))
-                .collect(),
-            final_mode: mode_name(final_mode),
-            stop,
-            log_error: s.log_error.clone(),
-            realtime: rt.map_or_else(|| "normal scheduling".into(), mocomp_rt::RtReport::describe),
-            realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
+        let log = setup.file.log_csv.as_deref().map(Path::new);
+        // With --json, standard output is the summary alone; what starts goes to standard error.
+        let mut stderr = std::io::stderr();
+        let progress: &mut dyn Write = if self.json { &mut stderr } else { out };
+        let report = mocomp_app::live::run(&setup, log, &stop, observer, progress)?;
+        if self.json {
+            writeln!(out, "{}", serde_json::to_string(&report)?)?;
+        } else {
+            print(out, &report, setup.file.log_csv.as_deref())?;
         }
-    }
-
-    fn print(&self, out: &mut dyn Write, log: Option<&str>) -> std::io::Result<()> {
-        writeln!(out, "\nsummary")?;
-        writeln!(
-            out,
-            "  cycles            {} in {:.2} s ({:.1} Hz); missed {} ({:.2} %); log records dropped {}",
-            self.cycles,
-            self.seconds,
-            self.rate_hz,
-            self.missed_cycles,
-            self.missed_percent,
-            self.log_records_dropped
-        )?;
-        writeln!(
-            out,
-            "  real time         {}{}",
-            self.realtime,
-            if self.realtime_complete {
-                ""
-            } else {
-                " (the loop ran without full real-time scheduling)"
-            }
-        )?;
-        writeln!(
-            out,
-            "  cycle period      median {:.3} ms, p99 {:.3} ms, max {:.3} ms",
-            self.period_median_ms, self.period_p99_ms, self.period_max_ms
-        )?;
-        writeln!(
-            out,
-            "  modes             tracking {:.1} %, approaching {:.1} %, retreating {:.1} %, holding {:.1} %, faulted {:.1} %",
-            self.tracking_percent,
-            self.approaching_percent,
-            self.retreating_percent,
-            self.holding_percent,
-            self.faulted_percent
-        )?;
-        writeln!(
-            out,
-            "  cycle compute     median {:.1} µs, p99 {:.1} µs, max {:.1} µs (the socket write included)",
-            self.compute_median_us, self.compute_p99_us, self.compute_max_us
-        )?;
-        writeln!(
-            out,
-            "  command delay     median {:.2} ms",
-            self.command_delay_median_ms
-        )?;
-        writeln!(
-            out,
-            "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
-            self.deviation_rms_mm,
-            self.deviation_p95_mm,
-            self.deviation_max_mm,
-            self.rotation_p95_deg
-        )?;
-        writeln!(
-            out,
-            "  holds             {} (robot state stale {}, protective stops {})",
-            self.holds, self.robot_stale_holds, self.protective_stops
-        )?;
-        writeln!(out, "  events            {}", self.events)?;
-        for (t, e) in &self.event_log {
-            writeln!(out, "    {t:9.3} s  {e}")?;
-        }
-        writeln!(out, "  final mode        {}", self.final_mode)?;
-        writeln!(out, "  robot stop        {}", self.stop)?;
-        if let Some(e) = &self.log_error {
-            writeln!(out, "  log error         {e}")?;
-        }
-        if let Some(p) = log {
-            writeln!(out, "  log               {p}")?;
+        // The summary is out; what went wrong at the end still fails the run.
+        if let Some(why) = report.failure(log) {
+            return Err(AppError::Refused(why).into());
         }
         Ok(())
     }
 }
 
-/// Runs the loop until Ctrl-C or the configured duration, then prints the summary to `out`.
-pub fn run(out: &mut dyn Write, opts: &RunOptions) -> anyhow::Result<()> {
-    let mut setup = Setup::load(&opts.config)?;
-    if let Some(s) = opts.seconds {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(UsageError(format!("--seconds {s}: must be a positive number")).into());
+fn print(out: &mut dyn Write, r: &RunReport, log: Option<&str>) -> std::io::Result<()> {
+    writeln!(out, "\nsummary")?;
+    writeln!(
+        out,
+        "  cycles            {} in {:.2} s ({:.1} Hz); missed {} ({:.2} %); log records dropped {}",
+        r.cycles, r.seconds, r.rate_hz, r.missed_cycles, r.missed_percent, r.log_records_dropped
+    )?;
+    writeln!(
+        out,
+        "  real time         {}{}",
+        r.realtime,
+        if r.realtime_complete {
+            ""
+        } else {
+            " (the loop ran without full real-time scheduling)"
         }
-        setup.file.duration_s = s;
+    )?;
+    writeln!(
+        out,
+        "  cycle period      median {:.3} ms, p99 {:.3} ms, max {:.3} ms",
+        r.period_median_ms, r.period_p99_ms, r.period_max_ms
+    )?;
+    writeln!(
+        out,
+        "  modes             tracking {:.1} %, approaching {:.1} %, retreating {:.1} %, holding {:.1} %, faulted {:.1} %",
+        r.tracking_percent,
+        r.approaching_percent,
+        r.retreating_percent,
+        r.holding_percent,
+        r.faulted_percent
+    )?;
+    writeln!(
+        out,
+        "  cycle compute     median {:.1} µs, p99 {:.1} µs, max {:.1} µs (the socket write included)",
+        r.compute_median_us, r.compute_p99_us, r.compute_max_us
+    )?;
+    writeln!(
+        out,
+        "  command delay     median {:.2} ms",
+        r.command_delay_median_ms
+    )?;
+    writeln!(
+        out,
+        "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
+        r.deviation_rms_mm, r.deviation_p95_mm, r.deviation_max_mm, r.rotation_p95_deg
+    )?;
+    writeln!(
+        out,
+        "  holds             {} (robot state stale {}, protective stops {})",
+        r.holds, r.robot_stale_holds, r.protective_stops
+    )?;
+    writeln!(out, "  events            {}", r.events)?;
+    for (t, e) in &r.event_log {
+        writeln!(out, "    {t:9.3} s  {e}")?;
     }
-    if opts.log_csv.is_some() {
-        setup.file.log_csv.clone_from(&opts.log_csv);
+    writeln!(out, "  final mode        {}", r.final_mode)?;
+    writeln!(out, "  robot stop        {}", r.stop)?;
+    if let Some(e) = &r.log_error {
+        writeln!(out, "  log error         {e}")?;
     }
-    let (model, arm) = (setup.model, setup.arm);
-    let period = model.spec().series.period_s();
-    let cfg = setup.file.loop_config(setup.base_from_tracker, period)?;
-    let q0 = initial_joints(&setup.file, &arm, &cfg)?;
-    // With --json, standard output is the summary alone; what starts goes to standard error.
-    let mut stderr = std::io::stderr();
-    let progress: &mut dyn Write = if opts.json { &mut stderr } else { out };
-    // What the loop needs besides the world is made before the robot is connected: once
-    // connected, its control program stops when no command comes for 50 ms (the watchdog), and
-    // a thread started on a busy machine can take longer than that. The logger:
-    let csv = match &setup.file.log_csv {
-        Some(p) => Some(std::fs::File::create(p).with_context(|| format!("log_csv {p}"))?),
-        None => None,
-    };
-    let (tx, rx) = sync_channel::<CycleRecord>(8192);
-    let status = opts.status;
-    let log_thread = std::thread::Builder::new()
-        .name("mocomp-log".into())
-        .spawn(move || {
-            // Whatever the thread that starts it runs at, the logger must not compete with the
-            // real-time loop, nor sit on its core.
-            mocomp_rt::set_normal().ok();
-            mocomp_rt::unpin().ok();
-            logger(rx, period, csv, status)
-        })
-        .context("logger thread")?;
-
-    // Ctrl-C.
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = Arc::clone(&stop);
-        ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed))
-            .context("installing the Ctrl-C handler")?;
-    }
-
-    let mut comp = Compensator::new(cfg, arm, period);
-
-    let world = World::connect(&setup, q0, progress, Some(&setup.file.realtime))?;
-    let realtime = world.realtime.clone();
-    if let Some(w) = realtime.as_ref().and_then(mocomp_rt::RtReport::warning) {
-        eprintln!("warning: {w}");
-    }
-    let file = &setup.file;
-    let clock = Arc::clone(&world.clock);
-    let client = world.client(&setup, &file.tracker.device);
-    // The simulators (the rest of `world`) stay up until the end of this function.
-    let mut robot = world.robot;
-    let mut source = client.pose_source();
-    out.flush()?;
-
-    // The loop, at the robot's rate: one cycle per new state.
-    let t_end = if file.duration_s > 0.0 {
-        clock.now_s() + file.duration_s
-    } else {
-        f64::INFINITY
-    };
-    let mut seen = robot.state_count();
-    let mut dropped = 0u64;
-    // Wait for the next state (woken by the client's receive thread); after three periods without
-    // one, cycle anyway: the loop resends its command (the watchdog stays fed) and its
-    // stale-state rule stops the robot once the state is really stale.
-    let patience = Duration::from_secs_f64(3.0 * period);
-    // Start on a fresh state (up to a second): the first cycle must not judge a state that was
-    // received while the rest of the world was still starting.
-    let ready_by = Instant::now() + Duration::from_secs(1);
-    while Instant::now() < ready_by
-        && !robot
-            .state()
-            .is_some_and(|s| clock.now_s() - s.received_s < period)
-    {
-        // Fed meanwhile: the program's watchdog does not wait for the first cycle.
-        robot.keep_alive().ok();
-        seen = robot.wait_for_state(seen, patience);
-    }
-    while !stop.load(Ordering::Relaxed) && clock.now_s() < t_end {
-        seen = robot.wait_for_state(seen, patience);
-        let t0 = Instant::now();
-        let mut rec = comp.cycle(clock.now_s(), &mut robot, &mut source);
-        rec.compute_ns = t0.elapsed().as_nanos() as u64;
-        if let Err(TrySendError::Full(_)) = tx.try_send(rec) {
-            dropped += 1;
-        }
-    }
-    // Stop the robot in a defined way, and wait for standstill.
-    let decel = comp.config().params.stop_decel_rad_s2;
-    let sent = robot.stop(decel);
-    let t_stop = Instant::now();
-    let still = loop {
-        let still = robot
-            .state()
-            .is_some_and(|s| s.actual_qd.iter().all(|v| v.abs() < 1e-3));
-        if still || t_stop.elapsed() >= STANDSTILL_WAIT {
-            break still;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    let after_s = t_stop.elapsed().as_secs_f64();
-    let stop = match (sent, still) {
-        (Ok(_), true) => StopOutcome::Standstill { after_s },
-        (Err(e), true) => StopOutcome::AlreadyStopped { why: e.to_string() },
-        (sent, false) => StopOutcome::StillMoving {
-            after_s,
-            refused: sent.err().map(|e| e.to_string()),
-        },
-    };
-    let final_mode = comp.mode();
-    drop(tx);
-    let mut s = log_thread
-        .join()
-        .map_err(|_| anyhow::anyhow!("the logger thread panicked"))?;
-    s.dropped = dropped;
-    let _ = robot.close();
-    drop(client);
-
-    let report = RunReport::new(&mut s, realtime.as_ref(), &final_mode, stop);
-    if opts.json {
-        writeln!(out, "{}", serde_json::to_string(&report)?)?;
-    } else {
-        report.print(out, file.log_csv.as_deref())?;
-    }
-    // The summary is out; what went wrong at the end still fails the run.
-    if let StopOutcome::StillMoving { .. } = &report.stop {
-        refuse!("the robot did not stop: {}", report.stop);
-    }
-    if let Some(e) = &report.log_error {
-        refuse!(
-            "the cycle log {} is incomplete: {e}",
-            file.log_csv.as_deref().unwrap_or("")
-        );
+    if let Some(p) = log {
+        writeln!(out, "  log               {p}")?;
     }
     Ok(())
 }

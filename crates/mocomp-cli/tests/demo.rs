@@ -49,7 +49,7 @@ fn the_demo_writes_its_report_and_mocomp_wins() {
     // The configuration it ran with is written beside the report.
     let cfg = std::fs::read_to_string(format!("{out_dir}/config.toml")).unwrap();
     assert!(
-        cfg.contains("seconds = 10.0") && cfg.contains("coil_host = \"127.0.0.55\""),
+        cfg.contains("duration_s = 10.0") && cfg.contains("host = \"127.0.0.55\""),
         "{cfg}"
     );
     let csv = std::fs::read_to_string(format!("{out_dir}/demo.csv")).unwrap();
@@ -159,20 +159,32 @@ fn bad_settings_are_refused_naming_the_key_or_option() {
     let dir = TempDir::new("mocomp-demo-bad");
     let path = dir.path("bad.toml");
     let cases: [(&str, &[&str], &str); 6] = [
-        ("seconds = 3\n\n[tracker]\nnoise = 1\n", &[], "line 4"),
-        ("[robots]\nhead = \"ur5e\"\n", &[], "robots.head"),
         (
-            "[motion]\nkind = \"nods\"\nsway_m = -1.0\n",
+            "duration_s = 3\n\n[tracker]\nnoise = 1\n",
             &[],
-            "motion.sway_m",
+            "tracker.noise",
+        ),
+        (
+            "[experiment]\nhead_robot = \"ur5e\"\n",
+            &[],
+            "experiment.head_robot",
+        ),
+        (
+            "[tracker.simulated.motion]\nkind = \"nods\"\nsway_m = -1.0\n",
+            &[],
+            "tracker.simulated.motion.sway_m",
         ),
         (
             "",
             &["--motion", "still", "--speed-mm-s", "5"],
             "--speed-mm-s",
         ),
-        ("", &["--tracker-rate-hz", "0"], "tracker.rate_hz"),
-        ("", &["--seconds=-2"], "seconds"),
+        (
+            "",
+            &["--tracker-rate-hz", "0"],
+            "tracker.simulated.model.rate_hz",
+        ),
+        ("", &["--seconds=-2"], "experiment.duration_s"),
     ];
     for (file, opts, named) in cases {
         std::fs::write(&path, file).unwrap();

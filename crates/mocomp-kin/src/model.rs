@@ -283,6 +283,13 @@ impl<'de> serde::Deserialize<'de> for Model {
     }
 }
 
+/// As its name (`"ur5e"`), the form [`Model`]'s `Deserialize` reads.
+impl serde::Serialize for Model {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
 /// The names of every model, comma-separated, for error messages and help texts.
 pub fn model_names() -> String {
     MODELS.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")

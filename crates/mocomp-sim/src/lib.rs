@@ -4,13 +4,9 @@
 //! - [`tracker`]: a tracker model (rate, latency, noise in position and rotation, dropouts,
 //!   outliers), pure and steppable, and [`tracker::TrackerServer`], which runs it in real time
 //!   and serves the markers over OpenIGTLink as a PLUS server would.
-//! - [`config`]: the experiment's TOML configuration file (`mocomp demo --config`).
-//! - [`experiment`]: the paper's two-robot experiment, with hand-eye calibration in the loop and
-//!   two controllers (a model of the paper's pipeline, and mocomp's loop) on the same trajectory.
+//!
+//! The paper's two-robot experiment that runs on it is `mocomp_app::experiment`.
 
-pub mod baseline;
-pub mod config;
-pub mod experiment;
 pub mod motion;
 pub mod trace;
 pub mod tracker;

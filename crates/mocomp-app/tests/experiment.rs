@@ -9,7 +9,7 @@
 //! `mocomp` controllers on the same trajectory and noise. mocomp must beat the paper's pipeline
 //! by the margins the issue asks for.
 
-use mocomp_sim::experiment::{Controller, ExperimentConfig, run_experiment};
+use mocomp_app::experiment::{Controller, ExperimentConfig, run_experiment};
 use std::net::IpAddr;
 
 #[test]

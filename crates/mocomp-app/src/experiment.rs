@@ -28,8 +28,6 @@
 //! simulators' true joints, with the translation and rotation errors of `E2_T_E1`.
 
 use crate::baseline::PaperPipeline;
-use crate::motion::HeadMotion;
-use crate::tracker::{TrackerModel, TrackerSim};
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, Pair, SolveOptions, solve};
 use mocomp_control::{Compensator, Event, LoopConfig, Mode};
@@ -42,6 +40,8 @@ use mocomp_igtl::client::{Client, ClientConfig, IgtlPoseSource, TimestampMode};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use mocomp_kin::{Arm, Model, Selection};
+use mocomp_sim::HeadMotion;
+use mocomp_sim::{TrackerModel, TrackerSim};
 use mocomp_ur::{Robot, ServoParams, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
 use std::net::IpAddr;
@@ -192,6 +192,12 @@ pub struct ExperimentConfig {
     pub loop_params: mocomp_control::LoopParams,
     /// The `mocomp` loop's predictor.
     pub predictor: mocomp_control::PredictorConfig,
+    /// The `mocomp` loop's servoj lookahead (s) and gain.
+    pub servo: (f64, f64),
+    /// The controllers' head model.
+    pub head: mocomp_control::HeadModel,
+    /// The controllers' coil model.
+    pub coil: mocomp_control::CoilModel,
 }
 
 /// The paper's goal as a rigid transform (metres).
@@ -203,26 +209,15 @@ pub fn paper_goal() -> Result<Isometry3<f64>, ExperimentError> {
 }
 
 impl ExperimentConfig {
-    /// The defaults: UR3 and UR5 (CB3, 125 Hz) on 127.0.0.2 and 127.0.0.3, 30 s of smooth random
-    /// motion up to 20 mm/s and 10°/s, a 60 Hz tracker with 20 ms latency and 0.1 mm / 1 mrad
-    /// noise per axis, 15 calibration poses per robot (10 samples averaged at each), the paper's goal.
+    /// The defaults: those of the configuration ([`crate::config::Config`]'s, see
+    /// [`crate::config::ExperimentSection`]): a UR3 and a UR5 (CB3, 125 Hz) on 127.0.0.2 and
+    /// 127.0.0.3, 30 s of smooth random motion up to 20 mm/s and 10°/s, a 60 Hz tracker with
+    /// 20 ms latency and 0.1 mm / 1 mrad noise per axis, 15 calibration poses per robot (10
+    /// samples averaged at each), the paper's goal.
     pub fn new() -> Result<Self, ExperimentError> {
-        Ok(Self {
-            coil_robot: Model::Ur3,
-            head_robot: Model::Ur5,
-            coil_host: IpAddr::from([127, 0, 0, 2]),
-            head_host: IpAddr::from([127, 0, 0, 3]),
-            duration_s: 30.0,
-            motion: HeadMotion::Random(crate::motion::RandomMotion::default()),
-            tracker: TrackerModel::default(),
-            paper: PaperController::default(),
-            calibration_poses: 15,
-            calibration_samples: 10,
-            goal_e2_from_e1: paper_goal()?,
-            loop_params: mocomp_control::LoopParams::default(),
-            // The loop's own: its adaptive noise smooths a slow head and follows a fast one.
-            predictor: mocomp_control::PredictorConfig::default(),
-        })
+        crate::config::Config::default()
+            .experiment()
+            .map_err(|e| ExperimentError::Config(e.to_string()))
     }
 
     /// Seeds the random motion (if the motion is random) and the tracker's noise.
@@ -239,19 +234,19 @@ impl ExperimentConfig {
         let bad = |m: String| Err(ExperimentError::Config(m));
         if !(self.duration_s.is_finite() && self.duration_s > 0.0 && self.duration_s <= 3600.0) {
             return bad(format!(
-                "seconds = {}: must be in (0, 3600]",
+                "experiment.duration_s = {}: must be in (0, 3600]",
                 self.duration_s
             ));
         }
         if self.coil_host == self.head_host {
             return bad(format!(
-                "robots.coil_host = robots.head_host = {}: the two robots need their own addresses",
+                "robot.host = experiment.head_host = {}: the two robots need their own addresses",
                 self.coil_host
             ));
         }
         if !(self.coil_host.is_loopback() && self.head_host.is_loopback()) {
             return bad(format!(
-                "robots.coil_host = {}, robots.head_host = {}: the simulators listen on loopback addresses only",
+                "robot.host = {}, experiment.head_host = {}: the simulators listen on loopback addresses only",
                 self.coil_host, self.head_host
             ));
         }
@@ -262,28 +257,43 @@ impl ExperimentConfig {
         );
         if p1 != p2 {
             return bad(format!(
-                "robots.coil = {}, robots.head = {}: both must be of one series (CB3, or e-Series), as the lockstep ticks both at one rate",
+                "robot.model = {}, experiment.head_robot = {}: both must be of one series (CB3, or e-Series), as the lockstep ticks both at one rate",
                 self.coil_robot, self.head_robot
             ));
         }
         if !(3..=100).contains(&self.calibration_poses) {
             return bad(format!(
-                "calibration.poses = {}: must be in [3, 100]",
+                "calibrate.poses = {}: must be in [3, 100]",
                 self.calibration_poses
             ));
         }
         if !(1..=100).contains(&self.calibration_samples) {
             return bad(format!(
-                "calibration.samples = {}: must be in [1, 100]",
+                "calibrate.samples_per_pose = {}: must be in [1, 100]",
                 self.calibration_samples
             ));
         }
         let p = &self.paper;
         for (k, v, lo, hi) in [
-            ("paper.period_s", p.period_s, 0.001, 10.0),
-            ("paper.compute_delay_s", p.compute_delay_s, 0.0, 10.0),
-            ("paper.joint_speed_rad_s", p.joint_speed_rad_s, 0.01, 3.0),
-            ("paper.joint_accel_rad_s2", p.joint_accel_rad_s2, 0.01, 40.0),
+            ("experiment.paper.period_s", p.period_s, 0.001, 10.0),
+            (
+                "experiment.paper.compute_delay_s",
+                p.compute_delay_s,
+                0.0,
+                10.0,
+            ),
+            (
+                "experiment.paper.joint_speed_rad_s",
+                p.joint_speed_rad_s,
+                0.01,
+                3.0,
+            ),
+            (
+                "experiment.paper.joint_accel_rad_s2",
+                p.joint_accel_rad_s2,
+                0.01,
+                40.0,
+            ),
         ] {
             if !(v.is_finite() && (lo..=hi).contains(&v)) {
                 return bad(format!("{k} = {v}: must be in [{lo}, {hi}]"));
@@ -291,10 +301,10 @@ impl ExperimentConfig {
         }
         self.motion
             .validate()
-            .map_err(|e| ExperimentError::Config(format!("motion.{e}")))?;
+            .map_err(|e| ExperimentError::Config(format!("tracker.simulated.motion.{e}")))?;
         self.tracker
             .validate()
-            .map_err(|e| ExperimentError::Config(format!("tracker.{e}")))?;
+            .map_err(|e| ExperimentError::Config(format!("tracker.simulated.model.{e}")))?;
         self.loop_params
             .validate()
             .map_err(|e| ExperimentError::Config(format!("loop.{e}")))?;
@@ -1224,6 +1234,9 @@ pub fn run_experiment(
     );
     loop_cfg.params = cfg.loop_params;
     loop_cfg.predictor = cfg.predictor;
+    (loop_cfg.servo.lookahead_s, loop_cfg.servo.gain) = cfg.servo;
+    loop_cfg.head = cfg.head;
+    loop_cfg.coil = cfg.coil;
     let mut runs = Vec::with_capacity(order.len());
     for &c in order {
         runs.push(world.compensate(c, cfg, loop_cfg.clone(), progress)?);

@@ -1,57 +1,17 @@
-//! What `run`, `teach-goal` and `calibrate collect` connect to, from the configuration file: the
+//! What a live session (`run`, `teach-goal`, `calibrate collect`) connects to, from the configuration: the
 //! robot (a UR at an address, or an in-process simulated controller serving real RTDE on
 //! loopback) and the tracker (an OpenIGTLink server, or the simulated tracker serving the head
 //! marker and the flange's calibration marker over OpenIGTLink on loopback).
 
-use crate::UsageError;
-use crate::run_config::{RunFile, Timestamps, TrackerSource, pose};
-use anyhow::Context;
-use mocomp_geom::nalgebra::Isometry3;
+use crate::config::{Setup, Timestamps, TrackerSource};
+use crate::{AppError, Context};
 use mocomp_geom::{Clock, MonotonicClock};
 use mocomp_igtl::client::{Client, ClientConfig, TimestampMode};
-use mocomp_kin::{Arm, Model};
 use mocomp_sim::{TrackedMarker, TrackerServer};
 use mocomp_ur::{UrConfig, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
 use std::io::Write;
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// The configuration file, read and checked, with what follows from it.
-#[derive(Debug)]
-pub struct Setup {
-    /// The file.
-    pub file: RunFile,
-    /// Its directory (relative paths in it are relative to this).
-    pub dir: PathBuf,
-    /// The robot model.
-    pub model: Model,
-    /// Its kinematics (flange).
-    pub arm: Arm,
-    /// The configured base_from_tracker (the calibration).
-    pub base_from_tracker: Isometry3<f64>,
-}
-
-impl Setup {
-    /// Reads and checks `path`.
-    pub fn load(path: &str) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("--config {path}"))?;
-        let file = RunFile::parse(path, &text)?;
-        let dir = Path::new(path)
-            .parent()
-            .map(Path::to_path_buf)
-            .unwrap_or_default();
-        let model: Model = file.robot.model;
-        let base_from_tracker = file.base_from_tracker(&dir)?;
-        Ok(Self {
-            file,
-            dir,
-            model,
-            arm: Arm::new(model),
-            base_from_tracker,
-        })
-    }
-}
 
 /// The robot and tracker, connected. Dropping it stops the simulators.
 pub struct World {
@@ -93,7 +53,7 @@ impl World {
         initial_q: [f64; 6],
         out: &mut dyn Write,
         realtime: Option<&mocomp_rt::RtConfig>,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, AppError> {
         let file = &setup.file;
         let realtime = realtime.filter(|c| c.enabled);
         if let Some(c) = realtime {
@@ -108,14 +68,17 @@ impl World {
             .robot
             .host
             .parse()
-            .map_err(|e| UsageError(format!("robot.host {:?}: {e}", file.robot.host)))?;
+            .map_err(|e| AppError::Config(format!("robot.host {:?}: {e}", file.robot.host)))?;
+        let say = |out: &mut dyn Write, line: String| {
+            writeln!(out, "{line}").what(|| "writing the progress")
+        };
         let (sim, ucfg) = if file.robot.simulate {
             let mut ctrl = ControllerConfig::new(setup.model);
             ctrl.initial_q = initial_q;
             let sim = Sim::start(SimConfig::new(ctrl, host))
-                .with_context(|| format!("simulated robot on {host}"))?;
+                .what(|| format!("simulated robot on {host}"))?;
             let u = sim.ur_config();
-            writeln!(out, "simulated {} on {host}", file.robot.model)?;
+            say(out, format!("simulated {} on {host}", file.robot.model))?;
             (Some(Arc::new(sim)), u)
         } else {
             (None, UrConfig::new(host))
@@ -128,7 +91,7 @@ impl World {
         let tracker_addr = match (&tracker, &file.tracker.igtl) {
             (Some(t), _) => t.addr().to_string(),
             (None, Some(a)) => a.clone(),
-            (None, None) => return Err(UsageError("tracker.igtl: needed".into()).into()),
+            (None, None) => return Err(AppError::Config("tracker.igtl: needed".into())),
         };
         if realtime.is_some_and(|c| c.cpu.is_none() && c.simulator_cpu.is_some()) {
             // The simulators are pinned; the loop is not.
@@ -138,12 +101,14 @@ impl World {
             Some((r, g)) => (Some(r), g),
             None => (None, None),
         };
-        let robot = UrRobot::connect(ucfg, Arc::clone(&clock))
-            .with_context(|| format!("robot at {host}"))?;
-        writeln!(
+        let robot =
+            UrRobot::connect(ucfg, Arc::clone(&clock)).what(|| format!("robot at {host}"))?;
+        say(
             out,
-            "tracker {tracker_addr} ({}), device {}",
-            file.tracker.source, file.tracker.device
+            format!(
+                "tracker {tracker_addr} ({}), device {}",
+                file.tracker.source, file.tracker.device
+            ),
         )?;
         Ok(Self {
             clock,
@@ -179,25 +144,22 @@ impl World {
 
 /// The simulated tracker: the head marker (moving as configured) and, when the robot is
 /// simulated, the calibration marker on its flange (at the simulated robot's joints).
-fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> anyhow::Result<TrackerServer> {
+fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> Result<TrackerServer, AppError> {
     let file = &setup.file;
     let s = &file.tracker.simulated;
     let tracker_from_base = match &s.base_from_tracker {
-        Some(y) => pose("tracker.simulated.base_from_tracker", y)?,
+        Some(y) => y.iso(),
         None => setup.base_from_tracker,
     }
     .inverse();
-    let rest = pose("tracker.simulated.base_from_head", &s.base_from_head)?;
+    let rest = s.base_from_head.iso();
     let trajectory = s.motion.trajectory();
     let mut markers = vec![TrackedMarker {
         device: file.tracker.device.clone(),
         truth: Box::new(move |t| Some(tracker_from_base * rest * trajectory.rest_from_head(t))),
     }];
     if let Some(sim) = sim {
-        let flange_from_marker = pose(
-            "tracker.simulated.flange_from_marker",
-            &s.flange_from_marker,
-        )?;
+        let flange_from_marker = s.flange_from_marker.iso();
         let arm = setup.arm;
         markers.push(TrackedMarker {
             device: file.calibrate.device.clone(),
@@ -207,5 +169,5 @@ fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> anyhow::Result<Tracker
             }),
         });
     }
-    Ok(TrackerServer::start("127.0.0.1:0", s.model, markers)?)
+    TrackerServer::start("127.0.0.1:0", s.model, markers).what(|| "the simulated tracker")
 }

@@ -1,0 +1,302 @@
+//! Calibration collection on the live robot (`mocomp calibrate collect`): runs the calibration
+//! planner's poses on the robot, records the tracker's measurement of the flange's marker at each,
+//! solves `AX = YB`, and saves the calibration (and the pairs, for `calibrate solve`).
+
+use crate::config::{CollectSection, Setup, TrackerSource};
+use crate::world::World;
+use crate::{AppError, Context};
+use mocomp_calib::plan::{PlanOptions, TrackerView, plan};
+use mocomp_calib::{
+    Calibration, NoiseModel, Pair, PairsFormat, SolveOptions, solve, write_pairs_csv,
+};
+use mocomp_geom::nalgebra::Isometry3;
+use mocomp_geom::{PoseSource, rotation_error, translation_error};
+use mocomp_ur::{Robot, UrRobot};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// What the collection is doing, for a progress display.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Progress {
+    /// The poses are planned around `center` (base_from_flange); the arm is about to move.
+    Planned {
+        /// How many.
+        poses: usize,
+        /// The centre flange pose.
+        center: Isometry3<f64>,
+    },
+    /// Pose `index` (0-based) is done; `seen` whether the marker was measured there.
+    Pose {
+        /// Which.
+        index: usize,
+        /// Whether the marker was seen.
+        seen: bool,
+    },
+}
+
+/// What the collection measured, solved and saved.
+#[derive(Debug, Clone)]
+pub struct Collected {
+    /// Poses planned.
+    pub planned: usize,
+    /// The pairs measured.
+    pub pairs: Vec<Pair>,
+    /// Poses (1-based) where the marker was not seen.
+    pub missed: Vec<usize>,
+    /// The solution.
+    pub solved: Calibration,
+    /// Where it was saved.
+    pub out: PathBuf,
+    /// Where the pairs were saved.
+    pub pairs_csv: Option<PathBuf>,
+    /// The solved Y against the configured base_from_tracker, m and rad.
+    pub y_change: PoseError,
+    /// With the simulated world: the errors of Y and X against its truth, (m, rad) each.
+    pub against_truth: Option<(PoseError, PoseError)>,
+}
+
+/// One pose's measurement: the robot's joints and tracker_from_marker.
+type Measurement = ([f64; 6], Isometry3<f64>);
+
+/// A pose's error: translation (m) and rotation (rad).
+pub type PoseError = (f64, f64);
+
+/// Keeps the watchdog fed for `d`.
+fn keep_fed(robot: &mut UrRobot, d: Duration) -> Result<(), AppError> {
+    let end = Instant::now() + d;
+    while Instant::now() < end {
+        robot
+            .keep_alive()
+            .what(|| "keeping the robot's program running")?;
+        std::thread::sleep(Duration::from_millis(8));
+    }
+    Ok(())
+}
+
+/// Moves to `q` and waits (keeping the watchdog fed) until the robot is there and still.
+fn move_to(robot: &mut UrRobot, q: &[f64; 6], c: &CollectSection) -> Result<(), AppError> {
+    let seq = robot
+        .move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)
+        .what(|| "a calibration move")?;
+    let start = Instant::now();
+    loop {
+        if let Some(s) = robot.state() {
+            if let Some(f) = s.fault() {
+                refuse!("the robot stopped during a calibration move: {f}");
+            }
+            let there = s.actual_q.iter().zip(q).all(|(a, b)| (a - b).abs() < 2e-3);
+            let still = s.actual_qd.iter().all(|v| v.abs() < 2e-3);
+            if there && still {
+                return Ok(());
+            }
+            if s.move_done_seq >= seq && still {
+                refuse!("a calibration move ended away from its target");
+            }
+        }
+        if start.elapsed().as_secs_f64() > c.move_timeout_s {
+            refuse!(
+                "a calibration move did not arrive within calibrate.move_timeout_s = {} s",
+                c.move_timeout_s
+            );
+        }
+        robot
+            .keep_alive()
+            .what(|| "keeping the robot's program running")?;
+        std::thread::sleep(Duration::from_millis(4));
+    }
+}
+
+/// One measurement: the mean of `n` valid samples acquired after `after` (on the world's clock),
+/// with the robot's joints averaged over the same time. `None` when the marker is not seen.
+fn measure(
+    world: &mut World,
+    source: &mut dyn PoseSource,
+    n: usize,
+    after: f64,
+) -> Result<Option<Measurement>, AppError> {
+    let start = Instant::now();
+    let mut samples = Vec::with_capacity(n);
+    let mut qs = Vec::new();
+    // Polled faster than the tracker sends: each sample counts once.
+    let mut last = after;
+    while samples.len() < n {
+        if start.elapsed() > Duration::from_secs(3) {
+            return Ok(None);
+        }
+        if let Some(s) = source.latest()
+            && s.valid
+            && s.acquired_s > last
+        {
+            last = s.acquired_s;
+            samples.push(s.tracker_from_marker);
+            if let Some(r) = world.robot.state() {
+                qs.push(r.actual_q);
+            }
+        }
+        world
+            .robot
+            .keep_alive()
+            .what(|| "keeping the robot's program running")?;
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let mut q = [0.0; 6];
+    for qi in &qs {
+        for (a, b) in q.iter_mut().zip(qi) {
+            *a += b / qs.len().max(1) as f64;
+        }
+    }
+    Ok(mocomp_geom::average(&samples, None).ok().map(|p| (q, p)))
+}
+
+/// Runs the collection on `setup`'s world, solves, and saves the calibration to `out` (default:
+/// `calibrate.out` beside the configuration) with the pairs beside it. `notice` is told what
+/// starts; `progress`, how the collection goes.
+pub fn collect(
+    setup: &Setup,
+    out: Option<&Path>,
+    notice: &mut dyn Write,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Collected, AppError> {
+    let c = setup.file.calibrate.clone();
+    let arm = setup.arm;
+    let q0 = setup.initial_joints()?;
+    let mut world = World::connect(setup, q0, notice, None)?;
+    let client = world.client(setup, &c.device);
+    let mut source = client.pose_source();
+
+    // Where the robot is: the run starts and ends here.
+    let t0 = Instant::now();
+    let current = loop {
+        if let Some(s) = world.robot.state() {
+            break s.actual_q;
+        }
+        if t0.elapsed() > Duration::from_secs(5) {
+            refuse!("no robot state within 5 s");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let center = match &c.center {
+        Some(p) => p.iso(),
+        None => arm.fk_flange(&current),
+    };
+    let mut o = PlanOptions::new(c.poses, center, current);
+    o.rotation_range_rad = (c.min_rotation_rad, c.max_rotation_rad);
+    o.translation_spread_m = c.spread_m;
+    o.flange_from_marker = c.flange_from_marker_guess.iso();
+    o.tracker = c
+        .check_view
+        .then(|| TrackerView::typical(setup.base_from_tracker));
+    // Planning takes long in a debug build or on a busy machine: the running program's watchdog
+    // is fed meanwhile.
+    let poses = world
+        .robot
+        .keep_alive_while(|| plan(&arm, &o))
+        .what(|| "keeping the robot's program running while planning")?
+        .what(|| "planning the calibration poses")?;
+    progress(Progress::Planned {
+        poses: poses.len(),
+        center,
+    });
+
+    let mut pairs = Vec::new();
+    let mut missed = Vec::new();
+    let result = (|| -> Result<(), AppError> {
+        for (i, p) in poses.iter().enumerate() {
+            move_to(&mut world.robot, &p.joints, &c)?;
+            keep_fed(&mut world.robot, Duration::from_secs_f64(c.settle_s))?;
+            let after = world.clock.now_s();
+            let seen = match measure(&mut world, &mut source, c.samples_per_pose, after)? {
+                Some((q, tracker_from_marker)) => {
+                    let mut pair = Pair::new(arm.fk_flange(&q), tracker_from_marker);
+                    pair.joints = Some(q);
+                    pairs.push(pair);
+                    true
+                }
+                None => {
+                    missed.push(i + 1);
+                    false
+                }
+            };
+            progress(Progress::Pose { index: i, seen });
+        }
+        move_to(&mut world.robot, &current, &c)
+    })();
+    if let Err(e) = result {
+        let what = match world.robot.stop(4.0) {
+            Ok(_) => "calibrate collect stopped the robot".to_string(),
+            Err(stop) => format!("calibrate collect could not stop the robot either ({stop})"),
+        };
+        return Err(AppError::failed(what, e));
+    }
+    let simulated_robot = world.simulated_robot();
+    // The arm is back and still: a failed close changes nothing.
+    world.robot.close().ok();
+    drop(client);
+    if pairs.len() < 3 {
+        refuse!(
+            "only {} of {} poses measured (marker not seen at pose(s) {missed:?}): check that \
+             the tracker sees calibrate.device {:?}",
+            pairs.len(),
+            poses.len(),
+            c.device
+        );
+    }
+
+    let noise = NoiseModel {
+        tracker_translation_m: c.tracker_noise_m,
+        tracker_rotation_rad: c.tracker_noise_rad,
+        robot_translation_m: c.robot_noise_m,
+        robot_rotation_rad: c.robot_noise_rad,
+    };
+    let solved = solve(
+        &pairs,
+        &SolveOptions {
+            method: c.method,
+            noise,
+            reject_outliers: true,
+        },
+    )
+    .what(|| "solving the calibration")?;
+
+    let out_path = out.map_or_else(|| setup.dir.join(&c.out), Path::to_path_buf);
+    let text = solved
+        .to_file()
+        .to_toml_string()
+        .what(|| "writing the calibration")?;
+    std::fs::write(&out_path, text).what(|| format!("writing {}", out_path.display()))?;
+    let pairs_csv = match &c.pairs_csv {
+        Some(p) => {
+            let path = out_path
+                .parent()
+                .unwrap_or(Path::new(""))
+                .join(Path::new(p).file_name().unwrap_or_default());
+            let text = write_pairs_csv(&pairs, PairsFormat::Joints).what(|| "writing the pairs")?;
+            std::fs::write(&path, text).what(|| format!("writing {}", path.display()))?;
+            Some(path)
+        }
+        None => None,
+    };
+    let err =
+        |a: &Isometry3<f64>, b: &Isometry3<f64>| (translation_error(a, b), rotation_error(a, b));
+    let y_old = setup.base_from_tracker;
+    let s = &setup.file.tracker.simulated;
+    let against_truth = (setup.file.tracker.source == TrackerSource::Simulated && simulated_robot)
+        .then(|| {
+            let true_y = s.base_from_tracker.map_or(y_old, |p| p.iso());
+            (
+                err(&solved.base_from_tracker, &true_y),
+                err(&solved.flange_from_marker, &s.flange_from_marker.iso()),
+            )
+        });
+    Ok(Collected {
+        planned: poses.len(),
+        missed,
+        y_change: err(&solved.base_from_tracker, &y_old),
+        pairs,
+        solved,
+        out: out_path,
+        pairs_csv,
+        against_truth,
+    })
+}

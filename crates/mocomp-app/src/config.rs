@@ -1,0 +1,992 @@
+//! The one configuration of every command that takes `--config` (`run`, `demo`, `calibrate
+//! collect`, `teach-goal`). Units: metres, seconds, radians; poses are UR pose vectors
+//! `[x, y, z, rx, ry, rz]` (metres, rotation vector in radians).
+//!
+//! Every key has its default here, once (the `Default` impls below, and the components' own for
+//! `[predictor]`, `[loop]`, `[realtime]`, the motion and the tracker model); `mocomp config
+//! print` prints them through [`crate::config_file`], whose commented template a test holds to
+//! these values. A file with no keys at all describes the built-in simulated world: a simulated
+//! UR3 and tracker on loopback. What a real robot or tracker needs (its calibration, the coil's
+//! mounting, the goal) has no default there: [`Setup::load`] names the key that is missing.
+//!
+//! Unknown keys and bad values are refused naming the key's path (and, where the TOML itself is
+//! at fault, its line). Choices are enums; poses are [`Pose`]; ranges go through [`Check`].
+
+use crate::experiment::PaperController;
+use crate::{AppError, Context};
+use mocomp_control::{CoilModel, HeadModel, LoopConfig, LoopParams, PredictorConfig};
+use mocomp_geom::nalgebra::{Isometry3, Vector3};
+use mocomp_geom::{iso_from_matrix_mm, iso_from_ur_pose};
+use mocomp_kin::{Arm, Model, Selection};
+use mocomp_sim::{HeadMotion, TrackerModel};
+use mocomp_ur::ServoParams;
+use serde::{Deserialize, Serialize};
+use std::net::IpAddr;
+use std::path::{Path, PathBuf};
+
+/// A pose as a UR pose vector `[x, y, z, rx, ry, rz]` (metres, rotation vector in radians),
+/// checked when read. It keeps the six numbers as written, so a printed file reads them back
+/// exactly.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "[f64; 6]", into = "[f64; 6]")]
+pub struct Pose {
+    raw: [f64; 6],
+    iso: Isometry3<f64>,
+}
+
+impl Pose {
+    /// The rigid transform.
+    pub fn iso(&self) -> Isometry3<f64> {
+        self.iso
+    }
+
+    /// The six numbers.
+    pub fn raw(&self) -> [f64; 6] {
+        self.raw
+    }
+}
+
+impl TryFrom<[f64; 6]> for Pose {
+    type Error = mocomp_geom::GeomError;
+    fn try_from(raw: [f64; 6]) -> Result<Self, Self::Error> {
+        Ok(Self {
+            raw,
+            iso: iso_from_ur_pose(&raw)?,
+        })
+    }
+}
+
+impl From<Pose> for [f64; 6] {
+    fn from(p: Pose) -> Self {
+        p.raw
+    }
+}
+
+/// A pose from constant numbers (the defaults below): finite numbers always convert.
+fn pose_const(raw: [f64; 6]) -> Pose {
+    Pose {
+        raw,
+        iso: iso_from_ur_pose(&raw).unwrap_or_else(|_| Isometry3::identity()),
+    }
+}
+
+/// The configuration. Scalars first: TOML puts tables after them.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// `mocomp run`: stop after this many seconds (0: until Ctrl-C).
+    pub duration_s: f64,
+    /// `mocomp run`: write every cycle to this CSV file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub log_csv: Option<String>,
+    /// The robot.
+    pub robot: RobotSection,
+    /// The tracker.
+    pub tracker: TrackerSection,
+    /// The frames.
+    pub calibration: CalibrationSection,
+    /// The goal.
+    pub goal: GoalSection,
+    /// The head's collision model.
+    pub head: HeadSection,
+    /// The coil's collision model.
+    pub coil: CoilSection,
+    /// servoj settings.
+    pub servo: ServoSection,
+    /// The head pose predictor.
+    pub predictor: PredictorConfig,
+    /// The loop's parameters.
+    #[serde(rename = "loop")]
+    pub params: LoopParams,
+    /// `calibrate collect` (and the experiment's calibrations).
+    pub calibrate: CollectSection,
+    /// Real-time scheduling of the loop and of the in-process simulators.
+    pub realtime: mocomp_rt::RtConfig,
+    /// `mocomp demo`: the paper's two-robot experiment.
+    pub experiment: ExperimentSection,
+}
+
+/// `[robot]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RobotSection {
+    /// ur3, ur5, ur10 (CB3), ur3e … ur30 (e-Series).
+    pub model: Model,
+    /// The controller's address.
+    pub host: String,
+    /// Start an in-process simulated controller on `host` (a loopback address).
+    pub simulate: bool,
+    /// The simulated robot's joints at start (default: the coil 15 cm out on the goal's axis).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub initial_joints_rad: Option<[f64; 6]>,
+}
+
+impl Default for RobotSection {
+    /// A simulated UR3 (the paper's) on 127.0.0.2.
+    fn default() -> Self {
+        Self {
+            model: Model::Ur3,
+            host: "127.0.0.2".into(),
+            simulate: true,
+            initial_joints_rad: None,
+        }
+    }
+}
+
+/// `[tracker]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackerSection {
+    /// Where the head's poses come from.
+    pub source: TrackerSource,
+    /// The OpenIGTLink server, host:port.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub igtl: Option<String>,
+    /// The head marker's device name (TRANSFORM device or TDATA tool).
+    pub device: String,
+    /// How the sender's timestamps map onto our clock. The simulated tracker runs on this host
+    /// and is always read as synchronized.
+    pub timestamps: Timestamps,
+    /// The sender's constant latency from acquisition to sending, s (with "estimated").
+    pub fixed_latency_s: f64,
+    /// The simulated tracker.
+    pub simulated: SimTrackerSection,
+}
+
+impl Default for TrackerSection {
+    fn default() -> Self {
+        Self {
+            source: TrackerSource::Simulated,
+            igtl: None,
+            device: "HeadToTracker".into(),
+            timestamps: Timestamps::Estimated,
+            fixed_latency_s: 0.0,
+            simulated: SimTrackerSection::default(),
+        }
+    }
+}
+
+/// `tracker.source`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TrackerSource {
+    /// An OpenIGTLink server at `tracker.igtl` (PLUS, 3D Slicer, a navigation system).
+    Openigtlink,
+    /// The simulated tracker, served over OpenIGTLink on loopback.
+    Simulated,
+}
+
+impl std::fmt::Display for TrackerSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Openigtlink => "openigtlink",
+            Self::Simulated => "simulated",
+        })
+    }
+}
+
+/// `tracker.timestamps`: how the sender's timestamps map onto our clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Timestamps {
+    /// Unsynchronised clocks: the offset is estimated from the smallest delay (which hides the
+    /// sender's constant latency: give it as `fixed_latency_s`).
+    Estimated,
+    /// The same host, or clocks synchronised by PTP/NTP.
+    Synchronized,
+}
+
+/// `[tracker.simulated]`: the world the simulated tracker sees, its motion and its model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimTrackerSection {
+    /// The head at rest, base_from_head.
+    pub base_from_head: Pose,
+    /// Where the tracker truly is, base_from_tracker (default: the configured calibration's, so
+    /// the calibration is exact; set it to see a calibration error's effect).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base_from_tracker: Option<Pose>,
+    /// The calibration marker on the flange, flange_from_marker (for `calibrate collect`).
+    pub flange_from_marker: Pose,
+    /// The head's motion.
+    pub motion: HeadMotion,
+    /// The tracker's model.
+    pub model: TrackerModel,
+}
+
+impl Default for SimTrackerSection {
+    /// The head in front of the robot, the marker on the flange facing back, smooth random
+    /// motion (up to 20 mm/s and 10°/s, as the paper's experiment).
+    fn default() -> Self {
+        Self {
+            base_from_head: pose_const([0.30, -0.12, -0.02, 0.0, 0.0, 0.3]),
+            base_from_tracker: None,
+            flange_from_marker: pose_const([0.0, 0.06, 0.02, std::f64::consts::PI, 0.0, 0.0]),
+            motion: HeadMotion::Random(mocomp_sim::motion::RandomMotion::default()),
+            model: TrackerModel::default(),
+        }
+    }
+}
+
+/// `[calibration]`: the frames the loop computes with.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CalibrationSection {
+    /// A calibration result (`mocomp calibrate solve --out`): its Y is base_from_tracker.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
+    /// base_from_tracker, when no file is given (default with the simulated tracker:
+    /// [`SIM_BASE_FROM_TRACKER`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base_from_tracker: Option<Pose>,
+    /// The coil's mounting, flange_from_coil (default on a simulated robot:
+    /// [`SIM_FLANGE_FROM_COIL`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flange_from_coil: Option<Pose>,
+}
+
+/// `[goal]`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GoalSection {
+    /// head_from_coil; +z of the coil points into the head (default with the simulated tracker:
+    /// [`SIM_HEAD_FROM_COIL`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub head_from_coil: Option<Pose>,
+}
+
+/// The simulated tracker's place, 1.1 m up and out, looking at the head: base_from_tracker.
+pub const SIM_BASE_FROM_TRACKER: [f64; 6] = [1.0, 0.1, 0.9, 2.0019, -1.4693, -0.5718];
+/// The simulated robot's coil mounting, 5 cm out on the flange axis: flange_from_coil.
+pub const SIM_FLANGE_FROM_COIL: [f64; 6] = [0.0, 0.0, 0.05, 0.0, 0.0, 0.0];
+/// The simulated head's goal: on top, 3 mm off the scalp, +z into the head: head_from_coil.
+pub const SIM_HEAD_FROM_COIL: [f64; 6] = [0.0, 0.0, 0.113, std::f64::consts::PI, 0.0, 0.0];
+
+/// `[head]`: an ellipsoid in the head marker's frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HeadSection {
+    /// head_from_ellipsoid.
+    pub head_from_ellipsoid: Pose,
+    /// Semi-axes, m.
+    pub radii_m: [f64; 3],
+}
+
+impl Default for HeadSection {
+    fn default() -> Self {
+        Self {
+            head_from_ellipsoid: pose_const([0.0; 6]),
+            radii_m: [0.075, 0.095, 0.11],
+        }
+    }
+}
+
+/// `[coil]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CoilSection {
+    /// Radius seen from the head, m.
+    pub radius_m: f64,
+    /// Thickness behind the face, m.
+    pub thickness_m: f64,
+}
+
+impl Default for CoilSection {
+    fn default() -> Self {
+        Self {
+            radius_m: 0.04,
+            thickness_m: 0.03,
+        }
+    }
+}
+
+/// `[servo]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ServoSection {
+    /// servoj lookahead time, s (UR: 0.03–0.2).
+    pub lookahead_s: f64,
+    /// servoj gain (UR: 100–2000).
+    pub gain: f64,
+}
+
+impl Default for ServoSection {
+    fn default() -> Self {
+        Self {
+            lookahead_s: 0.03,
+            gain: 1500.0,
+        }
+    }
+}
+
+/// `[calibrate]`: how `calibrate collect` runs (the experiment takes `poses` and
+/// `samples_per_pose`). Units: metres, radians, seconds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CollectSection {
+    /// The flange marker's device name (TRANSFORM device or TDATA tool).
+    pub device: String,
+    /// Number of poses.
+    pub poses: usize,
+    /// Smallest rotation from the centre pose, rad.
+    pub min_rotation_rad: f64,
+    /// Largest rotation from the centre pose, rad.
+    pub max_rotation_rad: f64,
+    /// Shift of the flange per axis, up to ±this, m.
+    pub spread_m: f64,
+    /// The centre flange pose, base_from_flange (default: where the robot is).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub center: Option<Pose>,
+    /// A rough flange_from_marker: the poses turn about the marker's centre.
+    pub flange_from_marker_guess: Pose,
+    /// Keep the marker in the tracker's view, judged with the configured base_from_tracker.
+    pub check_view: bool,
+    /// Tracker samples averaged at each pose.
+    pub samples_per_pose: usize,
+    /// Wait this long after each move before measuring, s.
+    pub settle_s: f64,
+    /// Joint speed of the moves, rad/s.
+    pub joint_speed_rad_s: f64,
+    /// Joint acceleration of the moves, rad/s².
+    pub joint_accel_rad_s2: f64,
+    /// Give up on a move after this long, s.
+    pub move_timeout_s: f64,
+    /// Solver: li, shah or refined.
+    pub method: mocomp_calib::Method,
+    /// Expected tracker noise per axis (1σ), m.
+    pub tracker_noise_m: f64,
+    /// Expected tracker rotation noise per axis (1σ), rad.
+    pub tracker_noise_rad: f64,
+    /// Expected robot noise per axis (1σ), m.
+    pub robot_noise_m: f64,
+    /// Expected robot rotation noise per axis (1σ), rad.
+    pub robot_noise_rad: f64,
+    /// Where to save the calibration (relative to the configuration file's directory).
+    pub out: String,
+    /// Where to save the measured pairs (beside the calibration).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pairs_csv: Option<String>,
+}
+
+impl Default for CollectSection {
+    fn default() -> Self {
+        Self {
+            device: "MarkerToTracker".into(),
+            poses: 15,
+            min_rotation_rad: 15f64.to_radians(),
+            max_rotation_rad: 35f64.to_radians(),
+            spread_m: 0.06,
+            center: None,
+            flange_from_marker_guess: pose_const([0.0, 0.05, 0.0, std::f64::consts::PI, 0.0, 0.0]),
+            check_view: true,
+            samples_per_pose: 10,
+            settle_s: 0.3,
+            joint_speed_rad_s: 0.8,
+            joint_accel_rad_s2: 1.5,
+            move_timeout_s: 20.0,
+            method: mocomp_calib::Method::Refined,
+            tracker_noise_m: 1e-4,
+            tracker_noise_rad: 1e-3,
+            robot_noise_m: 3e-5,
+            robot_noise_rad: 2e-4,
+            out: "calibration.toml".into(),
+            pairs_csv: Some("calibration-pairs.csv".into()),
+        }
+    }
+}
+
+/// `[experiment]`: `mocomp demo`, the paper's two-robot experiment. The coil robot U1 is
+/// `[robot]` (model, and host as its simulator's loopback address); the head moves as
+/// `[tracker.simulated.motion]`, seen by `[tracker.simulated.model]`; both robots calibrate with
+/// `calibrate.poses` and `calibrate.samples_per_pose`; the `mocomp` controller runs with
+/// `[predictor]`, `[loop]`, `[head]`, `[coil]` and `[servo]`. The experiment builds its own
+/// scene, calibrates itself and has its own goal, so `[calibration]`, `[goal]`, the simulated
+/// tracker's placement and `[realtime]` are not used by it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ExperimentSection {
+    /// Compensation time per controller, s.
+    pub duration_s: f64,
+    /// Seeds the random motion and the tracker's noise (overrides their own `seed` keys).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// U2, which carries the head phantom (default: a UR5 of U1's series: ur5 or ur5e).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub head_robot: Option<Model>,
+    /// U2's simulator's address (loopback).
+    pub head_host: IpAddr,
+    /// The goal between the end-effectors `E2_T_E1,g`, rows of a 4×4 matrix with translation in
+    /// mm (the paper's).
+    pub goal_e2_from_e1_mm: [[f64; 4]; 4],
+    /// The `paper` controller.
+    pub paper: PaperController,
+}
+
+impl Default for ExperimentSection {
+    fn default() -> Self {
+        Self {
+            duration_s: 30.0,
+            seed: None,
+            head_robot: None,
+            head_host: IpAddr::from([127, 0, 0, 3]),
+            goal_e2_from_e1_mm: crate::experiment::PAPER_GOAL_E2_FROM_E1_MM,
+            paper: PaperController::default(),
+        }
+    }
+}
+
+/// The range checks: one mechanism, each error naming the key.
+#[derive(Debug, Clone, Copy)]
+pub struct Check;
+
+impl Check {
+    /// `v` finite and within `[lo, hi]`; with `open_lo`, above `lo` rather than at least.
+    pub fn range(key: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Result<(), AppError> {
+        let ok = v.is_finite() && (if open_lo { v > lo } else { v >= lo }) && v <= hi;
+        if ok {
+            return Ok(());
+        }
+        let left = if open_lo { "(" } else { "[" };
+        let (lo_s, hi_s) = (fmt_bound(lo), fmt_bound(hi));
+        Err(AppError::Config(format!(
+            "{key} = {v}: must be in {left}{lo_s}, {hi_s}]"
+        )))
+    }
+
+    /// `v` finite and above 0.
+    pub fn positive(key: &str, v: f64) -> Result<(), AppError> {
+        Self::range(key, v, 0.0, f64::INFINITY, true)
+    }
+
+    /// `v` finite and at least 0.
+    pub fn non_negative(key: &str, v: f64) -> Result<(), AppError> {
+        Self::range(key, v, 0.0, f64::INFINITY, false)
+    }
+
+    /// A whole number at least `lo`.
+    pub fn at_least(key: &str, v: usize, lo: usize) -> Result<(), AppError> {
+        if v >= lo {
+            Ok(())
+        } else {
+            Err(AppError::Config(format!(
+                "{key} = {v}: must be at least {lo}"
+            )))
+        }
+    }
+}
+
+fn fmt_bound(v: f64) -> String {
+    if v == f64::INFINITY {
+        "∞".into()
+    } else if (v - std::f64::consts::PI).abs() < 1e-15 {
+        "π".into()
+    } else {
+        v.to_string()
+    }
+}
+
+impl Config {
+    /// Parses and checks a configuration's text; errors name `path` and the key. Relative paths
+    /// in it (a recorded motion) are relative to `path`'s directory.
+    pub fn parse(path: &str, text: &str) -> Result<Self, AppError> {
+        let one_line = |e: &dyn std::fmt::Display| e.to_string().trim_end().replace('\n', " ");
+        let de = toml::Deserializer::parse(text)
+            .map_err(|e| AppError::Config(format!("{path}: {}", one_line(&e))))?;
+        // The key's whole path in the message (`tracker.timestamps`), not just its line.
+        let mut f: Self = serde_path_to_error::deserialize(de).map_err(|e| {
+            AppError::Config(format!("{path}: {}: {}", e.path(), one_line(e.inner())))
+        })?;
+        let dir = Path::new(path).parent().unwrap_or(Path::new(""));
+        f.tracker
+            .simulated
+            .motion
+            .load_file(dir)
+            .map_err(|e| AppError::Config(format!("{path}: tracker.simulated.motion.path: {e}")))?;
+        f.check().map_err(|e| match e {
+            AppError::Config(m) => AppError::Config(format!("{path}: {m}")),
+            other => other,
+        })?;
+        Ok(f)
+    }
+
+    /// Checks every value the components do not check themselves, and theirs; errors name the
+    /// key.
+    pub fn check(&self) -> Result<(), AppError> {
+        let cfg =
+            |e: &dyn std::fmt::Display, section: &str| AppError::Config(format!("{section}{e}"));
+        self.calibrate.check()?;
+        self.params.validate().map_err(|e| cfg(&e, "loop."))?;
+        self.predictor
+            .validate()
+            .map_err(|e| cfg(&e, "predictor."))?;
+        self.realtime.validate().map_err(|e| cfg(&e, ""))?;
+        if self.tracker.source == TrackerSource::Openigtlink && self.tracker.igtl.is_none() {
+            return Err(AppError::Config(
+                "tracker.igtl: needed (host:port) for source \"openigtlink\"".into(),
+            ));
+        }
+        Check::range(
+            "tracker.fixed_latency_s",
+            self.tracker.fixed_latency_s,
+            0.0,
+            1.0,
+            false,
+        )?;
+        let s = &self.tracker.simulated;
+        s.motion
+            .validate()
+            .map_err(|e| cfg(&e, "tracker.simulated.motion."))?;
+        s.model
+            .validate()
+            .map_err(|e| cfg(&e, "tracker.simulated.model."))?;
+        Check::non_negative("duration_s", self.duration_s)?;
+        for (i, r) in self.head.radii_m.iter().enumerate() {
+            Check::positive(&format!("head.radii_m[{i}]"), *r)?;
+        }
+        Check::positive("coil.radius_m", self.coil.radius_m)?;
+        Check::positive("coil.thickness_m", self.coil.thickness_m)?;
+        Check::range(
+            "servo.lookahead_s",
+            self.servo.lookahead_s,
+            0.03,
+            0.2,
+            false,
+        )?;
+        Check::range("servo.gain", self.servo.gain, 100.0, 2000.0, false)?;
+        self.robot
+            .host
+            .parse::<IpAddr>()
+            .map_err(|e| AppError::Config(format!("robot.host {:?}: {e}", self.robot.host)))?;
+        Ok(())
+    }
+
+    /// Whether the world is the built-in simulation (robot and tracker), where the frames have
+    /// defaults.
+    pub fn simulated_world(&self) -> bool {
+        self.robot.simulate && self.tracker.source == TrackerSource::Simulated
+    }
+
+    /// base_from_tracker: the calibration file (relative to `dir`), the inline pose, or (in the
+    /// simulated world) [`SIM_BASE_FROM_TRACKER`].
+    pub fn base_from_tracker(&self, dir: &Path) -> Result<Isometry3<f64>, AppError> {
+        if let Some(file) = &self.calibration.file {
+            let path = dir.join(file);
+            let what = || format!("calibration.file {}", path.display());
+            let text = std::fs::read_to_string(&path).what(what)?;
+            let c = mocomp_calib::CalibrationFile::from_toml_str(&text).what(what)?;
+            return Ok(c.transforms().what(what)?.1);
+        }
+        if let Some(y) = &self.calibration.base_from_tracker {
+            return Ok(y.iso());
+        }
+        if self.tracker.source == TrackerSource::Simulated {
+            return Ok(pose_const(SIM_BASE_FROM_TRACKER).iso());
+        }
+        Err(AppError::Config(
+            "calibration: a real tracker needs its calibration: give `file` (a calibration \
+             result) or `base_from_tracker`"
+                .into(),
+        ))
+    }
+
+    /// flange_from_coil: as configured, or (on a simulated robot) [`SIM_FLANGE_FROM_COIL`].
+    pub fn flange_from_coil(&self) -> Result<Isometry3<f64>, AppError> {
+        match (&self.calibration.flange_from_coil, self.robot.simulate) {
+            (Some(p), _) => Ok(p.iso()),
+            (None, true) => Ok(pose_const(SIM_FLANGE_FROM_COIL).iso()),
+            (None, false) => Err(AppError::Config(
+                "calibration.flange_from_coil: a real robot needs the coil's measured mounting"
+                    .into(),
+            )),
+        }
+    }
+
+    /// head_from_coil: as configured, or (with the simulated tracker) [`SIM_HEAD_FROM_COIL`].
+    pub fn head_from_coil(&self) -> Result<Isometry3<f64>, AppError> {
+        match (&self.goal.head_from_coil, self.tracker.source) {
+            (Some(p), _) => Ok(p.iso()),
+            (None, TrackerSource::Simulated) => Ok(pose_const(SIM_HEAD_FROM_COIL).iso()),
+            (None, TrackerSource::Openigtlink) => Err(AppError::Config(
+                "goal.head_from_coil: a real head needs its goal (teach it: mocomp teach-goal)"
+                    .into(),
+            )),
+        }
+    }
+
+    /// The loop's configuration around `base_from_tracker`, at the robot's `period`.
+    pub fn loop_config(
+        &self,
+        base_from_tracker: Isometry3<f64>,
+        period: f64,
+    ) -> Result<LoopConfig, AppError> {
+        let mut cfg = LoopConfig::new(
+            base_from_tracker,
+            self.flange_from_coil()?,
+            self.head_from_coil()?,
+            period,
+        );
+        cfg.servo = ServoParams {
+            time_s: period,
+            lookahead_s: self.servo.lookahead_s,
+            gain: self.servo.gain,
+        };
+        cfg.predictor = self.predictor;
+        cfg.head = self.head_model();
+        cfg.coil = self.coil_model();
+        cfg.params = self.params;
+        Ok(cfg)
+    }
+
+    /// `[head]` as the loop's model.
+    pub fn head_model(&self) -> HeadModel {
+        HeadModel {
+            head_from_ellipsoid: self.head.head_from_ellipsoid.iso(),
+            radii: Vector3::from(self.head.radii_m),
+        }
+    }
+
+    /// `[coil]` as the loop's model.
+    pub fn coil_model(&self) -> CoilModel {
+        CoilModel {
+            radius: self.coil.radius_m,
+            thickness: self.coil.thickness_m,
+        }
+    }
+
+    /// The experiment's configuration (`mocomp demo`): see [`ExperimentSection`] for which keys
+    /// it takes. Checked; errors name the key.
+    pub fn experiment(&self) -> Result<crate::experiment::ExperimentConfig, AppError> {
+        let x = &self.experiment;
+        let coil_host: IpAddr = self
+            .robot
+            .host
+            .parse()
+            .map_err(|e| AppError::Config(format!("robot.host {:?}: {e}", self.robot.host)))?;
+        let m = mocomp_geom::nalgebra::Matrix4::from_fn(|r, c| x.goal_e2_from_e1_mm[r][c]);
+        let goal = iso_from_matrix_mm(&m, 5e-3)
+            .map_err(|e| AppError::Config(format!("experiment.goal_e2_from_e1_mm: {e}")))?;
+        let mut e = crate::experiment::ExperimentConfig {
+            coil_robot: self.robot.model,
+            head_robot: x
+                .head_robot
+                .unwrap_or(match self.robot.model.spec().series {
+                    mocomp_kin::Series::Cb3 => Model::Ur5,
+                    mocomp_kin::Series::ESeries => Model::Ur5e,
+                }),
+            coil_host,
+            head_host: x.head_host,
+            duration_s: x.duration_s,
+            motion: self.tracker.simulated.motion.clone(),
+            tracker: self.tracker.simulated.model,
+            paper: x.paper,
+            calibration_poses: self.calibrate.poses,
+            calibration_samples: self.calibrate.samples_per_pose,
+            goal_e2_from_e1: goal,
+            loop_params: self.params,
+            predictor: self.predictor,
+            servo: (self.servo.lookahead_s, self.servo.gain),
+            head: self.head_model(),
+            coil: self.coil_model(),
+        };
+        if let Some(seed) = x.seed {
+            e.set_seed(seed);
+        }
+        e.validate().map_err(|e| match e {
+            crate::experiment::ExperimentError::Config(m) => AppError::Config(m),
+            other => AppError::failed("the experiment's configuration", other),
+        })?;
+        Ok(e)
+    }
+}
+
+/// Keys the experiment does not use (it builds its own scene, calibrates itself and sets its
+/// own goal), as dotted paths; a table stands for every key in it.
+const NOT_FOR_THE_EXPERIMENT: [&str; 15] = [
+    "duration_s",
+    "log_csv",
+    "robot.simulate",
+    "robot.initial_joints_rad",
+    "tracker.source",
+    "tracker.igtl",
+    "tracker.device",
+    "tracker.timestamps",
+    "tracker.fixed_latency_s",
+    "tracker.simulated.base_from_head",
+    "tracker.simulated.base_from_tracker",
+    "tracker.simulated.flange_from_marker",
+    "calibration",
+    "goal",
+    "realtime",
+];
+
+/// The keys a configuration's `text` sets that `mocomp demo` does not use, so the demo can say
+/// so instead of ignoring them silently. Text that does not parse gives none (the parse says
+/// why elsewhere).
+pub fn unused_by_experiment(text: &str) -> Vec<String> {
+    let Ok(t) = text.parse::<toml::Table>() else {
+        return Vec::new();
+    };
+    let has = |path: &str| {
+        let mut v: Option<&toml::Value> = None;
+        let mut table = Some(&t);
+        for part in path.split('.') {
+            v = table.and_then(|t| t.get(part));
+            table = v.and_then(toml::Value::as_table);
+        }
+        v.is_some()
+    };
+    let mut keys: Vec<String> = NOT_FOR_THE_EXPERIMENT
+        .iter()
+        .filter(|k| has(k))
+        .map(|k| (*k).to_string())
+        .collect();
+    // Of [calibrate], the experiment takes the number of poses and samples only.
+    if let Some(c) = t.get("calibrate").and_then(toml::Value::as_table) {
+        keys.extend(
+            c.keys()
+                .filter(|k| !matches!(k.as_str(), "poses" | "samples_per_pose"))
+                .map(|k| format!("calibrate.{k}")),
+        );
+    }
+    keys
+}
+
+impl CollectSection {
+    /// Checks every value; errors name the key.
+    pub fn check(&self) -> Result<(), AppError> {
+        let key = |k: &str| format!("calibrate.{k}");
+        Check::at_least(&key("poses"), self.poses, 3)?;
+        Check::at_least(&key("samples_per_pose"), self.samples_per_pose, 1)?;
+        for (k, v) in [
+            ("min_rotation_rad", self.min_rotation_rad),
+            ("spread_m", self.spread_m),
+            ("settle_s", self.settle_s),
+        ] {
+            Check::non_negative(&key(k), v)?;
+        }
+        // Zero noise would weight the solver's residuals infinitely.
+        for (k, v) in [
+            ("tracker_noise_m", self.tracker_noise_m),
+            ("tracker_noise_rad", self.tracker_noise_rad),
+            ("robot_noise_m", self.robot_noise_m),
+            ("robot_noise_rad", self.robot_noise_rad),
+        ] {
+            Check::positive(&key(k), v)?;
+        }
+        Check::range(
+            &key("max_rotation_rad"),
+            self.max_rotation_rad,
+            self.min_rotation_rad,
+            std::f64::consts::PI,
+            true,
+        )?;
+        for (k, v, hi) in [
+            ("joint_speed_rad_s", self.joint_speed_rad_s, 3.0),
+            ("joint_accel_rad_s2", self.joint_accel_rad_s2, 40.0),
+            ("move_timeout_s", self.move_timeout_s, 600.0),
+        ] {
+            Check::range(&key(k), v, 0.0, hi, true)?;
+        }
+        Ok(())
+    }
+}
+
+/// The configuration, read and checked, with what follows from it.
+#[derive(Debug, Clone)]
+pub struct Setup {
+    /// The configuration.
+    pub file: Config,
+    /// Where it came from (`None`: the defaults alone).
+    pub path: Option<PathBuf>,
+    /// Its directory (relative paths in it are relative to this).
+    pub dir: PathBuf,
+    /// The robot model.
+    pub model: Model,
+    /// Its kinematics (flange).
+    pub arm: Arm,
+    /// The configured base_from_tracker (the calibration).
+    pub base_from_tracker: Isometry3<f64>,
+}
+
+impl Setup {
+    /// Reads and checks the file at `path`.
+    pub fn load(path: &Path) -> Result<Self, AppError> {
+        let text = std::fs::read_to_string(path).what(|| format!("--config {}", path.display()))?;
+        let file = Config::parse(&path.display().to_string(), &text)?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Self::new(file, Some(path.to_path_buf()), dir)
+    }
+
+    /// A setup of a configuration already read (its relative paths relative to `dir`).
+    pub fn new(file: Config, path: Option<PathBuf>, dir: PathBuf) -> Result<Self, AppError> {
+        file.check()?;
+        let model = file.robot.model;
+        let base_from_tracker = file.base_from_tracker(&dir)?;
+        // The coil's mounting, named now rather than once the robot moves (the goal may be
+        // missing yet: teaching it is what `teach-goal` is for).
+        file.flange_from_coil()?;
+        Ok(Self {
+            file,
+            path,
+            dir,
+            model,
+            arm: Arm::new(model),
+            base_from_tracker,
+        })
+    }
+
+    /// The robot's control period, s.
+    pub fn period(&self) -> f64 {
+        self.model.spec().series.period_s()
+    }
+
+    /// The loop's configuration.
+    pub fn loop_config(&self) -> Result<LoopConfig, AppError> {
+        self.file.loop_config(self.base_from_tracker, self.period())
+    }
+
+    /// The simulated robot's joints at start: `robot.initial_joints_rad`, or the coil 15 cm out
+    /// on the goal's axis for the head at rest.
+    pub fn initial_joints(&self) -> Result<[f64; 6], AppError> {
+        if let Some(q) = self.file.robot.initial_joints_rad {
+            return Ok(q);
+        }
+        let cfg = self.loop_config()?;
+        let rest = self.file.tracker.simulated.base_from_head.iso();
+        let out = rest
+            * cfg.head_from_coil_goal
+            * Isometry3::translation(0.0, 0.0, -0.15)
+            * cfg.flange_from_coil.inverse();
+        let seeds = [
+            [0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+            [0.0, -1.57, 1.57, -1.57, -1.57, 0.0],
+            [1.57, -1.3, 1.6, -1.87, -1.57, 0.0],
+        ];
+        for seed in seeds {
+            if let Ok(c) = self.arm.ik_closest(&out, &seed, &Selection::tracking(0.1)) {
+                return Ok(c.joints);
+            }
+        }
+        Err(AppError::Config(
+            "robot.initial_joints_rad: needed, the default start (15 cm out on the goal's axis) \
+             is out of reach"
+                .into(),
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::*;
+
+    fn parse(text: &str) -> Result<Config, AppError> {
+        Config::parse("f.toml", text)
+    }
+
+    #[test]
+    fn bad_files_are_refused_naming_the_file_and_the_key() {
+        let cases = [
+            ("duraton_s = 3\n", "duraton_s"),
+            ("[tracker]\nnoise = 1\n", "tracker.noise"),
+            ("[robot]\nmodel = \"ur4\"\n", "robot.model"),
+            ("[robot]\nhost = \"robot.local\"\n", "robot.host"),
+            ("duration_s = -1.0\n", "duration_s"),
+            ("[tracker.simulated.motion]\nsway_m = 0.01\n", "kind"),
+            (
+                "[tracker.simulated.motion]\nkind = \"nods\"\nsway_m = -0.01\n",
+                "tracker.simulated.motion.sway_m",
+            ),
+            ("[servo]\ngain = 50.0\n", "servo.gain"),
+            ("[coil]\nradius_m = 0.0\n", "coil.radius_m"),
+            ("[calibrate]\nposes = 2\n", "calibrate.poses"),
+            (
+                "[calibrate]\nmax_rotation_rad = 0.1\n",
+                "calibrate.max_rotation_rad",
+            ),
+            ("[loop]\nspeed_fraction = 2.0\n", "loop.speed_fraction"),
+            ("[predictor]\naccel_noise = -1.0\n", "predictor.accel_noise"),
+            (
+                "[goal]\nhead_from_coil = [0.0, 0.0, 0.1]\n",
+                "goal.head_from_coil",
+            ),
+            (
+                "[goal]\nhead_from_coil = [0.0, 0.0, nan, 0.0, 0.0, 0.0]\n",
+                "goal.head_from_coil",
+            ),
+            ("[tracker]\nsource = \"openigtlink\"\n", "tracker.igtl"),
+            ("[tracker]\ntimestamps = \"gps\"\n", "tracker.timestamps"),
+            ("duration_s = 3\nduration_s = 4\n", "duration_s"),
+        ];
+        for (text, key) in cases {
+            let e = parse(text).unwrap_err();
+            assert!(matches!(e, AppError::Config(_)), "{text:?}: {e:?}");
+            let e = e.to_string();
+            assert!(
+                e.starts_with("f.toml: ") && e.contains(key),
+                "{text:?}: {e}"
+            );
+        }
+        // Where the TOML itself is at fault, the line is given.
+        let e = parse("duration_s = 3\n\n[tracker]\nnoise = 1\n").unwrap_err();
+        assert!(e.to_string().contains("line 4"), "{e}");
+    }
+
+    #[test]
+    fn a_real_setup_must_give_what_has_no_default_there() {
+        let real = "[robot]\nsimulate = false\n[tracker]\nsource = \"openigtlink\"\nigtl = \"127.0.0.1:18944\"\n";
+        let cfg = parse(real).unwrap();
+        let dir = Path::new("");
+        let missing = |r: Result<Isometry3<f64>, AppError>| r.unwrap_err().to_string();
+        assert!(missing(cfg.base_from_tracker(dir)).contains("calibration"));
+        assert!(missing(cfg.flange_from_coil()).contains("calibration.flange_from_coil"));
+        assert!(missing(cfg.head_from_coil()).contains("goal.head_from_coil"));
+        // The simulated world has them; a value given wins.
+        let sim = Config::default();
+        assert_eq!(
+            sim.head_from_coil().unwrap(),
+            iso_from_ur_pose(&SIM_HEAD_FROM_COIL).unwrap()
+        );
+        let given =
+            parse("[goal]\nhead_from_coil = [0.0, 0.0, 0.12, 3.14159, 0.0, 0.0]\n").unwrap();
+        assert!((given.head_from_coil().unwrap().translation.z - 0.12).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_experiment_takes_the_shared_keys() {
+        let cfg = parse(
+            "[robot]\nmodel = \"ur5e\"\nhost = \"127.0.0.61\"\n[experiment]\nseed = 9\nduration_s = 4.0\n\
+             [tracker.simulated.model]\nnoise_m = 0.0002\n[servo]\ngain = 900.0\n[coil]\nradius_m = 0.05\n\
+             [calibrate]\nposes = 12\nsamples_per_pose = 4\n",
+        )
+        .unwrap();
+        let e = cfg.experiment().unwrap();
+        assert_eq!((e.coil_robot, e.head_robot), (Model::Ur5e, Model::Ur5e));
+        assert_eq!(e.coil_host, IpAddr::from([127, 0, 0, 61]));
+        assert_eq!(e.duration_s, 4.0);
+        assert_eq!(e.tracker.noise_m, 2e-4);
+        // The seed reaches the tracker and the random motion.
+        assert_eq!(e.tracker.seed, 9);
+        assert!(matches!(e.motion, HeadMotion::Random(r) if r.seed == 9));
+        assert_eq!(e.servo.1, 900.0);
+        assert_eq!(e.coil.radius, 0.05);
+        assert_eq!((e.calibration_poses, e.calibration_samples), (12, 4));
+        // Two robots of different series cannot share one stepped clock.
+        let bad = parse("[robot]\nmodel = \"ur3e\"\n[experiment]\nhead_robot = \"ur5\"\n").unwrap();
+        let err = bad.experiment().unwrap_err().to_string();
+        assert!(err.contains("experiment.head_robot"), "{err}");
+    }
+
+    #[test]
+    fn the_demo_names_the_keys_it_does_not_use() {
+        let keys = unused_by_experiment(
+            "duration_s = 3\n[robot]\nmodel = \"ur3\"\nsimulate = true\n[goal]\nhead_from_coil = [0,0,0.1,3,0,0]\n\
+             [calibrate]\nposes = 12\nsettle_s = 0.5\n",
+        );
+        assert_eq!(
+            keys,
+            ["duration_s", "robot.simulate", "goal", "calibrate.settle_s"]
+        );
+        assert!(unused_by_experiment("[robot]\nmodel = \"ur3\"\n").is_empty());
+    }
+}

@@ -1,0 +1,72 @@
+//! The mocomp application core. A session starts from one configuration ([`config::Config`],
+//! loaded and checked once into a [`config::Setup`]), connects the world it describes
+//! ([`world::World`]: a UR or an in-process simulated controller, an OpenIGTLink tracker or the
+//! simulated one), and does one job on it: the live loop ([`live`]), a calibration collection
+//! ([`collect`]) or teaching the goal ([`teach`]). Front ends (the `mocomp` CLI, the web console,
+//! the ROS 2 bridge) parse their input, call these and present the results; none of them computes.
+//!
+//! I/O lives here (sockets, threads, files, the wall clock); the math it calls does none.
+
+/// Returns an [`AppError::Refused`] with a formatted message.
+macro_rules! refuse {
+    ($($arg:tt)*) => {
+        return Err($crate::AppError::Refused(format!($($arg)*)))
+    };
+}
+
+pub mod baseline;
+pub mod collect;
+pub mod config;
+pub mod config_file;
+pub mod experiment;
+pub mod live;
+pub mod teach;
+pub mod world;
+
+/// Boxed cause of an [`AppError::Failed`].
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// What went wrong in a session.
+#[derive(Debug, thiserror::Error)]
+pub enum AppError {
+    /// The configuration (or an option standing for one of its keys) is bad; the message names
+    /// the file and the key. Bad input: nothing was started.
+    #[error("{0}")]
+    Config(String),
+    /// A well-formed request the world refused: an unsafe goal, a robot that stopped, a marker
+    /// out of view.
+    #[error("{0}")]
+    Refused(String),
+    /// Doing `what` failed; the cause (kept as the source) says why, and whether the input or
+    /// the world was at fault.
+    #[error("{what}")]
+    Failed {
+        /// What was being done (a file, a connection, a step).
+        what: String,
+        /// Why it failed.
+        #[source]
+        source: Cause,
+    },
+}
+
+impl AppError {
+    /// A failure of `what`, caused by `source`.
+    pub fn failed(what: impl Into<String>, source: impl Into<Cause>) -> Self {
+        Self::Failed {
+            what: what.into(),
+            source: source.into(),
+        }
+    }
+}
+
+/// Adds what was being done to an error, keeping it as the source.
+pub trait Context<T> {
+    /// On error: [`AppError::Failed`] with `what()` and the error as its source.
+    fn what<S: Into<String>>(self, what: impl FnOnce() -> S) -> Result<T, AppError>;
+}
+
+impl<T, E: Into<Cause>> Context<T> for Result<T, E> {
+    fn what<S: Into<String>>(self, what: impl FnOnce() -> S) -> Result<T, AppError> {
+        self.map_err(|e| AppError::failed(what(), e))
+    }
+}

@@ -1,0 +1,550 @@
+//! The live session (`mocomp run`): the compensation loop in real time, until stopped or
+//! `duration_s`.
+//!
+//! The robot is a UR controller at an address, or an in-process simulated controller
+//! (`mocomp-ursim`, real time, real RTDE over loopback). The tracker is an OpenIGTLink server
+//! (PLUS, Slicer, a tracker), or an in-process simulated tracker that serves the moving head over
+//! OpenIGTLink on loopback, so the loop always reads poses through the real client. The loop runs
+//! on this thread at the robot's rate; each cycle's record goes through a bounded lock-free
+//! channel to a logger thread that writes the CSV, tells an [`Observer`] of each event and, once a
+//! second, of the loop's status, and keeps the figures of the [`RunReport`]. The stop flag (a
+//! front end's Ctrl-C, or the console's stop) ends the loop; the robot is then stopped (stopj) and
+//! the report says how that went.
+
+use crate::config::Setup;
+use crate::world::World;
+use crate::{AppError, Context};
+use mocomp_control::{Compensator, CycleRecord, Event, Mode, Reason};
+use mocomp_ur::Robot;
+use std::io::Write;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, TrySendError, sync_channel};
+use std::time::{Duration, Instant};
+
+/// What the logger keeps for the summary.
+#[derive(Debug, Default)]
+struct Summary {
+    cycles: u64,
+    /// Records the loop could not queue (the logger fell behind).
+    dropped: u64,
+    first_t: Option<f64>,
+    last_t: f64,
+    missed: u64,
+    period_ms: Vec<f64>,
+    compute_us: Vec<f64>,
+    delay_ms: Vec<f64>,
+    deviation_mm: Vec<f64>,
+    deviation_deg: Vec<f64>,
+    by_mode: [u64; 5],
+    events: Vec<(f64, Event)>,
+    /// Why the CSV log stopped being written, if it did.
+    log_error: Option<String>,
+}
+
+/// How long the run waits for standstill after its stop.
+const STANDSTILL_WAIT: Duration = Duration::from_secs(3);
+
+fn mode_index(m: &Mode) -> usize {
+    match m {
+        Mode::Tracking => 0,
+        Mode::Approaching => 1,
+        Mode::Holding(_) => 2,
+        Mode::Faulted(_) => 3,
+        Mode::Retreating(_) => 4,
+    }
+}
+
+fn percentile(v: &mut [f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * p).round() as usize]
+}
+
+/// The loop's status, once a second.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Status {
+    /// Loop time, s.
+    pub t: f64,
+    /// Cycles per second since the last status.
+    pub rate_hz: f64,
+    /// The prediction horizon, s: sample age + command delay + lookahead.
+    pub horizon_s: f64,
+    /// The newest sample's age, s.
+    pub sample_age_s: f64,
+    /// From the cycle's start to the command, s.
+    pub command_delay_s: f64,
+    /// The largest deviation while tracking since the last status, m.
+    pub deviation_max_m: f64,
+    /// The loop's mode.
+    pub mode: Mode,
+}
+
+/// What a front end is told while the loop runs (called on the logger thread, never on the
+/// loop's).
+pub trait Observer: Send {
+    /// An event at loop time `t`.
+    fn event(&mut self, t: f64, event: &Event);
+    /// The status, once a second.
+    fn status(&mut self, status: &Status);
+}
+
+/// An observer that ignores everything.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Silent;
+
+impl Observer for Silent {
+    fn event(&mut self, _: f64, _: &Event) {}
+    fn status(&mut self, _: &Status) {}
+}
+
+/// The mode as the log and the report name it.
+pub fn mode_name(m: &Mode) -> String {
+    match m {
+        Mode::Tracking => "tracking".into(),
+        Mode::Approaching => "approaching".into(),
+        Mode::Holding(r) => format!("holding ({r:?})"),
+        Mode::Faulted(r) => format!("faulted ({r:?})"),
+        Mode::Retreating(r) => format!("retreating ({r:?})"),
+    }
+}
+
+fn logger(
+    rx: Receiver<CycleRecord>,
+    period: f64,
+    csv: Option<std::fs::File>,
+    observer: &mut dyn Observer,
+) -> Summary {
+    let mut s = Summary::default();
+    let mut w = csv.map(csv::Writer::from_writer);
+    // A log that cannot be written (a full disk) is not dropped silently: it stops logging, and
+    // the run reports it and fails once the robot is stopped.
+    let mut log_error: Option<csv::Error> = None;
+    if let Some(w) = w.as_mut() {
+        let header = [
+            "t_s",
+            "mode",
+            "event",
+            "sample_age_ms",
+            "horizon_ms",
+            "command_delay_ms",
+            "head_speed_mm_s",
+            "head_speed_deg_s",
+            "deviation_mm",
+            "deviation_deg",
+            "path_m",
+            "compute_us",
+            "q1_cmd",
+            "q2_cmd",
+            "q3_cmd",
+            "q4_cmd",
+            "q5_cmd",
+            "q6_cmd",
+            "q1",
+            "q2",
+            "q3",
+            "q4",
+            "q5",
+            "q6",
+        ];
+        if let Err(e) = w.write_record(header) {
+            log_error = Some(e);
+        }
+    }
+    let mut last_status = Instant::now();
+    // Since the last status line: cycles and the largest deviation while tracking (mm).
+    let (mut window_cycles, mut window_max) = (0u64, 0.0f64);
+    for r in rx {
+        s.cycles += 1;
+        window_cycles += 1;
+        if s.first_t.is_none() {
+            s.first_t = Some(r.t);
+        } else {
+            s.period_ms.push((r.t - s.last_t) * 1e3);
+            if r.t - s.last_t > 1.5 * period {
+                s.missed += ((r.t - s.last_t) / period).round() as u64 - 1;
+            }
+        }
+        s.last_t = r.t;
+        s.by_mode[mode_index(&r.mode)] += 1;
+        s.compute_us.push(r.compute_ns as f64 / 1e3);
+        s.delay_ms.push(r.command_delay_s * 1e3);
+        // The measured flange against the goal for the head estimated at the same time (not the
+        // goal the command aims at, which is the head predicted a horizon ahead).
+        let (dev_mm, dev_deg) = (r.deviation.0 * 1e3, r.deviation.1.to_degrees());
+        if r.mode == Mode::Tracking && dev_mm.is_finite() {
+            s.deviation_mm.push(dev_mm);
+            s.deviation_deg.push(dev_deg);
+            window_max = window_max.max(dev_mm);
+        }
+        if let Some(e) = r.event {
+            s.events.push((r.t, e));
+            observer.event(r.t, &e);
+        }
+        if let Some(w) = w.as_mut().filter(|_| log_error.is_none()) {
+            let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
+            let mut row = vec![
+                format!("{:.6}", r.t),
+                mode_name(&r.mode),
+                r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
+                format!("{:.3}", r.sample_age_s * 1e3),
+                format!("{:.3}", r.horizon_s * 1e3),
+                format!("{:.3}", r.command_delay_s * 1e3),
+                format!("{:.2}", r.head_speed.0 * 1e3),
+                format!("{:.2}", r.head_speed.1.to_degrees()),
+                format!("{dev_mm:.4}"),
+                format!("{dev_deg:.4}"),
+                format!("{path:.4}"),
+                format!("{:.2}", r.compute_ns as f64 / 1e3),
+            ];
+            row.extend(
+                r.q_command
+                    .iter()
+                    .chain(r.q_actual.iter())
+                    .map(|q| format!("{q:.6}")),
+            );
+            if let Err(e) = w.write_record(&row) {
+                log_error = Some(e);
+            }
+        }
+        if last_status.elapsed() >= Duration::from_secs(1) {
+            observer.status(&Status {
+                t: r.t,
+                rate_hz: window_cycles as f64 / last_status.elapsed().as_secs_f64(),
+                horizon_s: r.horizon_s,
+                sample_age_s: r.sample_age_s,
+                command_delay_s: r.command_delay_s,
+                deviation_max_m: window_max * 1e-3,
+                mode: r.mode,
+            });
+            last_status = Instant::now();
+            (window_cycles, window_max) = (0, 0.0);
+        }
+    }
+    if let Some(w) = w.as_mut()
+        && log_error.is_none()
+        && let Err(e) = w.flush()
+    {
+        log_error = Some(e.into());
+    }
+    s.log_error = log_error.map(|e| e.to_string());
+    s
+}
+
+/// How the run's final stop went, as it happened.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(tag = "outcome", rename_all = "snake_case")]
+pub enum StopOutcome {
+    /// stopj was sent and the arm stood still after `after_s`.
+    Standstill {
+        /// Seconds from the stop to standstill.
+        after_s: f64,
+    },
+    /// stopj was refused (the robot had stopped itself: a fault, a lost program), and the arm
+    /// stands still.
+    AlreadyStopped {
+        /// Why stopj was refused.
+        why: String,
+    },
+    /// The arm was still moving `after_s` after the stop (stopj sent, or refused for `refused`).
+    StillMoving {
+        /// Seconds waited.
+        after_s: f64,
+        /// Why stopj was refused, if it was.
+        refused: Option<String>,
+    },
+}
+
+impl std::fmt::Display for StopOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Standstill { after_s } => {
+                write!(f, "stopj sent, standstill after {after_s:.2} s")
+            }
+            Self::AlreadyStopped { why } => {
+                write!(f, "stopj refused ({why}); the arm stands still")
+            }
+            Self::StillMoving {
+                after_s,
+                refused: None,
+            } => write!(
+                f,
+                "stopj sent, but the arm still moved after {after_s:.1} s"
+            ),
+            Self::StillMoving {
+                after_s,
+                refused: Some(why),
+            } => write!(
+                f,
+                "stopj refused ({why}), and the arm still moved after {after_s:.1} s"
+            ),
+        }
+    }
+}
+
+/// The run's summary (`mocomp run --json` prints it): what an operator, and
+/// `scripts/stress.sh`, reads. Times in ms or µs and deviations in mm, as the field names say.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunReport {
+    /// Cycles run.
+    pub cycles: u64,
+    /// From the first cycle to the last, s.
+    pub seconds: f64,
+    /// Cycles per second.
+    pub rate_hz: f64,
+    /// Robot periods without a cycle.
+    pub missed_cycles: u64,
+    /// Of all periods.
+    pub missed_percent: f64,
+    /// Records the logger could not take (it fell behind); the loop never waits for it.
+    pub log_records_dropped: u64,
+    /// Cycle period, median.
+    pub period_median_ms: f64,
+    /// Cycle period, 99th percentile.
+    pub period_p99_ms: f64,
+    /// Cycle period, largest.
+    pub period_max_ms: f64,
+    /// Cycle compute (the socket write included), median.
+    pub compute_median_us: f64,
+    /// The same, 99th percentile.
+    pub compute_p99_us: f64,
+    /// The same, largest.
+    pub compute_max_us: f64,
+    /// From the cycle's start to its command, median.
+    pub command_delay_median_ms: f64,
+    /// Share of cycles tracking.
+    pub tracking_percent: f64,
+    /// Share of cycles approaching along a planned path.
+    pub approaching_percent: f64,
+    /// Share of cycles holding.
+    pub holding_percent: f64,
+    /// Share of cycles faulted.
+    pub faulted_percent: f64,
+    /// Share of cycles retreating.
+    pub retreating_percent: f64,
+    /// Goal deviation while tracking, RMS.
+    pub deviation_rms_mm: f64,
+    /// The same, 95th percentile.
+    pub deviation_p95_mm: f64,
+    /// The same, largest.
+    pub deviation_max_mm: f64,
+    /// Rotation deviation while tracking, 95th percentile, degrees.
+    pub rotation_p95_deg: f64,
+    /// Holds, for any reason.
+    pub holds: usize,
+    /// Holds for a stale robot state.
+    pub robot_stale_holds: usize,
+    /// Holds for the controller's protective stop.
+    pub protective_stops: usize,
+    /// Events.
+    pub events: usize,
+    /// Each event: loop time (s) and what happened.
+    pub event_log: Vec<(f64, String)>,
+    /// The mode at the end.
+    pub final_mode: String,
+    /// How the final stop went.
+    pub stop: StopOutcome,
+    /// Why the CSV log stopped being written, if it did.
+    pub log_error: Option<String>,
+    /// What real-time scheduling the loop got.
+    pub realtime: String,
+    /// Whether it got all it asked for.
+    pub realtime_complete: bool,
+}
+
+impl RunReport {
+    fn new(
+        s: &mut Summary,
+        rt: Option<&mocomp_rt::RtReport>,
+        final_mode: &Mode,
+        stop: StopOutcome,
+    ) -> Self {
+        let span = s.last_t - s.first_t.unwrap_or(s.last_t);
+        let n = s.cycles.max(1) as f64;
+        let rms = (s.deviation_mm.iter().map(|d| d * d).sum::<f64>()
+            / s.deviation_mm.len().max(1) as f64)
+            .sqrt();
+        let holds = |f: fn(&Reason) -> bool| {
+            s.events
+                .iter()
+                .filter(|(_, e)| matches!(e, Event::Hold(r) if f(r)))
+                .count()
+        };
+        Self {
+            cycles: s.cycles,
+            seconds: span,
+            rate_hz: s.cycles.saturating_sub(1) as f64 / span.max(1e-9),
+            missed_cycles: s.missed,
+            missed_percent: 100.0 * s.missed as f64 / (s.cycles + s.missed).max(1) as f64,
+            log_records_dropped: s.dropped,
+            period_median_ms: percentile(&mut s.period_ms, 0.5),
+            period_p99_ms: percentile(&mut s.period_ms, 0.99),
+            period_max_ms: percentile(&mut s.period_ms, 1.0),
+            compute_median_us: percentile(&mut s.compute_us, 0.5),
+            compute_p99_us: percentile(&mut s.compute_us, 0.99),
+            compute_max_us: percentile(&mut s.compute_us, 1.0),
+            command_delay_median_ms: percentile(&mut s.delay_ms, 0.5),
+            tracking_percent: 100.0 * s.by_mode[0] as f64 / n,
+            approaching_percent: 100.0 * s.by_mode[1] as f64 / n,
+            holding_percent: 100.0 * s.by_mode[2] as f64 / n,
+            faulted_percent: 100.0 * s.by_mode[3] as f64 / n,
+            retreating_percent: 100.0 * s.by_mode[4] as f64 / n,
+            deviation_rms_mm: rms,
+            deviation_p95_mm: percentile(&mut s.deviation_mm, 0.95),
+            deviation_max_mm: percentile(&mut s.deviation_mm, 1.0),
+            rotation_p95_deg: percentile(&mut s.deviation_deg, 0.95),
+            holds: holds(|_| true),
+            robot_stale_holds: holds(|r| matches!(r, Reason::RobotStale)),
+            protective_stops: holds(|r| {
+                matches!(r, Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop))
+            }),
+            events: s.events.len(),
+            event_log: s
+                .events
+                .iter()
+                .map(|(t, e)| (*t, format!("{e:?}")))
+                .collect(),
+            final_mode: mode_name(final_mode),
+            stop,
+            log_error: s.log_error.clone(),
+            realtime: rt.map_or_else(|| "normal scheduling".into(), mocomp_rt::RtReport::describe),
+            realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
+        }
+    }
+
+    /// What went wrong at the end, which fails the run although the loop ran: a robot that did
+    /// not stop, a cycle log left incomplete.
+    pub fn failure(&self, log_csv: Option<&Path>) -> Option<String> {
+        if let StopOutcome::StillMoving { .. } = &self.stop {
+            return Some(format!("the robot did not stop: {}", self.stop));
+        }
+        self.log_error.as_ref().map(|e| {
+            format!(
+                "the cycle log {} is incomplete: {e}",
+                log_csv
+                    .map(Path::display)
+                    .map(|d| d.to_string())
+                    .unwrap_or_default()
+            )
+        })
+    }
+}
+
+/// Runs the loop on `setup` until `stop` is set or `duration_s`, then stops the robot and
+/// returns the report. `log_csv`: every cycle's record. `progress` is told what starts; the
+/// `observer`, what happens while the loop runs.
+pub fn run(
+    setup: &Setup,
+    log_csv: Option<&Path>,
+    stop: &AtomicBool,
+    observer: Box<dyn Observer>,
+    progress: &mut dyn Write,
+) -> Result<RunReport, AppError> {
+    let (model, arm) = (setup.model, setup.arm);
+    let period = model.spec().series.period_s();
+    let cfg = setup.loop_config()?;
+    let q0 = setup.initial_joints()?;
+    // What the loop needs besides the world is made before the robot is connected: once
+    // connected, its control program stops when no command comes for 50 ms (the watchdog), and
+    // a thread started on a busy machine can take longer than that. The logger:
+    let csv = match log_csv {
+        Some(p) => Some(std::fs::File::create(p).what(|| format!("log_csv {}", p.display()))?),
+        None => None,
+    };
+    let (tx, rx) = sync_channel::<CycleRecord>(8192);
+    let log_thread = std::thread::Builder::new()
+        .name("mocomp-log".into())
+        .spawn(move || {
+            // Whatever the thread that starts it runs at, the logger must not compete with the
+            // real-time loop, nor sit on its core.
+            mocomp_rt::set_normal().ok();
+            mocomp_rt::unpin().ok();
+            let mut observer = observer;
+            logger(rx, period, csv, observer.as_mut())
+        })
+        .what(|| "starting the logger thread")?;
+
+    let mut comp = Compensator::new(cfg, arm, period);
+
+    let file = &setup.file;
+    let world = World::connect(setup, q0, progress, Some(&file.realtime))?;
+    let realtime = world.realtime.clone();
+    if let Some(w) = realtime.as_ref().and_then(mocomp_rt::RtReport::warning) {
+        writeln!(progress, "warning: {w}").what(|| "writing the progress")?;
+    }
+    let clock = Arc::clone(&world.clock);
+    let client = world.client(setup, &file.tracker.device);
+    // The simulators (the rest of `world`) stay up until the end of this function.
+    let mut robot = world.robot;
+    let mut source = client.pose_source();
+    progress.flush().what(|| "writing the progress")?;
+
+    // The loop, at the robot's rate: one cycle per new state.
+    let t_end = if file.duration_s > 0.0 {
+        clock.now_s() + file.duration_s
+    } else {
+        f64::INFINITY
+    };
+    let mut seen = robot.state_count();
+    let mut dropped = 0u64;
+    // Wait for the next state (woken by the client's receive thread); after three periods without
+    // one, cycle anyway: the loop resends its command (the watchdog stays fed) and its
+    // stale-state rule stops the robot once the state is really stale.
+    let patience = Duration::from_secs_f64(3.0 * period);
+    // Start on a fresh state (up to a second): the first cycle must not judge a state that was
+    // received while the rest of the world was still starting.
+    let ready_by = Instant::now() + Duration::from_secs(1);
+    while Instant::now() < ready_by
+        && !robot
+            .state()
+            .is_some_and(|s| clock.now_s() - s.received_s < period)
+    {
+        // Fed meanwhile: the program's watchdog does not wait for the first cycle.
+        robot.keep_alive().ok();
+        seen = robot.wait_for_state(seen, patience);
+    }
+    while !stop.load(Ordering::Relaxed) && clock.now_s() < t_end {
+        seen = robot.wait_for_state(seen, patience);
+        let t0 = Instant::now();
+        let mut rec = comp.cycle(clock.now_s(), &mut robot, &mut source);
+        rec.compute_ns = t0.elapsed().as_nanos() as u64;
+        if let Err(TrySendError::Full(_)) = tx.try_send(rec) {
+            dropped += 1;
+        }
+    }
+    // Stop the robot in a defined way, and wait for standstill.
+    let decel = comp.config().params.stop_decel_rad_s2;
+    let sent = robot.stop(decel);
+    let t_stop = Instant::now();
+    let still = loop {
+        let still = robot
+            .state()
+            .is_some_and(|s| s.actual_qd.iter().all(|v| v.abs() < 1e-3));
+        if still || t_stop.elapsed() >= STANDSTILL_WAIT {
+            break still;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let after_s = t_stop.elapsed().as_secs_f64();
+    let stop = match (sent, still) {
+        (Ok(_), true) => StopOutcome::Standstill { after_s },
+        (Err(e), true) => StopOutcome::AlreadyStopped { why: e.to_string() },
+        (sent, false) => StopOutcome::StillMoving {
+            after_s,
+            refused: sent.err().map(|e| e.to_string()),
+        },
+    };
+    let final_mode = comp.mode();
+    drop(tx);
+    let mut s = log_thread
+        .join()
+        .map_err(|_| AppError::Refused("the logger thread panicked".into()))?;
+    s.dropped = dropped;
+    // The robot stands still (or the report says it does not): a failed close changes nothing.
+    robot.close().ok();
+    drop(client);
+    Ok(RunReport::new(&mut s, realtime.as_ref(), &final_mode, stop))
+}

@@ -1,0 +1,310 @@
+//! The experiment's written record: the summary (JSON and Markdown), the CSV of every tick, and
+//! the figures ([`crate::plots`]), in one directory.
+
+use mocomp_app::experiment::{ExperimentConfig, Outcome};
+use mocomp_geom::units::{m_to_mm, rad_to_deg};
+use mocomp_sim::HeadMotion;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// One controller's figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    /// Its name (`paper`, `mocomp`).
+    pub controller: &'static str,
+    /// d = ‖E2_T_E1,g − E2_T_E1‖_F (translation in mm): RMS over the run.
+    pub d_rms: f64,
+    /// d: 95th percentile.
+    pub d_p95: f64,
+    /// d: largest.
+    pub d_max: f64,
+    /// Translation error of E2_T_E1, mm: RMS.
+    pub translation_mm_rms: f64,
+    /// The same, 95th percentile.
+    pub translation_mm_p95: f64,
+    /// The same, largest.
+    pub translation_mm_max: f64,
+    /// Rotation error of E2_T_E1, degrees: RMS.
+    pub rotation_deg_rms: f64,
+    /// The same, 95th percentile.
+    pub rotation_deg_p95: f64,
+    /// The same, largest.
+    pub rotation_deg_max: f64,
+    /// Holds.
+    pub holds: usize,
+    /// Retreats.
+    pub retreats: usize,
+    /// Tracker dropouts coasted through on the prediction.
+    pub dropouts_coasted: usize,
+    /// Tracker samples rejected as outliers.
+    pub outliers_rejected: usize,
+    /// The true coil's least distance to the head model (negative: inside), mm.
+    pub min_clearance_mm: f64,
+    /// Time the true coil spent inside the head model, s.
+    pub inside_head_s: f64,
+}
+
+/// The experiment's summary (`mocomp demo --json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// Compensation time per controller, s.
+    pub seconds: f64,
+    /// The tracker noise's seed.
+    pub seed: u64,
+    /// still, drift, nods or random.
+    pub motion: &'static str,
+    /// U1, carrying the coil.
+    pub coil_robot: &'static str,
+    /// U2, carrying the head phantom.
+    pub head_robot: &'static str,
+    /// The head's peak speed, mm/s.
+    pub head_peak_mm_s: f64,
+    /// The head's peak angular speed, °/s.
+    pub head_peak_deg_s: f64,
+    /// Tracker samples per second.
+    pub tracker_rate_hz: f64,
+    /// Tracker latency, acquisition to sending, ms.
+    pub tracker_latency_ms: f64,
+    /// Tracker position noise, 1σ per axis, mm.
+    pub tracker_noise_mm: f64,
+    /// Tracker rotation noise, 1σ per axis, degrees.
+    pub tracker_noise_deg: f64,
+    /// Tracker dropouts per second.
+    pub tracker_dropouts_per_s: f64,
+    /// One row per controller, in the order run.
+    pub controllers: Vec<Row>,
+    /// paper ÷ mocomp: d RMS.
+    pub ratio_d_rms: f64,
+    /// paper ÷ mocomp: d max.
+    pub ratio_d_max: f64,
+}
+
+/// The summary of an outcome.
+pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
+    let rows: Vec<Row> = o
+        .runs
+        .iter()
+        .map(|r| {
+            let n = crate::plots::event_counts(r);
+            Row {
+                controller: r.controller.name(),
+                d_rms: r.d.rms,
+                d_p95: r.d.p95,
+                d_max: r.d.max,
+                translation_mm_rms: r.translation_mm.rms,
+                translation_mm_p95: r.translation_mm.p95,
+                translation_mm_max: r.translation_mm.max,
+                rotation_deg_rms: r.rotation_deg.rms,
+                rotation_deg_p95: r.rotation_deg.p95,
+                rotation_deg_max: r.rotation_deg.max,
+                holds: n.holds,
+                retreats: n.retreats,
+                dropouts_coasted: n.coasts,
+                outliers_rejected: n.outliers,
+                min_clearance_mm: m_to_mm(r.min_clearance_m),
+                inside_head_s: r.inside_head_s,
+            }
+        })
+        .collect();
+    let (p, m) = (&rows[0], &rows[rows.len() - 1]);
+    Summary {
+        seconds: cfg.duration_s,
+        seed: cfg.tracker.seed,
+        motion: cfg.motion.name(),
+        coil_robot: cfg.coil_robot.name(),
+        head_robot: cfg.head_robot.name(),
+        head_peak_mm_s: m_to_mm(o.head_peak_speed.0),
+        head_peak_deg_s: rad_to_deg(o.head_peak_speed.1),
+        tracker_rate_hz: cfg.tracker.rate_hz,
+        tracker_latency_ms: cfg.tracker.latency_s * 1e3,
+        tracker_noise_mm: m_to_mm(cfg.tracker.noise_m),
+        tracker_noise_deg: rad_to_deg(cfg.tracker.noise_rad),
+        tracker_dropouts_per_s: cfg.tracker.dropouts_per_s,
+        ratio_d_rms: p.d_rms / m.d_rms,
+        ratio_d_max: p.d_max / m.d_max,
+        controllers: rows,
+    }
+}
+
+/// The motion, in words.
+fn motion_words(m: &HeadMotion) -> &'static str {
+    match m {
+        HeadMotion::Still => "a still head",
+        HeadMotion::Drift(_) => "a slow drift of the head",
+        HeadMotion::Nods(_) => "nods and turns of the head",
+        HeadMotion::Random(_) => "smooth random head motion",
+        HeadMotion::Turn(_) => "a quick head turn away and back",
+        HeadMotion::File(_) => "a recorded head motion",
+    }
+}
+
+/// The summary as Markdown (`summary.md`, and what `mocomp demo` prints).
+pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
+    let mut t = String::new();
+    t.push_str(
+        "# mocomp demo: the paper's experiment
+
+",
+    );
+    t.push_str(&format!(
+        "{:.0} s of {} (peaks {:.1} mm/s and {:.1}°/s) per controller; the {} carries the coil, the {} the head phantom. Tracker: {:.0} Hz, {:.0} ms latency, noise {:.2} mm and {:.3}° (1σ per axis), {} dropouts/s; seed {}. d = ‖E2_T_E1,g − E2_T_E1‖_F, translation in mm.\n\n",
+        s.seconds,
+        motion_words(&cfg.motion),
+        s.head_peak_mm_s,
+        s.head_peak_deg_s,
+        s.coil_robot.to_uppercase(),
+        s.head_robot.to_uppercase(),
+        s.tracker_rate_hz,
+        s.tracker_latency_ms,
+        s.tracker_noise_mm,
+        s.tracker_noise_deg,
+        s.tracker_dropouts_per_s,
+        s.seed,
+    ));
+    t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | retreats | dropouts coasted | outliers rejected | least coil clearance (mm) | coil in the head (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for r in &s.controllers {
+        t.push_str(&format!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} | {:.2} | {:.2} |\n",
+            r.controller,
+            r.d_rms,
+            r.d_p95,
+            r.d_max,
+            r.translation_mm_rms,
+            r.translation_mm_p95,
+            r.translation_mm_max,
+            r.rotation_deg_rms,
+            r.rotation_deg_p95,
+            r.rotation_deg_max,
+            r.holds,
+            r.retreats,
+            r.dropouts_coasted,
+            r.outliers_rejected,
+            r.min_clearance_mm,
+            r.inside_head_s,
+        ));
+    }
+    t.push_str(&format!(
+        "\npaper ÷ mocomp: d RMS {:.1}×, d max {:.1}×.\n\n",
+        s.ratio_d_rms, s.ratio_d_max
+    ));
+    let c = &o.coil_calibration;
+    t.push_str(&format!(
+        "Calibration of the coil robot ({} pairs): Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}° from the truth. The `paper` controller: a {:.0} ms loop, {:.0} ms from sample to command, movej at {} rad/s and {} rad/s² to the least-angle-sum IK solution, no prediction.\n",
+        c.pairs,
+        m_to_mm(c.y_error.0),
+        rad_to_deg(c.y_error.1),
+        m_to_mm(c.x_error.0),
+        rad_to_deg(c.x_error.1),
+        cfg.paper.period_s * 1e3,
+        cfg.paper.compute_delay_s * 1e3,
+        cfg.paper.joint_speed_rad_s,
+        cfg.paper.joint_accel_rad_s2
+    ));
+    t
+}
+
+/// The CSV of every tick of every controller (`demo.csv`), on the `csv` crate: a mode or event
+/// whose text holds a comma is quoted.
+pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record([
+        "controller",
+        "t_s",
+        "d",
+        "translation_mm",
+        "rotation_deg",
+        "head_speed_mm_s",
+        "head_speed_deg_s",
+        "sample_age_ms",
+        "horizon_ms",
+        "coil_clearance_mm",
+        "mode",
+        "event",
+    ])?;
+    for r in &o.runs {
+        for x in &r.records {
+            w.write_record([
+                r.controller.name().to_string(),
+                format!("{:.4}", x.t),
+                format!("{:.5}", x.d),
+                format!("{:.5}", x.translation_m * 1e3),
+                format!("{:.5}", x.rotation_rad.to_degrees()),
+                format!("{:.3}", x.head_speed.0 * 1e3),
+                format!("{:.3}", x.head_speed.1.to_degrees()),
+                format!("{:.3}", x.sample_age_s * 1e3),
+                format!("{:.3}", x.horizon_s * 1e3),
+                format!("{:.3}", m_to_mm(x.coil_clearance_m)),
+                format!("{:?}", x.mode),
+                x.event.map(|e| format!("{e:?}")).unwrap_or_default(),
+            ])?;
+        }
+    }
+    w.into_inner().map_err(|e| e.into_error().into())
+}
+
+/// What [`write`] wrote.
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// The summary.
+    pub summary: Summary,
+    /// The same as Markdown.
+    pub markdown: String,
+    /// `demo.csv`.
+    pub csv: PathBuf,
+    /// `summary.md`.
+    pub markdown_path: PathBuf,
+    /// `config.toml`.
+    pub config: PathBuf,
+    /// The figures, PNG and SVG of each.
+    pub figures: Vec<PathBuf>,
+}
+
+/// Why the record could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// A file could not be written.
+    #[error("writing {path}")]
+    Io {
+        /// Which.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The CSV could not be formatted.
+    #[error("formatting demo.csv")]
+    Csv(#[from] csv::Error),
+    /// A figure could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] crate::plots::PlotError),
+}
+
+/// Writes the record of `o` into `dir` (which must exist): `demo.csv`, the figures,
+/// `summary.md`, and `config` (the configuration it ran with, as a file) as `config.toml`.
+pub fn write(
+    o: &Outcome,
+    cfg: &ExperimentConfig,
+    config: &str,
+    dir: &Path,
+) -> Result<Written, ReportError> {
+    let put = |name: &str, bytes: &[u8]| {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes)
+            .map(|()| path.clone())
+            .map_err(|source| ReportError::Io { path, source })
+    };
+    let summary = summary(o, cfg);
+    let csv = put("demo.csv", &ticks_csv(o)?)?;
+    let config = put("config.toml", config.as_bytes())?;
+    let figures = crate::plots::write_all(&o.runs, cfg.duration_s, dir)?;
+    let markdown = markdown(&summary, o, cfg);
+    let markdown_path = put("summary.md", markdown.as_bytes())?;
+    Ok(Written {
+        summary,
+        markdown,
+        csv,
+        markdown_path,
+        config,
+        figures,
+    })
+}
