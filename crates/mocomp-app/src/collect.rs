@@ -2,6 +2,7 @@
 //! planner's poses on the robot, records the tracker's measurement of the flange's marker at each,
 //! solves `AX = YB`, and saves the calibration (and the pairs, for `calibrate solve`).
 
+use crate::calibration::{self, Measurement, MoveState, Station, move_state};
 use crate::config::{CollectSection, Setup, TrackerSource};
 use crate::world::World;
 use crate::{AppError, Context};
@@ -11,7 +12,7 @@ use mocomp_calib::{
 };
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSource, rotation_error, translation_error};
-use mocomp_ur::{Robot, UrRobot};
+use mocomp_ur::Robot;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -56,97 +57,99 @@ pub struct Collected {
     pub against_truth: Option<(PoseError, PoseError)>,
 }
 
-/// One pose's measurement: the robot's joints and tracker_from_marker.
-type Measurement = ([f64; 6], Isometry3<f64>);
-
 /// A pose's error: translation (m) and rotation (rad).
 pub type PoseError = (f64, f64);
 
-/// Keeps the watchdog fed for `d`.
-fn keep_fed(robot: &mut UrRobot, d: Duration) -> Result<(), AppError> {
-    let end = Instant::now() + d;
-    while Instant::now() < end {
-        robot
-            .keep_alive()
-            .what(|| "keeping the robot's program running")?;
-        std::thread::sleep(Duration::from_millis(8));
-    }
-    Ok(())
+/// The live robot and tracker as a calibration station, on the wall clock.
+struct Live<'a> {
+    world: &'a mut World,
+    source: &'a mut dyn PoseSource,
+    c: &'a CollectSection,
 }
 
-/// Moves to `q` and waits (keeping the watchdog fed) until the robot is there and still.
-fn move_to(robot: &mut UrRobot, q: &[f64; 6], c: &CollectSection) -> Result<(), AppError> {
-    let seq = robot
-        .move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)
-        .what(|| "a calibration move")?;
-    let start = Instant::now();
-    loop {
-        if let Some(s) = robot.state() {
-            if let Some(f) = s.fault() {
-                refuse!("the robot stopped during a calibration move: {f}");
-            }
-            let there = s.actual_q.iter().zip(q).all(|(a, b)| (a - b).abs() < 2e-3);
-            let still = s.actual_qd.iter().all(|v| v.abs() < 2e-3);
-            if there && still {
-                return Ok(());
-            }
-            if s.move_done_seq >= seq && still {
-                refuse!("a calibration move ended away from its target");
-            }
-        }
-        if start.elapsed().as_secs_f64() > c.move_timeout_s {
-            refuse!(
-                "a calibration move did not arrive within calibrate.move_timeout_s = {} s",
-                c.move_timeout_s
-            );
-        }
-        robot
-            .keep_alive()
-            .what(|| "keeping the robot's program running")?;
-        std::thread::sleep(Duration::from_millis(4));
-    }
-}
-
-/// One measurement: the mean of `n` valid samples acquired after `after` (on the world's clock),
-/// with the robot's joints averaged over the same time. `None` when the marker is not seen.
-fn measure(
-    world: &mut World,
-    source: &mut dyn PoseSource,
-    n: usize,
-    after: f64,
-) -> Result<Option<Measurement>, AppError> {
-    let start = Instant::now();
-    let mut samples = Vec::with_capacity(n);
-    let mut qs = Vec::new();
-    // Polled faster than the tracker sends: each sample counts once.
-    let mut last = after;
-    while samples.len() < n {
-        if start.elapsed() > Duration::from_secs(3) {
-            return Ok(None);
-        }
-        if let Some(s) = source.latest()
-            && s.valid
-            && s.acquired_s > last
-        {
-            last = s.acquired_s;
-            samples.push(s.tracker_from_marker);
-            if let Some(r) = world.robot.state() {
-                qs.push(r.actual_q);
-            }
-        }
-        world
+impl Live<'_> {
+    fn feed(&mut self) -> Result<(), AppError> {
+        self.world
             .robot
             .keep_alive()
-            .what(|| "keeping the robot's program running")?;
-        std::thread::sleep(Duration::from_millis(2));
+            .what(|| "keeping the robot's program running")
     }
-    let mut q = [0.0; 6];
-    for qi in &qs {
-        for (a, b) in q.iter_mut().zip(qi) {
-            *a += b / qs.len().max(1) as f64;
+}
+
+impl Station for Live<'_> {
+    type Error = AppError;
+
+    fn move_to(&mut self, q: &[f64; 6]) -> Result<(), AppError> {
+        let c = self.c;
+        let seq = self
+            .world
+            .robot
+            .move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)
+            .what(|| "a calibration move")?;
+        let start = Instant::now();
+        loop {
+            if let Some(s) = self.world.robot.state() {
+                if let Some(f) = s.fault() {
+                    refuse!("the robot stopped during a calibration move: {f}");
+                }
+                match move_state(&s, q, seq) {
+                    MoveState::Arrived => return Ok(()),
+                    MoveState::Away => refuse!("a calibration move ended away from its target"),
+                    MoveState::Moving => {}
+                }
+            }
+            if start.elapsed().as_secs_f64() > c.move_timeout_s {
+                refuse!(
+                    "a calibration move did not arrive within calibrate.move_timeout_s = {} s",
+                    c.move_timeout_s
+                );
+            }
+            self.feed()?;
+            std::thread::sleep(Duration::from_millis(4));
         }
     }
-    Ok(mocomp_geom::average(&samples, None).ok().map(|p| (q, p)))
+
+    fn settle(&mut self, seconds: f64) -> Result<(), AppError> {
+        let end = Instant::now() + Duration::from_secs_f64(seconds);
+        while Instant::now() < end {
+            self.feed()?;
+            std::thread::sleep(Duration::from_millis(8));
+        }
+        Ok(())
+    }
+
+    /// The joints are averaged over the samples' time; a marker unseen for 3 s is not seen.
+    fn measure(&mut self, n: usize) -> Result<Option<Measurement>, AppError> {
+        let start = Instant::now();
+        let mut samples = Vec::with_capacity(n);
+        let mut qs = Vec::new();
+        // Polled faster than the tracker sends: each sample counts once.
+        let mut last = self.world.clock.now_s();
+        while samples.len() < n {
+            if start.elapsed() > Duration::from_secs(3) {
+                return Ok(None);
+            }
+            if let Some(s) = self.source.latest()
+                && s.valid
+                && s.acquired_s > last
+            {
+                last = s.acquired_s;
+                samples.push(s.tracker_from_marker);
+                if let Some(r) = self.world.robot.state() {
+                    qs.push(r.actual_q);
+                }
+            }
+            self.feed()?;
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let mut q = [0.0; 6];
+        for qi in &qs {
+            for (a, b) in q.iter_mut().zip(qi) {
+                *a += b / qs.len().max(1) as f64;
+            }
+        }
+        Ok(mocomp_geom::average(&samples, None).ok().map(|p| (q, p)))
+    }
 }
 
 /// Runs the collection on `setup`'s world, solves, and saves the calibration to `out` (default:
@@ -199,36 +202,32 @@ pub fn collect(
         center,
     });
 
-    let mut pairs = Vec::new();
-    let mut missed = Vec::new();
-    let result = (|| -> Result<(), AppError> {
-        for (i, p) in poses.iter().enumerate() {
-            move_to(&mut world.robot, &p.joints, &c)?;
-            keep_fed(&mut world.robot, Duration::from_secs_f64(c.settle_s))?;
-            let after = world.clock.now_s();
-            let seen = match measure(&mut world, &mut source, c.samples_per_pose, after)? {
-                Some((q, tracker_from_marker)) => {
-                    let mut pair = Pair::new(arm.fk_flange(&q), tracker_from_marker);
-                    pair.joints = Some(q);
-                    pairs.push(pair);
-                    true
-                }
-                None => {
-                    missed.push(i + 1);
-                    false
+    let mut station = Live {
+        world: &mut world,
+        source: &mut source,
+        c: &c,
+    };
+    let result = calibration::collect(
+        &mut station,
+        &arm,
+        &poses,
+        &current,
+        c.settle_s,
+        c.samples_per_pose,
+        &mut |index, seen| progress(Progress::Pose { index, seen }),
+    );
+    let calibration::Collection { pairs, missed } = match result {
+        Ok(got) => got,
+        Err(e) => {
+            let what = match world.robot.stop(4.0) {
+                Ok(_) => "calibrate collect stopped the robot".to_string(),
+                Err(stop) => {
+                    format!("calibrate collect could not stop the robot either ({stop})")
                 }
             };
-            progress(Progress::Pose { index: i, seen });
+            return Err(AppError::failed(what, e));
         }
-        move_to(&mut world.robot, &current, &c)
-    })();
-    if let Err(e) = result {
-        let what = match world.robot.stop(4.0) {
-            Ok(_) => "calibrate collect stopped the robot".to_string(),
-            Err(stop) => format!("calibrate collect could not stop the robot either ({stop})"),
-        };
-        return Err(AppError::failed(what, e));
-    }
+    };
     let simulated_robot = world.simulated_robot();
     // The arm is back and still: a failed close changes nothing.
     world.robot.close().ok();

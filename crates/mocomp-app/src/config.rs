@@ -613,6 +613,24 @@ impl Config {
         }
     }
 
+    /// A note when the predictor is told another noise than the simulated tracker has (for a
+    /// session on the simulated tracker, and the experiment): its adaptive noise scale then reads
+    /// the difference as motion and the coil jitters.
+    pub fn predictor_note(&self) -> Option<String> {
+        let (p, t) = (&self.predictor, &self.tracker.simulated.model);
+        let differs = |a: f64, b: f64| (a - b).abs() > 1e-3 * b.abs().max(1e-12);
+        (differs(p.position_noise_m, t.noise_m) || differs(p.rotation_noise_rad, t.noise_rad)).then(
+            || {
+                format!(
+                    "predictor.position_noise_m = {}, rotation_noise_rad = {}, but the simulated \
+                     tracker's noise is {} m, {} rad (tracker.simulated.model): the predictor \
+                     should be told the tracker's noise",
+                    p.position_noise_m, p.rotation_noise_rad, t.noise_m, t.noise_rad
+                )
+            },
+        )
+    }
+
     /// The loop's configuration around `base_from_tracker`, at the robot's `period`.
     pub fn loop_config(
         &self,
@@ -975,6 +993,17 @@ mod tests {
         let bad = parse("[robot]\nmodel = \"ur3e\"\n[experiment]\nhead_robot = \"ur5\"\n").unwrap();
         let err = bad.experiment().unwrap_err().to_string();
         assert!(err.contains("experiment.head_robot"), "{err}");
+    }
+
+    #[test]
+    fn a_predictor_told_another_noise_than_the_simulated_trackers_is_noted() {
+        assert_eq!(Config::default().predictor_note(), None);
+        let cfg = parse("[tracker.simulated.model]\nnoise_rad = 0.0015\n").unwrap();
+        let note = cfg.predictor_note().unwrap();
+        assert!(
+            note.contains("rotation_noise_rad = 0.001") && note.contains("0.0015"),
+            "{note}"
+        );
     }
 
     #[test]

@@ -28,8 +28,9 @@
 //! simulators' true joints, with the translation and rotation errors of `E2_T_E1`.
 
 use crate::baseline::PaperPipeline;
+use crate::calibration::MoveState;
 use mocomp_calib::plan::{PlanOptions, plan};
-use mocomp_calib::{Method, NoiseModel, Pair, SolveOptions, solve};
+use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
 use mocomp_control::{Compensator, Event, LoopConfig, Mode};
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{
@@ -921,10 +922,10 @@ impl World {
     }
 
     /// Moves one robot (U1 if `coil`) to `q` with movej while the other keeps still, ticking
-    /// until it is there.
+    /// until the move has arrived ([`crate::calibration::move_state`]).
     fn move_to(&mut self, coil: bool, q: &[f64; 6]) -> Result<(), ExperimentError> {
         let start = self.clock.now_s();
-        let mut commanded = false;
+        let mut seq: Option<i32> = None;
         loop {
             self.track()?;
             let (mover, other, sim_m, sim_o) = if coil {
@@ -932,12 +933,21 @@ impl World {
             } else {
                 (&mut self.robot2, &mut self.robot1, &self.sim2, &self.sim1)
             };
-            if commanded {
-                Self::sent(sim_m, || mover.keep_alive())?;
-            } else {
-                Self::sent(sim_m, || mover.move_joints(q, 2.0, 4.0).map(|_| ()))?;
-                commanded = true;
-            }
+            let sent = match seq {
+                Some(n) => {
+                    Self::sent(sim_m, || mover.keep_alive())?;
+                    n
+                }
+                None => {
+                    let mut n = 0;
+                    Self::sent(sim_m, || {
+                        n = mover.move_joints(q, 2.0, 4.0)?;
+                        Ok(())
+                    })?;
+                    seq = Some(n);
+                    n
+                }
+            };
             Self::sent(sim_o, || other.keep_alive())?;
             self.advance()?;
             let s = if coil {
@@ -949,10 +959,15 @@ impl World {
                 if let Some(f) = s.fault() {
                     return Err(io("a calibration move", f.to_string()));
                 }
-                let there = s.actual_q.iter().zip(q).all(|(a, b)| (a - b).abs() < 1e-4);
-                let still = s.actual_qd.iter().all(|v| v.abs() < 1e-4);
-                if there && still {
-                    return Ok(());
+                match crate::calibration::move_state(&s, q, sent) {
+                    MoveState::Arrived => return Ok(()),
+                    MoveState::Away => {
+                        return Err(io(
+                            "a calibration move",
+                            "the move ended away from its target",
+                        ));
+                    }
+                    MoveState::Moving => {}
                 }
             }
             if self.clock.now_s() - start > 30.0 {
@@ -1010,40 +1025,24 @@ impl World {
         o.translation_spread_m = 0.06;
         o.rotation_range_rad = (12f64.to_radians(), 30f64.to_radians());
         let poses = plan(&arm, &o).map_err(|e| calib_err(e.to_string()))?;
-        let mut pairs = Vec::with_capacity(poses.len());
-        for (i, p) in poses.iter().enumerate() {
-            self.move_to(coil, &p.joints)?;
-            self.idle(0.05)?;
-            let after = self.clock.now_s();
-            let mut samples = Vec::new();
-            let mut qs = Vec::new();
-            while samples.len() < cfg.calibration_samples {
-                self.idle(self.period)?;
-                let s = if coil {
-                    self.coil_source.latest()
-                } else {
-                    self.head_source.latest()
-                };
-                if let Some(s) = s
-                    && s.valid
-                    && s.acquired_s > after
-                {
-                    samples.push(s.tracker_from_marker);
-                    qs.push(if coil { self.q_now.0 } else { self.q_now.1 });
-                }
-                if self.clock.now_s() - after > 5.0 {
-                    return Err(calib_err(format!("no marker samples at pose {}", i + 1)));
-                }
-            }
-            let marker =
-                mocomp_geom::average(&samples, None).map_err(|e| calib_err(e.to_string()))?;
-            let q = qs[0];
-            let mut pair = Pair::new(arm.fk_flange(&q), marker);
-            pair.joints = Some(q);
-            pairs.push(pair);
-            progress(phase, (i + 1) as f64 / poses.len() as f64);
+        let n = poses.len() as f64;
+        let mut station = Lockstep { world: self, coil };
+        let got = crate::calibration::collect(
+            &mut station,
+            &arm,
+            &poses,
+            &q0,
+            0.05,
+            cfg.calibration_samples,
+            &mut |i, _| progress(phase, (i + 1) as f64 / n),
+        )?;
+        if !got.missed.is_empty() {
+            return Err(calib_err(format!(
+                "no marker samples at pose(s) {:?}",
+                got.missed
+            )));
         }
-        self.move_to(coil, &q0)?;
+        let pairs = got.pairs;
         let noise = NoiseModel {
             tracker_translation_m: cfg.tracker.noise_m.max(1e-6),
             tracker_rotation_rad: cfg.tracker.noise_rad.max(1e-6),
@@ -1078,6 +1077,61 @@ impl World {
             y_error: err(&c.base_from_tracker, &true_y),
             pairs: pairs.len(),
         })
+    }
+}
+
+/// One robot of the experiment's world as a calibration station, in lockstep.
+struct Lockstep<'a> {
+    world: &'a mut World,
+    /// U1 (the coil robot) if true, else U2.
+    coil: bool,
+}
+
+impl crate::calibration::Station for Lockstep<'_> {
+    type Error = ExperimentError;
+
+    fn move_to(&mut self, q: &[f64; 6]) -> Result<(), ExperimentError> {
+        self.world.move_to(self.coil, q)
+    }
+
+    fn settle(&mut self, seconds: f64) -> Result<(), ExperimentError> {
+        self.world.idle(seconds)
+    }
+
+    /// The joints are the simulator's at the first sample (the arm is still); a marker unseen
+    /// for 5 s of simulated time is not seen.
+    fn measure(
+        &mut self,
+        samples: usize,
+    ) -> Result<Option<crate::calibration::Measurement>, ExperimentError> {
+        let w = &mut *self.world;
+        let after = w.clock.now_s();
+        let mut seen = Vec::new();
+        let mut qs = Vec::new();
+        while seen.len() < samples {
+            w.idle(w.period)?;
+            let s = if self.coil {
+                w.coil_source.latest()
+            } else {
+                w.head_source.latest()
+            };
+            if let Some(s) = s
+                && s.valid
+                && s.acquired_s > after
+            {
+                seen.push(s.tracker_from_marker);
+                qs.push(if self.coil { w.q_now.0 } else { w.q_now.1 });
+            }
+            if w.clock.now_s() - after > 5.0 {
+                return Ok(None);
+            }
+        }
+        let Some(&q) = qs.first() else {
+            return Ok(None);
+        };
+        let marker =
+            mocomp_geom::average(&seen, None).map_err(|e| io("averaging the marker samples", e))?;
+        Ok(Some((q, marker)))
     }
 }
 

@@ -193,6 +193,9 @@ impl DemoCmd {
             t.dropouts_per_s = v;
         }
         cfg.check()?;
+        if let Some(note) = cfg.predictor_note() {
+            eprintln!("note: {note}");
+        }
         Ok(cfg)
     }
 

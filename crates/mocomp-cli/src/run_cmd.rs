@@ -69,6 +69,11 @@ impl RunCmd {
         if self.log_csv.is_some() {
             setup.file.log_csv.clone_from(&self.log_csv);
         }
+        if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated
+            && let Some(note) = setup.file.predictor_note()
+        {
+            eprintln!("note: {note}");
+        }
         let stop = Arc::new(AtomicBool::new(false));
         {
             let stop = Arc::clone(&stop);
