@@ -20,7 +20,10 @@ pub mod collect;
 pub mod config;
 pub mod config_file;
 pub mod experiment;
+pub mod frames;
 pub mod live;
+pub mod pose_lines;
+pub mod servo_check;
 pub mod teach;
 pub mod world;
 

@@ -171,3 +171,25 @@ fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> Result<TrackerServer, 
     }
     TrackerServer::start("127.0.0.1:0", s.model, markers).what(|| "the simulated tracker")
 }
+
+/// Starts a real-time simulated controller of `model` on the standard ports of `host` (for
+/// `mocomp ursim` and `robot --ursim`). It stands for the controller's own computer, so its
+/// threads run at `SCHED_FIFO` (the default simulator priority) where the operating system
+/// allows: they inherit it from the calling thread, which is left at that priority. Returns it
+/// with a warning when the priority was refused.
+pub fn start_simulator(
+    model: mocomp_kin::Model,
+    host: std::net::IpAddr,
+) -> Result<(Sim, Option<String>), AppError> {
+    let rt = mocomp_rt::RtConfig::default();
+    let warning = mocomp_rt::set_fifo(rt.simulator_priority)
+        .err()
+        .map(|e| format!("the simulated controller runs without real-time scheduling: {e}"));
+    let sim = Sim::start(SimConfig::new(ControllerConfig::new(model), host)).what(|| {
+        format!(
+            "starting the simulated {model} on {host} (each simulator needs its own loopback \
+             address: 127.0.0.2, 127.0.0.3, …)"
+        )
+    })?;
+    Ok((sim, warning))
+}

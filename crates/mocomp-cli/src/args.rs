@@ -1,7 +1,32 @@
 //! Value parsers for command-line arguments. Each error is one line that clap prefixes with the
 //! argument's name.
 
-use mocomp_kin::Model;
+use anyhow::{Context, Result};
+use clap::Args;
+use mocomp_geom::iso_from_ur_pose;
+use mocomp_kin::{Arm, DhCalibration, Model};
+use std::path::{Path, PathBuf};
+
+/// The robot whose kinematics a command uses.
+#[derive(Debug, Clone, Args)]
+pub struct ArmArgs {
+    /// Robot model (ur3, ur5, ur10, ur3e, ur5e, ur10e, ur16e, ur20, ur30).
+    #[arg(long, value_parser = model)]
+    pub robot: Model,
+    /// Tool offset flange_from_tool as a UR pose vector (m, rotation vector).
+    #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = six, allow_hyphen_values = true)]
+    pub tool: Option<[f64; 6]>,
+    /// The robot's own calibrated DH values (TOML; see README.md).
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+}
+
+impl ArmArgs {
+    /// The arm.
+    pub fn build(&self) -> Result<Arm> {
+        arm(self.robot, self.calibration.as_deref(), self.tool)
+    }
+}
 
 /// Parses exactly `N` comma-separated finite numbers.
 pub fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
@@ -45,6 +70,47 @@ pub fn noise_pair(s: &str) -> Result<[f64; 2], String> {
 /// A robot model name.
 pub fn model(s: &str) -> Result<Model, String> {
     s.parse::<Model>().map_err(|e| e.to_string())
+}
+
+/// Builds the arm from the command line's robot, calibration file and tool.
+pub fn arm(model: Model, calibration: Option<&Path>, tool: Option<[f64; 6]>) -> Result<Arm> {
+    let mut arm = match calibration {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("--calibration {}: cannot read", path.display()))?;
+            let cal = DhCalibration::from_toml_str(&text)
+                .with_context(|| format!("--calibration {}", path.display()))?;
+            if cal.model != model {
+                return Err(crate::UsageError(format!(
+                    "--calibration {}: the file is for a {}, but --robot is {}",
+                    path.display(),
+                    cal.model,
+                    model
+                ))
+                .into());
+            }
+            Arm::calibrated(&cal).with_context(|| format!("--calibration {}", path.display()))?
+        }
+        None => Arm::new(model),
+    };
+    if let Some(t) = tool {
+        arm = arm.with_tool(iso_from_ur_pose(&t).context("--tool")?);
+    }
+    Ok(arm)
+}
+
+/// A pose argument as a transform; `name` is the option, for the error.
+pub fn pose(name: &str, v: &[f64; 6]) -> Result<mocomp_geom::nalgebra::Isometry3<f64>> {
+    iso_from_ur_pose(v).map_err(|e| crate::UsageError(format!("{name}: {e}")).into())
+}
+
+/// A positive, finite number of seconds (or anything else), or the usage error naming `name`.
+pub fn positive(name: &str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(crate::UsageError(format!("{name} {v}: must be a positive number")).into())
+    }
 }
 
 #[cfg(test)]

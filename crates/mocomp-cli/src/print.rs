@@ -1,5 +1,6 @@
 //! Text formatting shared by the subcommands.
 
+use indicatif::{ProgressBar, ProgressStyle};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{rows_from_iso, ur_pose_from_iso};
 use std::io::Write;
@@ -31,4 +32,19 @@ pub fn transform(
         )?;
     }
     Ok(())
+}
+
+/// A progress bar of `len` steps drawn with `template` (hidden when `quiet`).
+pub fn bar(len: u64, template: &str, quiet: bool) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(len)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar
 }

@@ -7,7 +7,9 @@ use mocomp_geom::{rotation_error, translation_error, ur_pose_from_iso};
 use std::io::Write;
 use std::path::PathBuf;
 
-/// Store the coil's current pose relative to the head as the goal: averages the head marker
+/// Store the coil's current pose relative to the head as the goal.
+///
+/// Averages the head marker
 /// while the robot holds still, checks the goal against the head model, and writes `[goal]
 /// head_from_coil` into the configuration file in place (comments kept).
 #[derive(Debug, Clone, Args)]

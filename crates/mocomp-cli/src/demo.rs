@@ -9,7 +9,6 @@
 
 use anyhow::Context;
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use mocomp_app::AppError;
 use mocomp_app::config::{Config, unused_by_experiment};
 use mocomp_app::experiment::{Controller, Phase, run_experiment};
@@ -20,8 +19,10 @@ use std::io::Write;
 use std::net::IpAddr;
 use std::path::PathBuf;
 
-/// The paper's two-robot experiment on the simulated world (UR5 moving a head phantom, UR3
-/// compensating, tracker over OpenIGTLink, both robots calibrated first): the `paper` pipeline
+/// The paper's two-robot experiment on the simulated world: `paper` and `mocomp` compared.
+///
+/// A UR5 moves a head phantom, a UR3
+/// compensates, tracker over OpenIGTLink, both robots calibrated first): the `paper` pipeline
 /// and `mocomp` on the same trajectory; writes demo.csv, the figures (PNG and SVG), summary.md
 /// and config.toml. Unset options keep the configuration file's value, or the default.
 #[derive(Debug, Clone, Args)]
@@ -210,15 +211,10 @@ impl DemoCmd {
         }
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("--out {}", self.out.display()))?;
-        let bar = if self.quiet {
-            ProgressBar::hidden()
-        } else {
-            ProgressBar::new(1000)
-        };
-        bar.set_style(
-            ProgressStyle::with_template("{prefix:>28} [{bar:30}] {percent:>3}% {elapsed}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                .progress_chars("=> "),
+        let bar = crate::print::bar(
+            1000,
+            "{prefix:>28} [{bar:30}] {percent:>3}% {elapsed}",
+            self.quiet,
         );
         let outcome = run_experiment(
             &exp,

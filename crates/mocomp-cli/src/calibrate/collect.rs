@@ -2,14 +2,15 @@
 //! ([`mocomp_app::collect`]) with a progress bar; prints the report and where it was saved.
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use mocomp_app::collect::{Collected, Progress};
 use mocomp_app::config::Setup;
 use std::io::Write;
 use std::path::PathBuf;
 
-/// Run the planned calibration poses on the configured robot, measure the flange's marker with
-/// the configured tracker at each (progress bar), solve, and save the calibration and the pairs.
+/// Collect calibration pairs on the configured robot, solve and save (the arm moves).
+///
+/// Runs the planned calibration poses on the configured robot, measures the flange's marker with
+/// the configured tracker at each (progress bar), solves, and saves the calibration and the pairs.
 /// Settings: the configuration's `[calibrate]` section. The arm moves: clear the space.
 #[derive(Debug, Clone, Args)]
 pub struct CollectCmd {
@@ -28,15 +29,10 @@ impl CollectCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let setup = Setup::load(&self.config)?;
-        let bar = if self.quiet {
-            ProgressBar::hidden()
-        } else {
-            ProgressBar::new(0)
-        };
-        bar.set_style(
-            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} poses, {elapsed} {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                .progress_chars("=> "),
+        let bar = crate::print::bar(
+            0,
+            "{prefix} [{bar:30}] {pos}/{len} poses, {elapsed} {msg}",
+            self.quiet,
         );
         bar.set_prefix("collecting");
         let result = mocomp_app::collect::collect(
@@ -80,7 +76,7 @@ fn print(out: &mut dyn Write, c: &Collected, setup: &Setup) -> anyhow::Result<()
             format!("; marker not seen at pose(s) {:?}", c.missed)
         }
     )?;
-    crate::calib_cmd::print_report(out, &c.solved, c.pairs.len())?;
+    super::solve::print_report(out, &c.solved, c.pairs.len())?;
     writeln!(out, "wrote {}", c.out.display())?;
     if let Some(p) = &c.pairs_csv {
         writeln!(

@@ -10,7 +10,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// Compensate head motion live: the configured robot (a UR, or a simulated one) keeps the coil at
+/// Compensate head motion live on the configured robot and tracker (simulated by default).
+///
+/// The configured robot (a UR, or a simulated one) keeps the coil at
 /// its goal on the head seen by the configured tracker (OpenIGTLink, or simulated), until Ctrl-C
 /// (which stops the robot) or `duration_s`. Prints a status line each second and a summary;
 /// writes every cycle to a CSV log.
