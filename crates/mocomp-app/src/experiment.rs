@@ -31,7 +31,7 @@ use crate::baseline::PaperPipeline;
 use crate::calibration::MoveState;
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
-use mocomp_control::{Compensator, Event, LoopConfig, Mode};
+use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode};
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{
     Clock, LengthUnit, PoseSource, SteppedClock, frobenius_deviation, iso_from_matrix_mm,
@@ -1026,7 +1026,7 @@ impl World {
         o.rotation_range_rad = (12f64.to_radians(), 30f64.to_radians());
         let poses = plan(&arm, &o).map_err(|e| calib_err(e.to_string()))?;
         let n = poses.len() as f64;
-        let mut station = Lockstep { world: self, coil };
+        let mut station = CalibrationStation { world: self, coil };
         let got = crate::calibration::collect(
             &mut station,
             &arm,
@@ -1081,13 +1081,13 @@ impl World {
 }
 
 /// One robot of the experiment's world as a calibration station, in lockstep.
-struct Lockstep<'a> {
+struct CalibrationStation<'a> {
     world: &'a mut World,
     /// U1 (the coil robot) if true, else U2.
     coil: bool,
 }
 
-impl crate::calibration::Station for Lockstep<'_> {
+impl crate::calibration::Station for CalibrationStation<'_> {
     type Error = ExperimentError;
 
     fn move_to(&mut self, q: &[f64; 6]) -> Result<(), ExperimentError> {
@@ -1201,63 +1201,129 @@ impl World {
             Controller::Mocomp => Box::new(Compensator::new(loop_cfg, self.arm1, self.period)),
             Controller::Paper => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
         };
-        let mut q2_cmd = self.scene.q2_start;
         let n = (cfg.duration_s / self.period).round() as usize;
-        let mut records = Vec::with_capacity(n);
-        for k in 0..n {
-            self.track()?;
-            let t = self.clock.now_s();
-            let tr = t - t0;
-            // The head robot follows the trajectory.
-            let target = rest * trajectory.rest_from_head(tr + self.period) * head_from_e2;
-            if let Ok(c) = self
-                .arm2
-                .ik_closest(&target, &q2_cmd, &Selection::tracking(0.02))
-            {
-                q2_cmd = c.joints;
-            }
-            let (robot2, q2) = (&mut self.robot2, q2_cmd);
-            Self::sent(&self.sim2, || robot2.servo(&q2, &head_servo).map(|_| ()))?;
-            // The coil robot's controller: one cycle, one command, taken by the simulator
-            // before the clock moves on.
-            let inputs = self.sim1.stats().inputs;
-            let rec = ctl.cycle(t, &mut self.robot1, &mut self.head_source);
-            if matches!(rec.mode, Mode::Faulted(_)) {
-                self.robot1
-                    .keep_alive()
-                    .map_err(|e| io("commanding the coil robot", e))?;
-            }
-            let sim1 = &self.sim1;
-            spin(Duration::from_secs(5), "a command to arrive", || {
-                sim1.stats().inputs > inputs
-            })?;
-            let (mode, event, age, horizon) =
-                (rec.mode, rec.event, rec.sample_age_s, rec.horizon_s);
-            self.advance()?;
-            let e2 = self.world_from_e2(&self.q_now.1);
-            let e1 = self.world_from_e1(&self.q_now.0);
-            let actual = e2.inverse() * e1;
-            let goal = cfg.goal_e2_from_e1;
-            let head_from_coil =
-                (e2 * self.scene.e2_from_head).inverse() * e1 * self.scene.e1_from_coil;
-            records.push(Record {
-                t: tr + self.period,
-                d: frobenius_deviation(&goal, &actual, LengthUnit::Millimetre),
-                translation_m: translation_error(&goal, &actual),
-                rotation_rad: rotation_error(&goal, &actual),
-                head_speed: trajectory.speed_at(tr + self.period),
-                sample_age_s: age,
-                horizon_s: horizon,
-                mode,
-                event,
-                coil_clearance_m: coil.distance(&head, &head_from_coil),
-            });
-            if k % 50 == 0 {
-                progress(Phase::Compensating(controller), k as f64 / n as f64);
-            }
-        }
+        let mut pace = Lockstep {
+            q2_cmd: self.scene.q2_start,
+            world: self,
+            cfg,
+            controller,
+            t0,
+            trajectory,
+            rest,
+            head_from_e2,
+            head_servo,
+            head,
+            coil,
+            n,
+            k: 0,
+            t: t0,
+            inputs: 0,
+            records: Vec::with_capacity(n),
+            progress,
+        };
+        crate::driver::drive(ctl.as_mut(), &mut pace)?;
+        let records = pace.records;
         progress(Phase::Compensating(controller), 1.0);
         Ok(Run::new(controller, records, self.period))
+    }
+}
+
+/// The experiment's pace: a tick of the stepped clock per cycle. Before each cycle the tracker
+/// acquires and sends and the head robot takes its next point; after it, the coil robot's
+/// command is waited for, both simulators step, and the tick is scored.
+struct Lockstep<'a, 'p> {
+    world: &'a mut World,
+    cfg: &'a ExperimentConfig,
+    controller: Controller,
+    /// The clock at the run's start.
+    t0: f64,
+    trajectory: mocomp_sim::motion::Trajectory,
+    rest: Isometry3<f64>,
+    head_from_e2: Isometry3<f64>,
+    head_servo: ServoParams,
+    head: mocomp_control::HeadModel,
+    coil: mocomp_control::CoilModel,
+    q2_cmd: [f64; 6],
+    /// Ticks in all, and done.
+    n: usize,
+    k: usize,
+    /// This tick's time.
+    t: f64,
+    /// The coil robot's simulator's input count before this tick's cycle.
+    inputs: u64,
+    records: Vec<Record>,
+    progress: &'p mut dyn FnMut(Phase, f64),
+}
+
+impl crate::driver::Pace for Lockstep<'_, '_> {
+    type Error = ExperimentError;
+
+    fn next_cycle(&mut self) -> Result<Option<f64>, ExperimentError> {
+        if self.k >= self.n {
+            return Ok(None);
+        }
+        let w = &mut *self.world;
+        w.track()?;
+        self.t = w.clock.now_s();
+        let tr = self.t - self.t0;
+        // The head robot follows the trajectory.
+        let target = self.rest * self.trajectory.rest_from_head(tr + w.period) * self.head_from_e2;
+        if let Ok(c) = w
+            .arm2
+            .ik_closest(&target, &self.q2_cmd, &Selection::tracking(0.02))
+        {
+            self.q2_cmd = c.joints;
+        }
+        let (robot2, q2, servo) = (&mut w.robot2, self.q2_cmd, &self.head_servo);
+        World::sent(&w.sim2, || robot2.servo(&q2, servo).map(|_| ()))?;
+        // The coil robot's controller: one cycle, one command, taken by the simulator before
+        // the clock moves on.
+        self.inputs = w.sim1.stats().inputs;
+        Ok(Some(self.t))
+    }
+
+    fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource) {
+        (&mut self.world.robot1, &mut self.world.head_source)
+    }
+
+    fn cycle_done(&mut self, rec: CycleRecord) -> Result<(), ExperimentError> {
+        let w = &mut *self.world;
+        if matches!(rec.mode, Mode::Faulted(_)) {
+            w.robot1
+                .keep_alive()
+                .map_err(|e| io("commanding the coil robot", e))?;
+        }
+        let (sim1, inputs) = (&w.sim1, self.inputs);
+        spin(Duration::from_secs(5), "a command to arrive", || {
+            sim1.stats().inputs > inputs
+        })?;
+        w.advance()?;
+        let tr = self.t - self.t0;
+        let e2 = w.world_from_e2(&w.q_now.1);
+        let e1 = w.world_from_e1(&w.q_now.0);
+        let actual = e2.inverse() * e1;
+        let goal = self.cfg.goal_e2_from_e1;
+        let head_from_coil = (e2 * w.scene.e2_from_head).inverse() * e1 * w.scene.e1_from_coil;
+        self.records.push(Record {
+            t: tr + w.period,
+            d: frobenius_deviation(&goal, &actual, LengthUnit::Millimetre),
+            translation_m: translation_error(&goal, &actual),
+            rotation_rad: rotation_error(&goal, &actual),
+            head_speed: self.trajectory.speed_at(tr + w.period),
+            sample_age_s: rec.sample_age_s,
+            horizon_s: rec.horizon_s,
+            mode: rec.mode,
+            event: rec.event,
+            coil_clearance_m: self.coil.distance(&self.head, &head_from_coil),
+        });
+        if self.k.is_multiple_of(50) {
+            (self.progress)(
+                Phase::Compensating(self.controller),
+                self.k as f64 / self.n as f64,
+            );
+        }
+        self.k += 1;
+        Ok(())
     }
 }
 

@@ -19,6 +19,7 @@ pub mod calibration;
 pub mod collect;
 pub mod config;
 pub mod config_file;
+pub mod driver;
 pub mod experiment;
 pub mod frames;
 pub mod live;

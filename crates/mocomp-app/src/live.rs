@@ -15,12 +15,14 @@ use crate::config::Setup;
 use crate::world::World;
 use crate::{AppError, Context};
 use mocomp_control::{Compensator, CycleRecord, Event, Mode, Reason};
-use mocomp_ur::Robot;
+use mocomp_geom::{Clock, PoseSource};
+use mocomp_igtl::client::IgtlPoseSource;
+use mocomp_ur::{Robot, UrRobot};
 use std::io::Write;
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, TrySendError, sync_channel};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::time::{Duration, Instant};
 
 /// What the logger keeps for the summary.
@@ -433,6 +435,64 @@ impl RunReport {
     }
 }
 
+/// The live pace: a cycle per new robot state, on the monotonic clock, until stopped.
+struct Live<'a> {
+    robot: UrRobot,
+    source: IgtlPoseSource,
+    clock: &'a dyn Clock,
+    stop: &'a AtomicBool,
+    t_end: f64,
+    /// The robot state count of the last cycle.
+    seen: u64,
+    /// Without a new state this long, cycle anyway: the loop resends its command (the watchdog
+    /// stays fed) and its stale-state rule stops the robot once the state is really stale.
+    patience: Duration,
+    tx: &'a SyncSender<CycleRecord>,
+    /// Records the logger could not take.
+    dropped: u64,
+}
+
+impl Live<'_> {
+    /// Waits (up to a second) for a fresh first state: the first cycle must not judge a state
+    /// received while the rest of the world was still starting. The program's watchdog is fed
+    /// meanwhile; it does not wait for the first cycle.
+    fn start(&mut self, period: f64) {
+        let ready_by = Instant::now() + Duration::from_secs(1);
+        while Instant::now() < ready_by
+            && !self
+                .robot
+                .state()
+                .is_some_and(|s| self.clock.now_s() - s.received_s < period)
+        {
+            self.robot.keep_alive().ok();
+            self.seen = self.robot.wait_for_state(self.seen, self.patience);
+        }
+    }
+}
+
+impl crate::driver::Pace for Live<'_> {
+    type Error = std::convert::Infallible;
+
+    fn next_cycle(&mut self) -> Result<Option<f64>, Self::Error> {
+        if self.stop.load(Ordering::Relaxed) || self.clock.now_s() >= self.t_end {
+            return Ok(None);
+        }
+        self.seen = self.robot.wait_for_state(self.seen, self.patience);
+        Ok(Some(self.clock.now_s()))
+    }
+
+    fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource) {
+        (&mut self.robot, &mut self.source)
+    }
+
+    fn cycle_done(&mut self, record: CycleRecord) -> Result<(), Self::Error> {
+        if let Err(TrySendError::Full(_)) = self.tx.try_send(record) {
+            self.dropped += 1;
+        }
+        Ok(())
+    }
+}
+
 /// Runs the loop on `setup` until `stop` is set or `duration_s`, then stops the robot and
 /// returns the report. `log_csv`: every cycle's record. `progress` is told what starts; the
 /// `observer`, what happens while the loop runs.
@@ -478,8 +538,8 @@ pub fn run(
     let clock = Arc::clone(&world.clock);
     let client = world.client(setup, &file.tracker.device);
     // The simulators (the rest of `world`) stay up until the end of this function.
-    let mut robot = world.robot;
-    let mut source = client.pose_source();
+    let robot = world.robot;
+    let source = client.pose_source();
     progress.flush().what(|| "writing the progress")?;
 
     // The loop, at the robot's rate: one cycle per new state.
@@ -488,33 +548,26 @@ pub fn run(
     } else {
         f64::INFINITY
     };
-    let mut seen = robot.state_count();
-    let mut dropped = 0u64;
-    // Wait for the next state (woken by the client's receive thread); after three periods without
-    // one, cycle anyway: the loop resends its command (the watchdog stays fed) and its
-    // stale-state rule stops the robot once the state is really stale.
-    let patience = Duration::from_secs_f64(3.0 * period);
-    // Start on a fresh state (up to a second): the first cycle must not judge a state that was
-    // received while the rest of the world was still starting.
-    let ready_by = Instant::now() + Duration::from_secs(1);
-    while Instant::now() < ready_by
-        && !robot
-            .state()
-            .is_some_and(|s| clock.now_s() - s.received_s < period)
-    {
-        // Fed meanwhile: the program's watchdog does not wait for the first cycle.
-        robot.keep_alive().ok();
-        seen = robot.wait_for_state(seen, patience);
+    let mut pace = Live {
+        seen: robot.state_count(),
+        robot,
+        source,
+        clock: clock.as_ref(),
+        stop,
+        t_end,
+        patience: Duration::from_secs_f64(3.0 * period),
+        tx: &tx,
+        dropped: 0,
+    };
+    pace.start(period);
+    // The live pace never fails: a late or missing state is the supervisor's to judge.
+    match crate::driver::drive(&mut comp, &mut pace) {
+        Ok(()) => {}
+        Err(never) => match never {},
     }
-    while !stop.load(Ordering::Relaxed) && clock.now_s() < t_end {
-        seen = robot.wait_for_state(seen, patience);
-        let t0 = Instant::now();
-        let mut rec = comp.cycle(clock.now_s(), &mut robot, &mut source);
-        rec.compute_ns = t0.elapsed().as_nanos() as u64;
-        if let Err(TrySendError::Full(_)) = tx.try_send(rec) {
-            dropped += 1;
-        }
-    }
+    let Live {
+        mut robot, dropped, ..
+    } = pace;
     // Stop the robot in a defined way, and wait for standstill.
     let decel = comp.config().params.stop_decel_rad_s2;
     let sent = robot.stop(decel);

@@ -1,0 +1,124 @@
+//! The one loop that drives a [`Controller`]: the live session and the lockstep experiment differ
+//! only in their [`Pace`], which says when each cycle is due (a new robot state in real time, or
+//! the next tick of a stepped clock), which robot and tracker the controller talks to, and what
+//! happens after each cycle (the live one queues the record for its logger; the lockstep one
+//! steps the simulated world and scores it).
+
+use mocomp_control::{Controller, CycleRecord};
+use mocomp_geom::PoseSource;
+use mocomp_ur::Robot;
+use std::time::Instant;
+
+/// How a loop is paced.
+pub trait Pace {
+    /// What goes wrong.
+    type Error;
+    /// Waits until the next cycle is due and returns its time on the loop's clock (s); `None`:
+    /// the loop ends.
+    fn next_cycle(&mut self) -> Result<Option<f64>, Self::Error>;
+    /// The robot the controller commands and the tracker it reads.
+    fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource);
+    /// After the cycle, with its record (the command has been sent).
+    fn cycle_done(&mut self, record: CycleRecord) -> Result<(), Self::Error>;
+}
+
+/// Runs `controller` at `pace` until the pace ends it. Each record carries the cycle's compute
+/// time (the command's socket write included). Allocates nothing, locks nothing and logs nothing
+/// itself: what a pace does around the cycle is its own.
+pub fn drive<P: Pace + ?Sized>(
+    controller: &mut dyn Controller,
+    pace: &mut P,
+) -> Result<(), P::Error> {
+    while let Some(now) = pace.next_cycle()? {
+        let started = Instant::now();
+        let (robot, source) = pace.loop_io();
+        let mut record = controller.cycle(now, robot, source);
+        record.compute_ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        pace.cycle_done(record)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::*;
+    use mocomp_geom::nalgebra::Isometry3;
+    use mocomp_testkit::mem::{MemRobot, ScriptedPoses};
+
+    /// A stepped pace over an in-memory robot: `n` cycles of `period`, the robot ticked after each.
+    struct Stepped {
+        robot: MemRobot,
+        source: ScriptedPoses,
+        t: f64,
+        period: f64,
+        left: usize,
+        seen: Vec<(f64, bool)>,
+    }
+
+    impl Pace for Stepped {
+        type Error = String;
+        fn next_cycle(&mut self) -> Result<Option<f64>, String> {
+            if self.left == 0 {
+                return Ok(None);
+            }
+            self.left -= 1;
+            Ok(Some(self.t))
+        }
+        fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource) {
+            (&mut self.robot, &mut self.source)
+        }
+        fn cycle_done(&mut self, r: CycleRecord) -> Result<(), String> {
+            self.seen.push((r.t, r.compute_ns > 0));
+            self.t += self.period;
+            self.robot.tick(self.t);
+            Ok(())
+        }
+    }
+
+    /// Counts its cycles and the times it was given.
+    struct Counting(Vec<f64>);
+
+    impl Controller for Counting {
+        fn name(&self) -> &'static str {
+            "counting"
+        }
+        fn cycle(
+            &mut self,
+            now: f64,
+            robot: &mut dyn Robot,
+            _: &mut dyn PoseSource,
+        ) -> CycleRecord {
+            self.0.push(now);
+            // A state is there: the pace ticked the robot before each cycle.
+            assert!(robot.state().is_some());
+            // Work that takes measurable time.
+            std::thread::sleep(std::time::Duration::from_micros(50));
+            CycleRecord::new(now, mocomp_control::Mode::Tracking, [0.0; 6])
+        }
+    }
+
+    #[test]
+    fn each_cycle_runs_at_the_paces_time_and_its_record_comes_back_timed() {
+        let q = [0.0, -1.3, 1.6, -1.87, -1.57, 0.0];
+        let mut robot = MemRobot::at(q, Isometry3::identity(), 0.008);
+        robot.tick(0.0);
+        let mut pace = Stepped {
+            robot,
+            source: ScriptedPoses::new(60.0, 0.02, Box::new(|_| Some(Isometry3::identity()))),
+            t: 0.0,
+            period: 0.008,
+            left: 5,
+            seen: Vec::new(),
+        };
+        let mut c = Counting(Vec::new());
+        drive(&mut c, &mut pace).unwrap();
+        let expected: Vec<f64> = (0..5).map(|k| f64::from(k) * 0.008).collect();
+        assert_eq!(c.0.len(), 5);
+        for (a, b) in c.0.iter().zip(&expected) {
+            assert!((a - b).abs() < 1e-12);
+        }
+        assert_eq!(pace.seen.len(), 5);
+        assert!(pace.seen.iter().all(|(_, timed)| *timed));
+    }
+}
