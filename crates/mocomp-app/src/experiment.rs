@@ -684,8 +684,10 @@ fn spin(
     Ok(())
 }
 
-/// The simulated world in lockstep.
-struct World {
+/// The experiment's rig in lockstep: two simulated robots (U1 with the coil, U2 with the head
+/// phantom) and the tracker model serving both markers, on one stepped clock. (A live session's
+/// robot and tracker are [`crate::world::World`].)
+struct Rig {
     clock: Arc<SteppedClock>,
     period: f64,
     sim1: Sim,
@@ -712,7 +714,7 @@ struct World {
     t_prev: f64,
 }
 
-impl World {
+impl Rig {
     fn start(cfg: &ExperimentConfig, scene: Scene) -> Result<Self, ExperimentError> {
         let mut c1 = ControllerConfig::new(cfg.coil_robot);
         c1.initial_q = scene.q1_start;
@@ -1082,7 +1084,7 @@ impl World {
 
 /// One robot of the experiment's world as a calibration station, in lockstep.
 struct CalibrationStation<'a> {
-    world: &'a mut World,
+    world: &'a mut Rig,
     /// U1 (the coil robot) if true, else U2.
     coil: bool,
 }
@@ -1135,7 +1137,7 @@ impl crate::calibration::Station for CalibrationStation<'_> {
     }
 }
 
-impl World {
+impl Rig {
     /// Brings both robots back to their start and restarts the tracker (same seed), so each
     /// controller meets the same trajectory and the same noise.
     fn reset(&mut self, cfg: &ExperimentConfig) -> Result<(), ExperimentError> {
@@ -1232,7 +1234,7 @@ impl World {
 /// acquires and sends and the head robot takes its next point; after it, the coil robot's
 /// command is waited for, both simulators step, and the tick is scored.
 struct Lockstep<'a, 'p> {
-    world: &'a mut World,
+    world: &'a mut Rig,
     cfg: &'a ExperimentConfig,
     controller: Controller,
     /// The clock at the run's start.
@@ -1275,7 +1277,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             self.q2_cmd = c.joints;
         }
         let (robot2, q2, servo) = (&mut w.robot2, self.q2_cmd, &self.head_servo);
-        World::sent(&w.sim2, || robot2.servo(&q2, servo).map(|_| ()))?;
+        Rig::sent(&w.sim2, || robot2.servo(&q2, servo).map(|_| ()))?;
         // The coil robot's controller: one cycle, one command, taken by the simulator before
         // the clock moves on.
         self.inputs = w.sim1.stats().inputs;
@@ -1337,7 +1339,7 @@ pub fn run_experiment(
     cfg.validate()?;
     let scene = build_scene(cfg)?;
     progress(Phase::Connecting, 0.0);
-    let mut world = World::start(cfg, scene)?;
+    let mut world = Rig::start(cfg, scene)?;
     progress(Phase::Connecting, 1.0);
     let coil_calibration = world.calibrate(true, cfg, progress)?;
     let head_calibration = world.calibrate(false, cfg, progress)?;
