@@ -22,6 +22,7 @@ pub mod config_file;
 pub mod driver;
 pub mod experiment;
 pub mod frames;
+pub mod listen;
 pub mod live;
 pub mod pose_lines;
 pub mod servo_check;

@@ -122,7 +122,7 @@ fn classify(e: &(dyn std::error::Error + 'static)) -> Option<u8> {
     {
         return Some(EXIT_USAGE);
     }
-    if e.is::<listen::NothingReceived>() || e.is::<mocomp_ursim::SimError>() {
+    if e.is::<mocomp_ursim::SimError>() {
         return Some(EXIT_FAILURE);
     }
     // A robot that is unreachable, refuses or faults is an outcome; a bad argument is not.

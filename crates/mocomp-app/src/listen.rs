@@ -1,0 +1,86 @@
+//! Listening to an OpenIGTLink server for one device (`mocomp listen`): each pose as it arrives,
+//! to debug a clinic's set-up (is the tracker streaming, under which name, at what rate, with
+//! which status).
+
+use crate::AppError;
+use mocomp_geom::nalgebra::Matrix4;
+use mocomp_igtl::client::{Client, ClientConfig, ClientCounters, MonotonicClock, status_valid};
+use mocomp_igtl::message::{Body, matrix_mm, pose_of};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// What to listen to.
+#[derive(Debug, Clone)]
+pub struct ListenOptions {
+    /// The server, `host:port`.
+    pub addr: String,
+    /// The device: a TRANSFORM device or a TDATA tool.
+    pub device: String,
+    /// Stop after this many poses.
+    pub count: Option<u64>,
+    /// Give up when no pose arrives for this long.
+    pub timeout: Duration,
+    /// Ask the server for a TDATA stream (STT_TDATA) after connecting.
+    pub stt_tdata: bool,
+}
+
+/// One pose as received.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Heard {
+    /// The message's timestamp, s since the Unix epoch (`None` when the sender sets none).
+    pub t: Option<f64>,
+    /// The sender's status says valid and the matrix is a rigid transform.
+    pub valid: bool,
+    /// tracker_from_marker, translation in mm, as sent.
+    pub matrix_mm: Matrix4<f64>,
+}
+
+/// Listens until `count` poses of the device arrived (or forever), telling `each` of every one;
+/// returns the client's counters. An [`AppError::Refused`] when none arrives for `timeout`.
+pub fn listen(
+    o: &ListenOptions,
+    each: &mut dyn FnMut(&Heard) -> Result<(), AppError>,
+) -> Result<ClientCounters, AppError> {
+    let mut cfg = ClientConfig::new(&o.addr);
+    cfg.device = Some(o.device.clone());
+    cfg.keep_messages = 4096;
+    cfg.start_tdata = o.stt_tdata.then_some(0);
+    let client = Client::start(cfg, Arc::new(MonotonicClock::new()));
+    let Some(rx) = client.messages() else {
+        refuse!("the OpenIGTLink client has no message channel");
+    };
+    let mut poses = 0u64;
+    let mut last = Instant::now();
+    while o.count.is_none_or(|n| poses < n) {
+        let Ok(r) = rx.recv_timeout(Duration::from_millis(100)) else {
+            if last.elapsed() > o.timeout {
+                let c = client.counters();
+                refuse!(
+                    "--igtl {}: no pose of {:?} for {:.1} s ({} messages, {} connections, last error: {})",
+                    o.addr,
+                    o.device,
+                    o.timeout.as_secs_f64(),
+                    c.messages,
+                    c.connections,
+                    client.last_error().unwrap_or_else(|| "none".into())
+                );
+            }
+            continue;
+        };
+        let m = &r.message;
+        let floats = match &m.body {
+            Body::Transform(f) if m.device == *o.device => Some(*f),
+            Body::TData(tools) => tools.iter().find(|t| t.name == *o.device).map(|t| t.matrix),
+            _ => None,
+        };
+        let Some(f) = floats else { continue };
+        last = Instant::now();
+        poses += 1;
+        each(&Heard {
+            t: (!m.timestamp.is_none()).then(|| m.timestamp.to_secs_f64()),
+            valid: status_valid(m) && pose_of(&f).is_ok(),
+            matrix_mm: matrix_mm(&f),
+        })?;
+    }
+    Ok(client.counters())
+}
