@@ -2,12 +2,38 @@
 //! newest valid sample, computes `Z = Y · S_T_H · H_T_C,g · X⁻¹` and its IK solution of least
 //! angle sum, and `compute_delay_s` later sends a movej there (no prediction, no checks).
 
-use crate::experiment::PaperController;
 use mocomp_control::{Controller, CycleRecord, LoopConfig, Mode};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, BranchPolicy, Metric, Selection};
 use mocomp_ur::Robot;
+
+/// The `paper` controller's model of the original pipeline.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PaperController {
+    /// Loop period, s (tracking, IK and communication in MATLAB).
+    pub period_s: f64,
+    /// From taking a sample to sending the move, s.
+    pub compute_delay_s: f64,
+    /// movej joint speed, rad/s.
+    pub joint_speed_rad_s: f64,
+    /// movej joint acceleration, rad/s².
+    pub joint_accel_rad_s2: f64,
+}
+
+impl Default for PaperController {
+    /// A 10 Hz loop with 80 ms of computation, and URScript's default movej (1.05 rad/s,
+    /// 1.4 rad/s²).
+    fn default() -> Self {
+        Self {
+            period_s: 0.1,
+            compute_delay_s: 0.08,
+            joint_speed_rad_s: 1.05,
+            joint_accel_rad_s2: 1.4,
+        }
+    }
+}
 
 /// The paper's pipeline.
 #[derive(Debug, Clone)]

@@ -4,7 +4,7 @@
 //!
 //! Every key has its default here, once (the `Default` impls below, and the components' own for
 //! `[predictor]`, `[loop]`, `[realtime]`, the motion and the tracker model); `mocomp config
-//! print` prints them through [`crate::config_file`], whose commented template a test holds to
+//! print` prints them through the `config_file` module, whose commented template a test holds to
 //! these values. A file with no keys at all describes the built-in simulated world: a simulated
 //! UR3 and tracker on loopback. What a real robot or tracker needs (its calibration, the coil's
 //! mounting, the goal) has no default there: [`Setup::load`] names the key that is missing.
@@ -12,11 +12,11 @@
 //! Unknown keys and bad values are refused naming the key's path (and, where the TOML itself is
 //! at fault, its line). Choices are enums; poses are [`Pose`]; ranges go through [`Check`].
 
-use crate::experiment::PaperController;
+use crate::baseline::PaperController;
 use crate::{AppError, Context};
 use mocomp_control::{CoilModel, HeadModel, LoopConfig, LoopParams, PredictorConfig};
+use mocomp_geom::iso_from_ur_pose;
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
-use mocomp_geom::{iso_from_matrix_mm, iso_from_ur_pose};
 use mocomp_kin::{Arm, Model, Selection};
 use mocomp_sim::{HeadMotion, TrackerModel};
 use mocomp_ur::ServoParams;
@@ -429,11 +429,19 @@ impl Default for ExperimentSection {
             seed: None,
             head_robot: None,
             head_host: IpAddr::from([127, 0, 0, 3]),
-            goal_e2_from_e1_mm: crate::experiment::PAPER_GOAL_E2_FROM_E1_MM,
+            goal_e2_from_e1_mm: PAPER_GOAL_E2_FROM_E1_MM,
             paper: PaperController::default(),
         }
     }
 }
+
+/// The paper's goal between the end-effectors, `E2_T_E1,g` (translation in mm).
+pub const PAPER_GOAL_E2_FROM_E1_MM: [[f64; 4]; 4] = [
+    [0.8725, 0.159, 0.4619, 9.5626],
+    [-0.4253, -0.2179, 0.8784, -160.5035],
+    [0.2404, -0.9629, -0.1225, 412.4959],
+    [0.0, 0.0, 0.0, 1.0],
+];
 
 /// The range checks: one mechanism, each error naming the key.
 #[derive(Debug, Clone, Copy)]
@@ -669,51 +677,6 @@ impl Config {
             radius: self.coil.radius_m,
             thickness: self.coil.thickness_m,
         }
-    }
-
-    /// The experiment's configuration (`mocomp demo`): see [`ExperimentSection`] for which keys
-    /// it takes. Checked; errors name the key.
-    pub fn experiment(&self) -> Result<crate::experiment::ExperimentConfig, AppError> {
-        let x = &self.experiment;
-        let coil_host: IpAddr = self
-            .robot
-            .host
-            .parse()
-            .map_err(|e| AppError::Config(format!("robot.host {:?}: {e}", self.robot.host)))?;
-        let m = mocomp_geom::nalgebra::Matrix4::from_fn(|r, c| x.goal_e2_from_e1_mm[r][c]);
-        let goal = iso_from_matrix_mm(&m, 5e-3)
-            .map_err(|e| AppError::Config(format!("experiment.goal_e2_from_e1_mm: {e}")))?;
-        let mut e = crate::experiment::ExperimentConfig {
-            coil_robot: self.robot.model,
-            head_robot: x
-                .head_robot
-                .unwrap_or(match self.robot.model.spec().series {
-                    mocomp_kin::Series::Cb3 => Model::Ur5,
-                    mocomp_kin::Series::ESeries => Model::Ur5e,
-                }),
-            coil_host,
-            head_host: x.head_host,
-            duration_s: x.duration_s,
-            motion: self.tracker.simulated.motion.clone(),
-            tracker: self.tracker.simulated.model,
-            paper: x.paper,
-            calibration_poses: self.calibrate.poses,
-            calibration_samples: self.calibrate.samples_per_pose,
-            goal_e2_from_e1: goal,
-            loop_params: self.params,
-            predictor: self.predictor,
-            servo: (self.servo.lookahead_s, self.servo.gain),
-            head: self.head_model(),
-            coil: self.coil_model(),
-        };
-        if let Some(seed) = x.seed {
-            e.set_seed(seed);
-        }
-        e.validate().map_err(|e| match e {
-            crate::experiment::ExperimentError::Config(m) => AppError::Config(m),
-            other => AppError::failed("the experiment's configuration", other),
-        })?;
-        Ok(e)
     }
 }
 
@@ -968,31 +931,6 @@ mod tests {
         let given =
             parse("[goal]\nhead_from_coil = [0.0, 0.0, 0.12, 3.14159, 0.0, 0.0]\n").unwrap();
         assert!((given.head_from_coil().unwrap().translation.z - 0.12).abs() < 1e-12);
-    }
-
-    #[test]
-    fn the_experiment_takes_the_shared_keys() {
-        let cfg = parse(
-            "[robot]\nmodel = \"ur5e\"\nhost = \"127.0.0.61\"\n[experiment]\nseed = 9\nduration_s = 4.0\n\
-             [tracker.simulated.model]\nnoise_m = 0.0002\n[servo]\ngain = 900.0\n[coil]\nradius_m = 0.05\n\
-             [calibrate]\nposes = 12\nsamples_per_pose = 4\n",
-        )
-        .unwrap();
-        let e = cfg.experiment().unwrap();
-        assert_eq!((e.coil_robot, e.head_robot), (Model::Ur5e, Model::Ur5e));
-        assert_eq!(e.coil_host, IpAddr::from([127, 0, 0, 61]));
-        assert_eq!(e.duration_s, 4.0);
-        assert_eq!(e.tracker.noise_m, 2e-4);
-        // The seed reaches the tracker and the random motion.
-        assert_eq!(e.tracker.seed, 9);
-        assert!(matches!(e.motion, HeadMotion::Random(r) if r.seed == 9));
-        assert_eq!(e.servo.1, 900.0);
-        assert_eq!(e.coil.radius, 0.05);
-        assert_eq!((e.calibration_poses, e.calibration_samples), (12, 4));
-        // Two robots of different series cannot share one stepped clock.
-        let bad = parse("[robot]\nmodel = \"ur3e\"\n[experiment]\nhead_robot = \"ur5\"\n").unwrap();
-        let err = bad.experiment().unwrap_err().to_string();
-        assert!(err.contains("experiment.head_robot"), "{err}");
     }
 
     #[test]

@@ -11,7 +11,7 @@ use anyhow::Context;
 use clap::Args;
 use mocomp_app::AppError;
 use mocomp_app::config::{Config, unused_by_experiment};
-use mocomp_app::experiment::{Controller, Phase, run_experiment};
+use mocomp_app::experiment::{Controller, ExperimentConfig, Phase, run_experiment};
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
 use mocomp_kin::Model;
 use mocomp_sim::HeadMotion;
@@ -203,7 +203,7 @@ impl DemoCmd {
     /// Runs the demo (or prints its configuration).
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let config = self.configuration()?;
-        let exp = config.experiment()?;
+        let exp = ExperimentConfig::from_config(&config)?;
         let file = mocomp_app::config_file::print(&config)?;
         if self.print_config {
             write!(out, "{file}")?;
