@@ -48,16 +48,6 @@ struct Summary {
 /// How long the run waits for standstill after its stop.
 const STANDSTILL_WAIT: Duration = Duration::from_secs(3);
 
-fn mode_index(m: &Mode) -> usize {
-    match m {
-        Mode::Tracking => 0,
-        Mode::Approaching => 1,
-        Mode::Holding(_) => 2,
-        Mode::Faulted(_) => 3,
-        Mode::Retreating(_) => 4,
-    }
-}
-
 fn percentile(v: &mut [f64], p: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -171,7 +161,7 @@ fn logger(
             }
         }
         s.last_t = r.t;
-        s.by_mode[mode_index(&r.mode)] += 1;
+        s.by_mode[r.mode.kind()] += 1;
         s.compute_us.push(r.compute_ns as f64 / 1e3);
         s.delay_ms.push(r.command_delay_s * 1e3);
         // The measured flange against the goal for the head estimated at the same time (not the

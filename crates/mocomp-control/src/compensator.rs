@@ -40,6 +40,29 @@ pub enum Mode {
     Faulted(Reason),
 }
 
+impl Mode {
+    /// The kinds of mode, their reasons aside, in the order of [`Mode::kind`].
+    pub const KINDS: [&'static str; 5] = [
+        "tracking",
+        "approaching",
+        "holding",
+        "faulted",
+        "retreating",
+    ];
+
+    /// This mode's kind, its reason aside: an index into [`Mode::KINDS`] (for counts per mode
+    /// and figures).
+    pub fn kind(&self) -> usize {
+        match self {
+            Self::Tracking => 0,
+            Self::Approaching => 1,
+            Self::Holding(_) => 2,
+            Self::Faulted(_) => 3,
+            Self::Retreating(_) => 4,
+        }
+    }
+}
+
 /// Something worth logging, at most one per cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Event {

@@ -362,25 +362,15 @@ impl Figure for Panels<'_> {
     }
 }
 
-/// The modes' names and colours, in the order of [`mode_kind`].
-const MODES: [(&str, RGBColor); 5] = [
-    ("tracking", RGBColor(44, 160, 44)),
-    ("approaching", RGBColor(31, 119, 180)),
-    ("holding", RGBColor(255, 127, 14)),
-    ("faulted", RGBColor(214, 39, 40)),
-    ("retreating", RGBColor(148, 103, 189)),
+/// The modes' colours, in the order of [`Mode::kind`] (tracking, approaching, holding, faulted,
+/// retreating).
+const MODE_COLOURS: [RGBColor; 5] = [
+    RGBColor(44, 160, 44),
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
 ];
-
-/// A mode's index in [`MODES`] (its reason aside).
-fn mode_kind(m: Mode) -> usize {
-    match m {
-        Mode::Tracking => 0,
-        Mode::Approaching => 1,
-        Mode::Holding(_) => 2,
-        Mode::Faulted(_) => 3,
-        Mode::Retreating(_) => 4,
-    }
-}
 
 /// Counts of each kind of event in a run.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -466,14 +456,14 @@ impl Figure for Events<'_> {
             let mut bands: Vec<(f64, f64, usize)> = Vec::new();
             let mut prev_t = self.t.start;
             for r in &run.records {
-                let k = mode_kind(r.mode);
+                let k = r.mode.kind();
                 match bands.last_mut() {
                     Some(b) if b.2 == k => b.1 = r.t,
                     _ => bands.push((prev_t, r.t, k)),
                 }
                 prev_t = r.t;
             }
-            for (k, &(name, c)) in MODES.iter().enumerate() {
+            for (k, (&name, &c)) in Mode::KINDS.iter().zip(&MODE_COLOURS).enumerate() {
                 let mine: Vec<_> = bands
                     .iter()
                     .filter(|b| b.2 == k)
