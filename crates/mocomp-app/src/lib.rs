@@ -15,6 +15,7 @@ macro_rules! refuse {
 }
 
 pub mod baseline;
+pub mod blame;
 pub mod calibration;
 pub mod collect;
 pub mod config;

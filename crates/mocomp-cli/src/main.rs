@@ -21,7 +21,6 @@ mod track;
 mod ursim;
 
 use clap::{Parser, Subcommand};
-use mocomp_kin::KinError;
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -95,82 +94,19 @@ impl std::error::Error for UsageError {}
 /// An error nobody classifies is a run-time failure: calling a broken robot or a full disk "bad
 /// input" would send the user to check arguments that are fine.
 fn exit_code(err: &anyhow::Error) -> u8 {
-    err.chain().find_map(classify).unwrap_or(EXIT_FAILURE)
-}
-
-/// Whether one error is bad input (2) or a run-time failure (1); `None`: not known here.
-fn classify(e: &(dyn std::error::Error + 'static)) -> Option<u8> {
-    use mocomp_app::experiment::ExperimentError;
-    if let Some(e) = e.downcast_ref::<mocomp_app::AppError>() {
-        // A failure's cause decides (a file not found is input; a lost robot is not).
-        return match e {
-            mocomp_app::AppError::Config(_) => Some(EXIT_USAGE),
-            mocomp_app::AppError::Refused(_) => Some(EXIT_FAILURE),
-            mocomp_app::AppError::Failed { .. } => None,
-        };
-    }
-    if e.is::<UsageError>()
-        || e.is::<mocomp_vision::VisionError>()
-        || e.is::<mocomp_control::ParamError>()
-        || e.is::<mocomp_geom::GeomError>()
-        || e.is::<mocomp_igtl::name::NameError>()
-        || e.is::<mocomp_control::GoalError>()
-        || e.is::<mocomp_sim::MotionError>()
-        || e.is::<mocomp_sim::trace::TraceError>()
-        || e.is::<toml::de::Error>()
-        || e.is::<serde_json::Error>()
-    {
-        return Some(EXIT_USAGE);
-    }
-    if e.is::<mocomp_ursim::SimError>() {
-        return Some(EXIT_FAILURE);
-    }
-    // A robot that is unreachable, refuses or faults is an outcome; a bad argument is not.
-    if let Some(e) = e.downcast_ref::<mocomp_ur::UrError>() {
-        return Some(match e {
-            mocomp_ur::UrError::OutOfRange { .. } => EXIT_USAGE,
-            _ => EXIT_FAILURE,
-        });
-    }
-    // The experiment: its configuration is input; simulators, timeouts and calibration runs
-    // are outcomes.
-    if let Some(e) = e.downcast_ref::<ExperimentError>() {
-        return Some(match e {
-            ExperimentError::Config(_) | ExperimentError::Goal(_) | ExperimentError::Scene(_) => {
-                EXIT_USAGE
+    use mocomp_app::blame::{Blame, classify};
+    err.chain()
+        .find_map(|e| {
+            if e.is::<UsageError>() {
+                Some(EXIT_USAGE)
+            } else {
+                classify(e).map(|b| match b {
+                    Blame::Input => EXIT_USAGE,
+                    Blame::Run => EXIT_FAILURE,
+                })
             }
-            ExperimentError::Io { .. }
-            | ExperimentError::Timeout(_)
-            | ExperimentError::Calibration { .. } => EXIT_FAILURE,
-        });
-    }
-    // Calibration: bad or degenerate input is exit 2; a plan that cannot be met is exit 1.
-    if let Some(e) = e.downcast_ref::<mocomp_calib::CalibError>() {
-        return Some(match e {
-            mocomp_calib::CalibError::PlanShort { .. } => EXIT_FAILURE,
-            _ => EXIT_USAGE,
-        });
-    }
-    // A pose that cannot be reached is an outcome; a malformed one is input.
-    if let Some(e) = e.downcast_ref::<KinError>() {
-        return Some(match e {
-            KinError::Unreachable(_)
-            | KinError::OutsideJointLimits { .. }
-            | KinError::BranchUnavailable { .. }
-            | KinError::NotConverged { .. } => EXIT_FAILURE,
-            _ => EXIT_USAGE,
-        });
-    }
-    // A file given that is not there or not readable as asked is input; any other I/O failure
-    // (a full disk, a lost connection) happened at run time.
-    if let Some(e) = e.downcast_ref::<std::io::Error>() {
-        use std::io::ErrorKind;
-        return Some(match e.kind() {
-            ErrorKind::NotFound | ErrorKind::InvalidInput | ErrorKind::InvalidData => EXIT_USAGE,
-            _ => EXIT_FAILURE,
-        });
-    }
-    None
+        })
+        .unwrap_or(EXIT_FAILURE)
 }
 
 fn main() -> ExitCode {
@@ -216,7 +152,6 @@ fn main() -> ExitCode {
 mod exit_code_tests {
     #![allow(clippy::unwrap_used)] // test code
     use super::*;
-    use mocomp_app::experiment::ExperimentError;
 
     #[test]
     fn bad_input_is_2_and_everything_failing_at_run_time_is_1() {
@@ -229,13 +164,8 @@ mod exit_code_tests {
             exit_code(&anyhow::Error::new(missing).context("--config f.toml")),
             EXIT_USAGE
         );
-        // A full disk, a simulator that timed out, an error nobody classified: run time.
         let full = std::io::Error::from(std::io::ErrorKind::StorageFull);
         assert_eq!(exit_code(&anyhow::Error::new(full)), EXIT_FAILURE);
-        let timeout = ExperimentError::Timeout("the robots' states");
-        assert_eq!(exit_code(&anyhow::Error::new(timeout)), EXIT_FAILURE);
         assert_eq!(exit_code(&anyhow::anyhow!("something odd")), EXIT_FAILURE);
-        let cfg = ExperimentError::Config("seconds = -1".into());
-        assert_eq!(exit_code(&anyhow::Error::new(cfg)), EXIT_USAGE);
     }
 }

@@ -1,0 +1,137 @@
+//! Whose fault an error is: the input's (an argument, a file, a configuration value: the user
+//! can fix it) or the run's (a robot that faults or cannot be reached, a timeout, a full disk).
+//! The CLI turns it into exit code 2 or 1; the console into HTTP 400 or 500.
+//!
+//! Each error in a cause chain is asked in turn; the first that knows says. An error nobody
+//! classifies is the run's: calling a broken robot or a full disk "bad input" would send the
+//! user to check arguments that are fine.
+
+use mocomp_kin::KinError;
+
+/// Whose fault an error is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Blame {
+    /// Bad input.
+    Input,
+    /// A failure at run time.
+    Run,
+}
+
+/// Whose fault `e` is, asking it and then each of its sources.
+pub fn blame(e: &(dyn std::error::Error + 'static)) -> Blame {
+    std::iter::successors(Some(e), |e| e.source())
+        .find_map(classify)
+        .unwrap_or(Blame::Run)
+}
+
+/// Whose fault one error is (its sources aside); `None`: not known here.
+pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
+    use crate::experiment::ExperimentError;
+    if let Some(e) = e.downcast_ref::<crate::AppError>() {
+        // A failure's cause decides (a file not found is input; a lost robot is not).
+        return match e {
+            crate::AppError::Config(_) => Some(Blame::Input),
+            crate::AppError::Refused(_) => Some(Blame::Run),
+            crate::AppError::Failed { .. } => None,
+        };
+    }
+    if e.is::<mocomp_vision::VisionError>()
+        || e.is::<mocomp_control::ParamError>()
+        || e.is::<mocomp_geom::GeomError>()
+        || e.is::<mocomp_igtl::name::NameError>()
+        || e.is::<mocomp_control::GoalError>()
+        || e.is::<mocomp_sim::MotionError>()
+        || e.is::<mocomp_sim::trace::TraceError>()
+        || e.is::<toml::de::Error>()
+        || e.is::<serde_json::Error>()
+    {
+        return Some(Blame::Input);
+    }
+    if e.is::<mocomp_ursim::SimError>() {
+        return Some(Blame::Run);
+    }
+    // A robot that is unreachable, refuses or faults is an outcome; a bad argument is not.
+    if let Some(e) = e.downcast_ref::<mocomp_ur::UrError>() {
+        return Some(match e {
+            mocomp_ur::UrError::OutOfRange { .. } => Blame::Input,
+            _ => Blame::Run,
+        });
+    }
+    // The experiment: its configuration is input; simulators, timeouts and calibration runs
+    // are outcomes.
+    if let Some(e) = e.downcast_ref::<ExperimentError>() {
+        return Some(match e {
+            ExperimentError::Config(_) | ExperimentError::Goal(_) | ExperimentError::Scene(_) => {
+                Blame::Input
+            }
+            ExperimentError::Io { .. }
+            | ExperimentError::Timeout(_)
+            | ExperimentError::Calibration { .. } => Blame::Run,
+        });
+    }
+    // Calibration: bad or degenerate input is exit 2; a plan that cannot be met is exit 1.
+    if let Some(e) = e.downcast_ref::<mocomp_calib::CalibError>() {
+        return Some(match e {
+            mocomp_calib::CalibError::PlanShort { .. } => Blame::Run,
+            _ => Blame::Input,
+        });
+    }
+    // A pose that cannot be reached is an outcome; a malformed one is input.
+    if let Some(e) = e.downcast_ref::<KinError>() {
+        return Some(match e {
+            KinError::Unreachable(_)
+            | KinError::OutsideJointLimits { .. }
+            | KinError::BranchUnavailable { .. }
+            | KinError::NotConverged { .. } => Blame::Run,
+            _ => Blame::Input,
+        });
+    }
+    // A file given that is not there or not readable as asked is input; any other I/O failure
+    // (a full disk, a lost connection) happened at run time.
+    if let Some(e) = e.downcast_ref::<std::io::Error>() {
+        use std::io::ErrorKind;
+        return Some(match e.kind() {
+            ErrorKind::NotFound | ErrorKind::InvalidInput | ErrorKind::InvalidData => Blame::Input,
+            _ => Blame::Run,
+        });
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::ExperimentError;
+
+    #[test]
+    fn bad_input_is_the_inputs_and_everything_failing_at_run_time_the_runs() {
+        let cfg = crate::AppError::Config("f.toml: servo.gain = 50: must be in [100, 2000]".into());
+        assert_eq!(blame(&cfg), Blame::Input);
+        // Wrapped, the cause decides.
+        let missing = std::io::Error::from(std::io::ErrorKind::NotFound);
+        let wrapped = crate::AppError::failed("--config f.toml", missing);
+        assert_eq!(blame(&wrapped), Blame::Input);
+        let full = std::io::Error::from(std::io::ErrorKind::StorageFull);
+        assert_eq!(blame(&crate::AppError::failed("log_csv", full)), Blame::Run);
+        // A simulator that timed out, a refusal, an error nobody classified: the run's.
+        assert_eq!(
+            blame(&ExperimentError::Timeout("the robots' states")),
+            Blame::Run
+        );
+        assert_eq!(
+            blame(&crate::AppError::Refused("no state".into())),
+            Blame::Run
+        );
+        let odd = std::fmt::Error;
+        assert_eq!(blame(&odd), Blame::Run);
+        assert_eq!(
+            blame(&ExperimentError::Config("seconds = -1".into())),
+            Blame::Input
+        );
+        let unreachable = KinError::Unreachable(mocomp_kin::Unreachable::TooFar {
+            distance_m: 1.0,
+            reach_m: 0.5,
+        });
+        assert_eq!(blame(&unreachable), Blame::Run);
+    }
+}
