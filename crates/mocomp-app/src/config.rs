@@ -700,36 +700,70 @@ const NOT_FOR_THE_EXPERIMENT: [&str; 15] = [
     "realtime",
 ];
 
-/// The keys a configuration's `text` sets that `mocomp demo` does not use, so the demo can say
-/// so instead of ignoring them silently. Text that does not parse gives none (the parse says
-/// why elsewhere).
+/// The keys a configuration's `text` sets, to other values than their defaults, that `mocomp
+/// demo` does not use, so the demo can say so instead of ignoring them silently. A key set to its
+/// default changes nothing and is not named, so a printed configuration (every key) reads back
+/// without a note. Text that does not parse gives none (the parse says why elsewhere).
 pub fn unused_by_experiment(text: &str) -> Vec<String> {
-    let Ok(t) = text.parse::<toml::Table>() else {
+    let Ok(user) = text.parse::<toml::Table>() else {
         return Vec::new();
     };
-    let has = |path: &str| {
-        let mut v: Option<&toml::Value> = None;
-        let mut table = Some(&t);
-        for part in path.split('.') {
-            v = table.and_then(|t| t.get(part));
-            table = v.and_then(toml::Value::as_table);
+    let defaults = toml::Table::try_from(Config::default()).unwrap_or_default();
+    let mut leaves = Vec::new();
+    flatten("", &user, &mut leaves);
+    leaves
+        .into_iter()
+        .filter(|(path, _)| {
+            let in_unused = NOT_FOR_THE_EXPERIMENT
+                .iter()
+                .any(|k| path == k || path.starts_with(&format!("{k}.")));
+            // Of [calibrate], the experiment takes the number of poses and samples only.
+            let calibrate = path.starts_with("calibrate.")
+                && !matches!(
+                    path.as_str(),
+                    "calibrate.poses" | "calibrate.samples_per_pose"
+                );
+            in_unused || calibrate
+        })
+        .filter(|(path, v)| lookup(&defaults, path).is_none_or(|d| !same_value(d, v)))
+        .map(|(path, _)| path)
+        .collect()
+}
+
+/// Every value in `t` that is not a table, with its dotted path.
+fn flatten(prefix: &str, t: &toml::Table, out: &mut Vec<(String, toml::Value)>) {
+    for (k, v) in t {
+        let path = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        match v {
+            toml::Value::Table(sub) => flatten(&path, sub, out),
+            other => out.push((path, other.clone())),
         }
-        v.is_some()
-    };
-    let mut keys: Vec<String> = NOT_FOR_THE_EXPERIMENT
-        .iter()
-        .filter(|k| has(k))
-        .map(|k| (*k).to_string())
-        .collect();
-    // Of [calibrate], the experiment takes the number of poses and samples only.
-    if let Some(c) = t.get("calibrate").and_then(toml::Value::as_table) {
-        keys.extend(
-            c.keys()
-                .filter(|k| !matches!(k.as_str(), "poses" | "samples_per_pose"))
-                .map(|k| format!("calibrate.{k}")),
-        );
     }
-    keys
+}
+
+fn lookup<'a>(t: &'a toml::Table, path: &str) -> Option<&'a toml::Value> {
+    let mut parts = path.split('.');
+    let mut v = t.get(parts.next()?)?;
+    for p in parts {
+        v = v.as_table()?.get(p)?;
+    }
+    Some(v)
+}
+
+/// Equal as configuration values: `0` and `0.0` are the same number.
+fn same_value(a: &toml::Value, b: &toml::Value) -> bool {
+    use toml::Value::{Array, Float, Integer};
+    match (a, b) {
+        (Integer(x), Float(y)) | (Float(y), Integer(x)) => (*x as f64) == *y,
+        (Array(x), Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y).all(|(a, b)| same_value(a, b))
+        }
+        _ => a == b,
+    }
 }
 
 impl CollectSection {
@@ -947,13 +981,20 @@ mod tests {
     #[test]
     fn the_demo_names_the_keys_it_does_not_use() {
         let keys = unused_by_experiment(
-            "duration_s = 3\n[robot]\nmodel = \"ur3\"\nsimulate = true\n[goal]\nhead_from_coil = [0,0,0.1,3,0,0]\n\
-             [calibrate]\nposes = 12\nsettle_s = 0.5\n",
+            "duration_s = 3\n[robot]\nmodel = \"ur3\"\nsimulate = false\n[goal]\nhead_from_coil = [0,0,0.1,3,0,0]\n\
+             [calibrate]\nposes = 12\nsettle_s = 0.5\n[realtime]\npriority = 50\n",
         );
         assert_eq!(
             keys,
-            ["duration_s", "robot.simulate", "goal", "calibrate.settle_s"]
+            [
+                "calibrate.settle_s",
+                "duration_s",
+                "goal.head_from_coil",
+                "robot.simulate"
+            ]
         );
         assert!(unused_by_experiment("[robot]\nmodel = \"ur3\"\n").is_empty());
+        // A key at its default changes nothing (0 and 0.0 alike).
+        assert!(unused_by_experiment("duration_s = 0\n").is_empty());
     }
 }

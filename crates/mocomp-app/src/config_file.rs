@@ -77,6 +77,8 @@ mod tests {
         assert_eq!(parsed, Config::default());
         // Every key the defaults have is in the template with the same value, and no other.
         assert_eq!(print(&Config::default()).unwrap(), TEMPLATE);
+        // Every key at its default: the demo has nothing to note.
+        assert!(crate::config::unused_by_experiment(TEMPLATE).is_empty());
     }
 
     #[test]
