@@ -6,7 +6,7 @@
 //! on the command → `servo`. No allocation, no lock, no logging: the caller gets a
 //! [`CycleRecord`] (`Copy`) to queue for a logger.
 
-use crate::config::LoopConfig;
+use crate::config::{LoopConfig, LoopParams};
 use crate::goal::{GoalError, check_goal};
 use crate::planner::{PlanError, ShellPath};
 use crate::predict::PosePredictor;
@@ -213,6 +213,10 @@ pub struct Compensator {
     /// Distance from the head marker to the coil at the goal, m: the lever that turns rotation
     /// uncertainty into position uncertainty at the coil.
     coil_lever: f64,
+    /// The operator asks the loop to hold ([`Self::set_operator_hold`]).
+    operator_hold: bool,
+    /// When a held coil last had to give way to the head, s (loop time).
+    gave_way_at: f64,
 }
 
 impl Compensator {
@@ -260,7 +264,36 @@ impl Compensator {
             anchor: cfg_goal,
             coasting: false,
             giving_way: false,
+            operator_hold: false,
+            gave_way_at: f64::NEG_INFINITY,
         }
+    }
+
+    /// The operator's hold (`true`) or resume (`false`). A hold stops following the head where
+    /// the coil is, with [`Reason::Operator`] (the supervisor's other rules outrank it); the coil
+    /// still gives way to a head that comes closer than the safety filter requires. A resume
+    /// comes back as after any hold: `resume_after_s`, then by a planned path when the coil is
+    /// off its goal. Takes effect at the next cycle.
+    pub fn set_operator_hold(&mut self, hold: bool) {
+        self.operator_hold = hold;
+    }
+
+    /// Whether the operator holds the loop.
+    pub fn operator_hold(&self) -> bool {
+        self.operator_hold
+    }
+
+    /// New loop parameters, from the next cycle (the console's tuning). The goal's check, which
+    /// depends on `coil_min_distance_m`, is redone; a goal the new parameters refuse holds the
+    /// loop with its reason, as at start. The caller has validated them.
+    pub fn set_params(&mut self, params: LoopParams) {
+        self.cfg.params = params;
+        self.goal_check = check_goal(
+            &self.cfg.head,
+            &self.cfg.coil,
+            &self.cfg.head_from_coil_goal,
+            params.coil_min_distance_m,
+        );
     }
 
     /// The configuration.
@@ -642,6 +675,54 @@ impl Compensator {
         base_from_head * path.pose_at(self.sigma) * self.coil_from_flange
     }
 
+    /// A hold's target: the last command, standing. Its speed is zero, so the limits
+    /// decelerate the arm to standstill on it; a target taken as moving at the command's own
+    /// speed (the feed-forward of a followed target) would keep the arm going forever.
+    fn stand_still(&mut self) -> [f64; 6] {
+        self.last_desired = None;
+        self.q_cmd
+    }
+
+    /// A held coil with the head in view gives way when the head comes closer than `required`
+    /// (the safety filter's clearance): it backs off `retreat_distance_m` along its axis from
+    /// where it is, following the head, until the head has stayed clear for `retreat_resume_s`;
+    /// then it holds again where it got to. Returns the target joints and the reason while it
+    /// gives way; `None`: hold.
+    fn give_way_in_hold(
+        &mut self,
+        now: f64,
+        base_from_head: &Isometry3<f64>,
+        required: f64,
+    ) -> Option<([f64; 6], Reason)> {
+        let p = &self.cfg.params;
+        let here = self.head_from_coil_at(&self.q_cmd, base_from_head);
+        let clearance = self.coil_distance(&here);
+        let giving_way =
+            matches!(self.mode, Mode::Retreating(_)) && now - self.gave_way_at < p.retreat_resume_s;
+        if clearance < required {
+            if !giving_way {
+                self.anchor = here;
+                self.standoff = 0.0;
+            }
+            self.gave_way_at = now;
+        } else if !giving_way {
+            return None;
+        }
+        self.standoff = self.standoff.max(p.retreat_distance_m);
+        let why = match self.mode {
+            Mode::Retreating(r) if giving_way => r,
+            _ => Reason::CoilCollision(clearance),
+        };
+        self.arm
+            .ik_closest(
+                &self.standoff_target(base_from_head),
+                &self.q_cmd,
+                &Selection::tracking(p.joint_margin_rad),
+            )
+            .ok()
+            .map(|c| (c.joints, why))
+    }
+
     fn enter(&mut self, mode: Mode) -> Option<Event> {
         if self.mode == mode {
             return None;
@@ -804,6 +885,9 @@ impl Compensator {
             // A wrong goal outranks everything but a fault.
             reason = Some(Reason::from(e));
         }
+        if self.operator_hold && reason.is_none() {
+            reason = Some(Reason::Operator);
+        }
         let mut react = reason.map_or(Reaction::Track, |r| reaction(&r));
 
         // The standoff the goal needs: the filter's, and the retreat's while retreating. It
@@ -883,24 +967,25 @@ impl Compensator {
                     if matches!(self.mode, Mode::Retreating(_)) {
                         q
                     } else {
-                        self.q_cmd
+                        self.stand_still()
                     }
                 } else {
                     if self.mode != Mode::Approaching {
+                        let from_retreat = matches!(self.mode, Mode::Retreating(_));
+                        if self.anchor != self.cfg.head_from_coil_goal {
+                            // The coil gave way away from the goal (approaching, holding): back
+                            // to the goal by a path, never straight in from the side.
+                            self.anchor = self.cfg.head_from_coil_goal;
+                            self.standoff = 0.0;
+                            self.replan = true;
+                        }
                         let cmd = self.arm.fk_flange(&self.q_cmd);
                         let target = self.standoff_target(&bh);
                         let far = (cmd.translation.vector - target.translation.vector).norm()
                             > self.cfg.params.servo_deviation_m
                             || cmd.rotation.angle_to(&target.rotation)
                                 > self.cfg.params.plan_rotation_rad;
-                        // Back from a retreat the coil is on the goal's axis and comes straight
-                        // in; one that gave way elsewhere goes by a path.
-                        let from_retreat = matches!(self.mode, Mode::Retreating(_));
-                        if from_retreat && self.anchor != self.cfg.head_from_coil_goal {
-                            self.anchor = self.cfg.head_from_coil_goal;
-                            self.standoff = 0.0;
-                            self.replan = true;
-                        }
+                        // Back from a retreat on the goal's axis the coil comes straight in.
                         if (far && !from_retreat && self.mode != Mode::Tracking) || self.replan {
                             match self.plan(&bh) {
                                 Ok(p) => {
@@ -919,7 +1004,7 @@ impl Compensator {
                         (Some(r), _, _) => {
                             self.clear_since = None;
                             event = event.or(self.enter(Mode::Holding(r)));
-                            self.q_cmd
+                            self.stand_still()
                         }
                         (None, Mode::Approaching, Some(path)) => {
                             let target = self.path_target(&path, &bh);
@@ -935,7 +1020,7 @@ impl Compensator {
                                     self.clear_since = None;
                                     event =
                                         event.or(self.enter(Mode::Holding(Reason::Unreachable)));
-                                    self.q_cmd
+                                    self.stand_still()
                                 }
                                 Ok(c) if self.sigma >= path.length() => {
                                     // At the goal: hand over to tracking.
@@ -956,15 +1041,23 @@ impl Compensator {
                     }
                 }
             }
-            (react, r, _, _) => {
+            (react, r, _, bh) => {
                 // Hold (Plan included: hold now, go by a path once clear).
                 if react == Reaction::Plan {
                     self.replan = true;
                 }
                 self.clear_since = None;
                 self.path = None;
-                event = event.or(self.enter(Mode::Holding(r.unwrap_or(Reason::NoTracker))));
-                self.q_cmd
+                match bh.and_then(|bh| self.give_way_in_hold(now, &bh, required)) {
+                    Some((q, why)) => {
+                        event = event.or(self.enter(Mode::Retreating(why)));
+                        q
+                    }
+                    None => {
+                        event = event.or(self.enter(Mode::Holding(r.unwrap_or(Reason::NoTracker))));
+                        self.stand_still()
+                    }
+                }
             }
         };
 
@@ -1039,7 +1132,7 @@ impl Compensator {
             if !gave_way {
                 // Refuse: decelerate along the last command instead.
                 (self.q_cmd, self.v_cmd, self.last_desired) = saved;
-                let hold = self.q_cmd;
+                let hold = self.stand_still();
                 q_next = self.limit(&hold, speed_fraction);
                 self.clear_since = None;
                 // A hold outranks a resume decided earlier in the same cycle. A coil refused

@@ -20,6 +20,11 @@
 //! | `CoilCollision` | retreat | the head comes into the coil: the coil gives way along its axis, never the patient |
 //! | `OffApproachAxis` | plan | near the head the coil comes in only along its axis: go round by the shell |
 //! | `NoPath` | hold | no safe path to the goal |
+//! | `Operator` | hold | the operator asked (the console's hold); every other rule outranks it |
+//!
+//! A hold with the head in view still gives way: a held coil the head comes closer to than the
+//! safety filter requires backs off along its axis (shown as a retreat for `CoilCollision`),
+//! then holds again where it got to.
 //!
 //! Short tracker dropouts (up to `coast_s` beyond `tracker_stale_s`) are not a rule that fires:
 //! the loop coasts on the prediction, with a standoff that grows with its uncertainty
@@ -66,6 +71,9 @@ pub enum Reason {
     /// No safe path to the goal: unreachable, a branch change or a collision at this arc
     /// length along it (m), or no retreat to the shell (NaN).
     NoPath(f64),
+    /// The operator holds the loop (the console's or a front end's hold); the other rules
+    /// outrank it.
+    Operator,
 }
 
 impl From<GoalError> for Reason {
@@ -115,6 +123,7 @@ pub fn reaction(reason: &Reason) -> Reaction {
         Reason::CoilCollision(_) => Retreat,
         Reason::OffApproachAxis(_) => Plan,
         Reason::NoPath(_) => Hold,
+        Reason::Operator => Hold,
     }
 }
 

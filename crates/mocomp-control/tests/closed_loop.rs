@@ -340,7 +340,18 @@ fn a_goal_inside_the_head_is_refused() {
         head_from_coil_goal().rotation,
     );
     let o = run(sc);
-    assert!(o.records.iter().all(|r| matches!(r.mode, Mode::Holding(_))));
+    // Never followed; the coil, which starts where the goal puts it (in the head), backs out
+    // along its axis and holds there.
+    assert!(
+        o.records
+            .iter()
+            .all(|r| matches!(r.mode, Mode::Holding(_) | Mode::Retreating(_)))
+    );
+    let end = o.records.last().unwrap();
+    assert!(
+        matches!(end.mode, Mode::Holding(Reason::GoalInsideHead(_))) && end.clearance_m > 0.0,
+        "{end:?}"
+    );
     assert!(
         o.events()
             .iter()
@@ -530,7 +541,14 @@ fn a_long_tracker_dropout_holds_then_resumes() {
         .find(|(t, e)| *t > resume.0 && *e == Event::Reached);
     let reached = reached.expect("reached the goal");
     eprintln!("dropout: back on the goal at {:.2} s", reached.0);
-    assert!(o.holds().len() == 1, "{:?}", o.holds());
+    // The hold stopped the arm where it was, beside the nodding head and off the goal's axis:
+    // the path out may be refused once by the approach rule and planned again.
+    let holds = o.holds();
+    let replans = holds
+        .iter()
+        .filter(|(_, e)| matches!(e, Event::Hold(Reason::OffApproachAxis(_))))
+        .count();
+    assert!(holds.len() - replans == 1 && replans <= 1, "{holds:?}");
     let (t, _) = o.rms(reached.0 + 0.5, 6.0);
     assert!(t < 2.5, "{t}");
     assert_eq!(o.sim.with(|c| c.protective_stops()), 0);

@@ -28,14 +28,17 @@ const PERIOD: f64 = 0.002;
 
 fn base_from_head(t: f64) -> Isometry3<f64> {
     let s = (4.0 * t).sin();
+    // The head moved 30 mm while out of view (from 1.1 s): the loop comes back by a path.
+    let moved = if t >= 1.1 { 0.03 } else { 0.0 };
     head_rest()
         * Isometry3::new(
-            Vector3::new(0.01 * s, 0.005 * s, 0.0),
+            Vector3::new(0.01 * s + moved, 0.005 * s, 0.0),
             Vector3::new(0.0, 0.04 * s, 0.08 * s),
         )
 }
 
-/// 60 Hz, 20 ms latency, 0.1 mm noise, a 200 ms dropout at 1 s, an outlier at 1.5 s.
+/// 60 Hz, 20 ms latency, 0.1 mm noise, a 300 ms dropout at 1 s (the head moves meanwhile), an
+/// outlier at 1.5 s.
 struct NoddingTracker {
     clock: Arc<SteppedClock>,
     k: u64,
@@ -51,7 +54,7 @@ impl PoseSource for NoddingTracker {
                 return newest;
             }
             self.k += 1;
-            if (1.0..1.2).contains(&t) {
+            if (1.0..1.3).contains(&t) {
                 continue;
             }
             let mut pose = base_from_tracker().inverse() * base_from_head(t);

@@ -55,6 +55,11 @@ fn along_z(offset: fn(f64) -> f64) -> impl Fn(f64) -> Isometry3<f64> {
 }
 
 fn run(motion: Motion, seconds: f64) -> Run {
+    run_held(motion, seconds, |_| false)
+}
+
+/// [`run`], with the operator holding the loop while `held(t)`.
+fn run_held(motion: Motion, seconds: f64, held: fn(f64) -> bool) -> Run {
     let arm = Arm::new(Model::Ur3e);
     let cfg = LoopConfig::new(
         base_from_tracker(),
@@ -88,6 +93,7 @@ fn run(motion: Motion, seconds: f64) -> Run {
         let t = k as f64 * PERIOD;
         robot.tick(t);
         poses.now = t;
+        comp.set_operator_hold(held(t));
         let rec = comp.cycle(t, &mut robot, &mut poses);
         let coil_pose = arm.fk_flange(&rec.q_command) * flange_from_coil();
         let acts = if rec.horizon_s > 0.0 {
@@ -253,4 +259,129 @@ fn a_short_dropout_is_coasted_with_a_growing_margin_and_no_hold() {
     );
     let least = r.least_clearance();
     assert!(least > 0.0, "{least}");
+}
+
+fn dip(t: f64) -> Option<Isometry3<f64>> {
+    // The head sinks 15 mm away from the coil and comes back, between 1 and 2 s.
+    Some(along_z(|t| {
+        if (1.0..2.0).contains(&t) {
+            -0.0075 * (1.0 - (2.0 * std::f64::consts::PI * (t - 1.0)).cos())
+        } else {
+            0.0
+        }
+    })(t))
+}
+
+/// The largest joint motion between consecutive commands in `[from, to)`, rad.
+fn largest_step(r: &Run, from: f64, to: f64) -> f64 {
+    r.records
+        .windows(2)
+        .filter(|w| w[0].t >= from && w[1].t < to)
+        .map(|w| {
+            (0..6).fold(0.0f64, |m, j| {
+                m.max((w[1].q_command[j] - w[0].q_command[j]).abs())
+            })
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_operators_hold_stops_the_coil_and_resume_brings_it_back_to_the_goal() {
+    let r = run_held(dip, 3.5, |t| (1.0..2.2).contains(&t));
+    let ev = r.events();
+    let held_at = ev
+        .iter()
+        .find(|(_, e)| *e == Event::Hold(Reason::Operator))
+        .map(|(t, _)| *t);
+    assert!(held_at.is_some_and(|t| (1.0..1.01).contains(&t)), "{ev:?}");
+    // Held: after decelerating (well under 0.3 s) the command stands still while the head moves.
+    assert!(
+        largest_step(&r, 1.3, 2.2) < 1e-9,
+        "{}",
+        largest_step(&r, 1.3, 2.2)
+    );
+    let during: Vec<_> = r
+        .records
+        .iter()
+        .filter(|x| (1.3..2.2).contains(&x.t))
+        .collect();
+    assert!(
+        during
+            .iter()
+            .all(|x| x.mode == Mode::Holding(Reason::Operator))
+    );
+    // The head sank away meanwhile: the coil is off its goal.
+    assert!(during.iter().any(|x| x.deviation.0 > 5e-3));
+    // Never closer than the head allows, held or not.
+    assert!(r.least_clearance() > 0.0, "{}", r.least_clearance());
+    // Resumed: back on the goal and tracking by the end.
+    assert!(
+        ev.iter()
+            .any(|(t, e)| *t >= 2.2 && matches!(e, Event::Resume)),
+        "{ev:?}"
+    );
+    let end = r.records.last().unwrap();
+    assert_eq!(end.mode, Mode::Tracking, "{ev:?}");
+    assert!(end.deviation.0 < 1e-3, "{:?}", end.deviation);
+}
+
+fn push_in(t: f64) -> Option<Isometry3<f64>> {
+    // 40 mm into the coil at 100 mm/s.
+    Some(along_z(|t| ramp(t - 0.5, 0.04, 0.1))(t))
+}
+
+#[test]
+fn a_held_coil_gives_way_to_a_head_moving_into_it_and_holds_again() {
+    let r = run_held(push_in, 2.5, |t| t >= 0.6);
+    let ev = r.events();
+    assert!(
+        ev.iter()
+            .any(|(_, e)| matches!(e, Event::Retreat(Reason::CoilCollision(_)))),
+        "{ev:?}"
+    );
+    // The patient never gives way: at most the scalp's give, which the tracking loop allows too.
+    let p = mocomp_control::LoopParams::default();
+    let least = r.least_clearance();
+    assert!(least > -p.coil_contact_tolerance_m, "{least}");
+    // One give-way per approach of the head, not a hold and a retreat every other cycle.
+    let switches = ev
+        .iter()
+        .filter(|(_, e)| matches!(e, Event::Retreat(_) | Event::Hold(_)))
+        .count();
+    assert!(switches <= 8, "{ev:?}");
+    // Once the head stops (at about 1.4 s) the coil holds again, further out than the goal.
+    let end = r.records.last().unwrap();
+    assert_eq!(end.mode, Mode::Holding(Reason::Operator), "{ev:?}");
+    assert!(largest_step(&r, 2.2, 2.5) < 1e-9);
+    let last_clearance = *r.clearance.last().unwrap();
+    assert!(last_clearance > 0.01, "{last_clearance}");
+}
+
+fn lost_while_moving(t: f64) -> Option<Isometry3<f64>> {
+    // Sideways at 50 mm/s from 0.5 s, out of view for good at 1.2 s.
+    (t < 1.2).then(|| {
+        head_rest()
+            * Isometry3::new(
+                Vector3::new(0.05 * (t - 0.5).max(0.0), 0.0, 0.0),
+                Vector3::zeros(),
+            )
+    })
+}
+
+#[test]
+fn a_hold_decelerates_the_arm_to_standstill_on_its_last_command() {
+    let r = run(lost_while_moving, 2.5);
+    let ev = r.events();
+    let held = ev
+        .iter()
+        .find(|(_, e)| matches!(e, Event::Hold(Reason::MarkerInvalid)))
+        .map(|(t, _)| *t);
+    let held = held.unwrap_or_else(|| panic!("{ev:?}"));
+    // Moving when the hold began, standing 0.3 s later (25 rad/s² stops 1 rad/s in 0.04 s).
+    assert!(largest_step(&r, held - 0.05, held) > 1e-4);
+    assert!(
+        largest_step(&r, held + 0.3, 2.5) < 1e-9,
+        "{}",
+        largest_step(&r, held + 0.3, 2.5)
+    );
 }
