@@ -16,9 +16,10 @@ say "installing interop peers (requirements-interop.txt)"
 .venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-interop.txt
 export MOCOMP_PYTHON="$PWD/.venv/bin/python"
 
-# 2. Debian packages: the C++ OpenIGTLink library and its example sources (interop peer).
+# 2. Debian packages: the C++ OpenIGTLink library and its example sources (interop peer), and
+#    the browser the console's tests drive (Chromium and its WebDriver).
 missing=()
-for p in libopenigtlink-dev openigtlink-examples g++; do
+for p in libopenigtlink-dev openigtlink-examples g++ chromium chromium-driver; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
 done
 if [ ${#missing[@]} -gt 0 ]; then

@@ -4,7 +4,7 @@
 //! happens after each cycle (the live one queues the record for its logger; the lockstep one
 //! steps the simulated world and scores it).
 
-use mocomp_control::{Controller, CycleRecord};
+use mocomp_control::{Controller, CycleRecord, LoopParams};
 use mocomp_geom::PoseSource;
 use mocomp_ur::Robot;
 use std::time::Instant;
@@ -20,6 +20,20 @@ pub trait Pace {
     fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource);
     /// After the cycle, with its record (the command has been sent).
     fn cycle_done(&mut self, record: CycleRecord) -> Result<(), Self::Error>;
+    /// What the operator asks before the next cycle (none by default). Must not block, lock or
+    /// allocate: it runs on the loop's thread.
+    fn requests(&mut self) -> Requests {
+        Requests::default()
+    }
+}
+
+/// The operator's requests to a running loop, applied before a cycle.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Requests {
+    /// Hold (`true`) or resume, when it changed.
+    pub hold: Option<bool>,
+    /// New loop parameters, validated.
+    pub params: Option<LoopParams>,
 }
 
 /// Runs `controller` at `pace` until the pace ends it. Each record carries the cycle's compute
@@ -30,6 +44,13 @@ pub fn drive<P: Pace + ?Sized>(
     pace: &mut P,
 ) -> Result<(), P::Error> {
     while let Some(now) = pace.next_cycle()? {
+        let requests = pace.requests();
+        if let Some(hold) = requests.hold {
+            controller.set_operator_hold(hold);
+        }
+        if let Some(params) = &requests.params {
+            controller.set_params(params);
+        }
         let started = Instant::now();
         let (robot, source) = pace.loop_io();
         let mut record = controller.cycle(now, robot, source);
@@ -76,8 +97,8 @@ mod tests {
         }
     }
 
-    /// Counts its cycles and the times it was given.
-    struct Counting(Vec<f64>);
+    /// Counts its cycles and the times it was given, and the operator's holds.
+    struct Counting(Vec<f64>, Vec<(usize, bool)>);
 
     impl Controller for Counting {
         fn name(&self) -> &'static str {
@@ -96,6 +117,10 @@ mod tests {
             std::thread::sleep(std::time::Duration::from_micros(50));
             CycleRecord::new(now, mocomp_control::Mode::Tracking, [0.0; 6])
         }
+
+        fn set_operator_hold(&mut self, hold: bool) {
+            self.1.push((self.0.len(), hold));
+        }
     }
 
     #[test]
@@ -111,7 +136,7 @@ mod tests {
             left: 5,
             seen: Vec::new(),
         };
-        let mut c = Counting(Vec::new());
+        let mut c = Counting(Vec::new(), Vec::new());
         drive(&mut c, &mut pace).unwrap();
         let expected: Vec<f64> = (0..5).map(|k| f64::from(k) * 0.008).collect();
         assert_eq!(c.0.len(), 5);
@@ -120,5 +145,54 @@ mod tests {
         }
         assert_eq!(pace.seen.len(), 5);
         assert!(pace.seen.iter().all(|(_, timed)| *timed));
+        // The pace asked for nothing: nothing reached the controller.
+        assert!(c.1.is_empty());
+    }
+
+    /// A stepped pace whose operator holds before cycle 2 and resumes before cycle 4.
+    struct Asking(Stepped, usize);
+
+    impl Pace for Asking {
+        type Error = String;
+        fn next_cycle(&mut self) -> Result<Option<f64>, String> {
+            self.0.next_cycle()
+        }
+        fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource) {
+            self.0.loop_io()
+        }
+        fn cycle_done(&mut self, r: CycleRecord) -> Result<(), String> {
+            self.1 += 1;
+            self.0.cycle_done(r)
+        }
+        fn requests(&mut self) -> Requests {
+            Requests {
+                hold: match self.1 {
+                    2 => Some(true),
+                    4 => Some(false),
+                    _ => None,
+                },
+                params: None,
+            }
+        }
+    }
+
+    #[test]
+    fn the_operators_requests_reach_the_controller_before_the_cycle_they_are_for() {
+        let q = [0.0, -1.3, 1.6, -1.87, -1.57, 0.0];
+        let mut robot = MemRobot::at(q, Isometry3::identity(), 0.008);
+        robot.tick(0.0);
+        let stepped = Stepped {
+            robot,
+            source: ScriptedPoses::new(60.0, 0.02, Box::new(|_| Some(Isometry3::identity()))),
+            t: 0.0,
+            period: 0.008,
+            left: 6,
+            seen: Vec::new(),
+        };
+        let mut pace = Asking(stepped, 0);
+        let mut c = Counting(Vec::new(), Vec::new());
+        drive(&mut c, &mut pace).unwrap();
+        // (cycles run before the request, the request)
+        assert_eq!(c.1, vec![(2, true), (4, false)]);
     }
 }

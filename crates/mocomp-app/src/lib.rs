@@ -28,6 +28,7 @@ pub mod live;
 pub mod pose_lines;
 pub mod servo_check;
 pub mod teach;
+pub mod tuning;
 pub mod world;
 
 /// Boxed cause of an [`AppError::Failed`].

@@ -6,23 +6,26 @@
 //! (PLUS, Slicer, a tracker), or an in-process simulated tracker that serves the moving head over
 //! OpenIGTLink on loopback, so the loop always reads poses through the real client. The loop runs
 //! on this thread at the robot's rate; each cycle's record goes through a bounded lock-free
-//! channel to a logger thread that writes the CSV, tells an [`Observer`] of each event and, once a
-//! second, of the loop's status, and keeps the figures of the [`RunReport`]. The stop flag (a
-//! front end's Ctrl-C, or the console's stop) ends the loop; the robot is then stopped (stopj) and
-//! the report says how that went.
+//! channel to a logger thread that writes the CSV, tells an [`Observer`] of each cycle, each event
+//! and, once a second, of the loop's status, and keeps the figures of the [`RunReport`]. A front
+//! end steers the loop through its [`Controls`] (lock-free: flags and a one-slot channel the loop
+//! polls): the stop (Ctrl-C, the console's stop) ends the loop, and the robot is then stopped
+//! (stopj) and the report says how that went; the operator's hold and resume; new loop
+//! parameters.
 
 use crate::config::Setup;
+use crate::driver::Requests;
 use crate::world::World;
 use crate::{AppError, Context};
-use mocomp_control::{Compensator, CycleRecord, Event, Mode, Reason};
+use mocomp_control::{Compensator, CycleRecord, Event, LoopParams, Mode, Reason};
 use mocomp_geom::{Clock, PoseSource};
 use mocomp_igtl::client::IgtlPoseSource;
 use mocomp_ur::{Robot, UrRobot};
 use std::io::Write;
 use std::path::Path;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::{Duration, Instant};
 
 /// What the logger keeps for the summary.
@@ -82,6 +85,109 @@ pub trait Observer: Send {
     fn event(&mut self, t: f64, event: &Event);
     /// The status, once a second.
     fn status(&mut self, status: &Status);
+    /// Every cycle's record (before its event and status, if any), and its age on the loop's
+    /// clock when the logger took it, s (the hop from the loop to here; NaN before the clock is
+    /// known).
+    fn cycle(&mut self, _record: &CycleRecord, _age_s: f64) {}
+}
+
+/// Tells two observers.
+#[derive(Debug)]
+pub struct Both<A, B>(pub A, pub B);
+
+impl<A: Observer, B: Observer> Observer for Both<A, B> {
+    fn event(&mut self, t: f64, event: &Event) {
+        self.0.event(t, event);
+        self.1.event(t, event);
+    }
+    fn status(&mut self, status: &Status) {
+        self.0.status(status);
+        self.1.status(status);
+    }
+    fn cycle(&mut self, record: &CycleRecord, age_s: f64) {
+        self.0.cycle(record, age_s);
+        self.1.cycle(record, age_s);
+    }
+}
+
+impl<O: Observer + ?Sized> Observer for Box<O> {
+    fn event(&mut self, t: f64, event: &Event) {
+        (**self).event(t, event);
+    }
+    fn status(&mut self, status: &Status) {
+        (**self).status(status);
+    }
+    fn cycle(&mut self, record: &CycleRecord, age_s: f64) {
+        (**self).cycle(record, age_s);
+    }
+}
+
+/// Parameter changes that may wait for the loop to take them.
+const PENDING_PARAMS: usize = 4;
+
+/// What front ends ask of a running loop: stop, the operator's hold, new loop parameters. The
+/// loop reads them each cycle without a lock: two flags, and a bounded channel it polls (its
+/// receiving end is taken once, when the loop starts).
+#[derive(Debug)]
+pub struct Controls {
+    stop: AtomicBool,
+    hold: AtomicBool,
+    params_tx: SyncSender<LoopParams>,
+    params_rx: Mutex<Option<Receiver<LoopParams>>>,
+}
+
+impl Controls {
+    /// Controls with nothing asked yet.
+    pub fn new() -> Arc<Self> {
+        let (params_tx, rx) = sync_channel(PENDING_PARAMS);
+        Arc::new(Self {
+            stop: AtomicBool::new(false),
+            hold: AtomicBool::new(false),
+            params_tx,
+            params_rx: Mutex::new(Some(rx)),
+        })
+    }
+
+    /// Ends the loop at its next cycle; the robot is then stopped.
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether the stop was asked.
+    pub fn stop_requested(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+
+    /// The operator's hold (`true`) or resume.
+    pub fn set_hold(&self, hold: bool) {
+        self.hold.store(hold, Ordering::Relaxed);
+    }
+
+    /// Whether the operator holds the loop.
+    pub fn hold(&self) -> bool {
+        self.hold.load(Ordering::Relaxed)
+    }
+
+    /// New loop parameters (already validated) for the loop to take at its next cycle.
+    pub fn tune(&self, params: LoopParams) -> Result<(), AppError> {
+        match self.params_tx.try_send(params) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => Err(AppError::Refused(
+                "earlier parameter changes are still waiting for the loop; try again".into(),
+            )),
+            Err(TrySendError::Disconnected(_)) => {
+                Err(AppError::Refused("the loop has ended".into()))
+            }
+        }
+    }
+
+    /// The loop's end of the parameter channel (once).
+    fn take_params(&self) -> Option<Receiver<LoopParams>> {
+        self.params_rx
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take()
+    }
 }
 
 /// An observer that ignores everything.
@@ -108,6 +214,7 @@ fn logger(
     rx: Receiver<CycleRecord>,
     period: f64,
     csv: Option<std::fs::File>,
+    clock: &OnceLock<Arc<dyn Clock>>,
     observer: &mut dyn Observer,
 ) -> Summary {
     let mut s = Summary::default();
@@ -150,6 +257,7 @@ fn logger(
     // Since the last status line: cycles and the largest deviation while tracking (mm).
     let (mut window_cycles, mut window_max) = (0u64, 0.0f64);
     for r in rx {
+        observer.cycle(&r, clock.get().map_or(f64::NAN, |c| c.now_s() - r.t));
         s.cycles += 1;
         window_cycles += 1;
         if s.first_t.is_none() {
@@ -430,7 +538,11 @@ struct Live<'a> {
     robot: UrRobot,
     source: IgtlPoseSource,
     clock: &'a dyn Clock,
-    stop: &'a AtomicBool,
+    controls: &'a Controls,
+    /// The loop's end of the parameter channel (`None`: another loop took it).
+    params: Option<Receiver<LoopParams>>,
+    /// The operator's hold as last passed on.
+    held: bool,
     t_end: f64,
     /// The robot state count of the last cycle.
     seen: u64,
@@ -464,7 +576,7 @@ impl crate::driver::Pace for Live<'_> {
     type Error = std::convert::Infallible;
 
     fn next_cycle(&mut self) -> Result<Option<f64>, Self::Error> {
-        if self.stop.load(Ordering::Relaxed) || self.clock.now_s() >= self.t_end {
+        if self.controls.stop_requested() || self.clock.now_s() >= self.t_end {
             return Ok(None);
         }
         self.seen = self.robot.wait_for_state(self.seen, self.patience);
@@ -481,15 +593,29 @@ impl crate::driver::Pace for Live<'_> {
         }
         Ok(())
     }
+
+    fn requests(&mut self) -> Requests {
+        let hold = self.controls.hold();
+        let changed = (hold != self.held).then_some(hold);
+        self.held = hold;
+        let params = match self.params.as_ref().map(Receiver::try_recv) {
+            Some(Ok(p)) => Some(p),
+            Some(Err(TryRecvError::Empty | TryRecvError::Disconnected)) | None => None,
+        };
+        Requests {
+            hold: changed,
+            params,
+        }
+    }
 }
 
-/// Runs the loop on `setup` until `stop` is set or `duration_s`, then stops the robot and
-/// returns the report. `log_csv`: every cycle's record. `progress` is told what starts; the
-/// `observer`, what happens while the loop runs.
+/// Runs the loop on `setup` until `controls` asks it to stop or `duration_s`, then stops the
+/// robot and returns the report. `log_csv`: every cycle's record. `progress` is told what
+/// starts; the `observer`, what happens while the loop runs.
 pub fn run(
     setup: &Setup,
     log_csv: Option<&Path>,
-    stop: &AtomicBool,
+    controls: &Controls,
     observer: Box<dyn Observer>,
     progress: &mut dyn Write,
 ) -> Result<RunReport, AppError> {
@@ -505,6 +631,9 @@ pub fn run(
         None => None,
     };
     let (tx, rx) = sync_channel::<CycleRecord>(8192);
+    // The loop's clock, once the world has made it.
+    let loop_clock: Arc<OnceLock<Arc<dyn Clock>>> = Arc::new(OnceLock::new());
+    let logger_clock = Arc::clone(&loop_clock);
     let log_thread = std::thread::Builder::new()
         .name("mocomp-log".into())
         .spawn(move || {
@@ -513,7 +642,7 @@ pub fn run(
             mocomp_rt::set_normal().ok();
             mocomp_rt::unpin().ok();
             let mut observer = observer;
-            logger(rx, period, csv, observer.as_mut())
+            logger(rx, period, csv, &logger_clock, observer.as_mut())
         })
         .what(|| "starting the logger thread")?;
 
@@ -526,6 +655,8 @@ pub fn run(
         writeln!(progress, "warning: {w}").what(|| "writing the progress")?;
     }
     let clock = Arc::clone(&world.clock);
+    // Set once, here: it cannot have been set before.
+    loop_clock.set(Arc::clone(&clock)).ok();
     let client = world.client(setup, &file.tracker.device);
     // The simulators (the rest of `world`) stay up until the end of this function.
     let robot = world.robot;
@@ -543,7 +674,9 @@ pub fn run(
         robot,
         source,
         clock: clock.as_ref(),
-        stop,
+        controls,
+        params: controls.take_params(),
+        held: false,
         t_end,
         patience: Duration::from_secs_f64(3.0 * period),
         tx: &tx,

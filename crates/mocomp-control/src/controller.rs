@@ -4,6 +4,7 @@
 //! logging.
 
 use crate::compensator::{Compensator, CycleRecord};
+use crate::config::LoopParams;
 use mocomp_geom::PoseSource;
 use mocomp_ur::Robot;
 
@@ -20,6 +21,14 @@ pub trait Controller {
         robot: &mut dyn Robot,
         source: &mut dyn PoseSource,
     ) -> CycleRecord;
+
+    /// The operator's hold (`true`) or resume, from the next cycle. A controller without an
+    /// operator's hold (the paper's pipeline) ignores it.
+    fn set_operator_hold(&mut self, _hold: bool) {}
+
+    /// New loop parameters (validated by the caller), from the next cycle. A controller without
+    /// them (the paper's pipeline) ignores them.
+    fn set_params(&mut self, _params: &LoopParams) {}
 }
 
 impl Controller for Compensator {
@@ -34,5 +43,13 @@ impl Controller for Compensator {
         source: &mut dyn PoseSource,
     ) -> CycleRecord {
         Compensator::cycle(self, now, robot, source)
+    }
+
+    fn set_operator_hold(&mut self, hold: bool) {
+        Compensator::set_operator_hold(self, hold);
+    }
+
+    fn set_params(&mut self, params: &LoopParams) {
+        Compensator::set_params(self, *params);
     }
 }

@@ -1,0 +1,368 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+//! The operator's console over its HTTP API and WebSocket, on `mocomp run --dashboard` with the
+//! simulated world: what a request without the token or from another origin may not do, the
+//! operator's hold and resume as the loop's mode shows them, live tuning with its refusals, the
+//! status stream's rate, and the stop that ends the run. (The page itself is tested in a real
+//! browser: `tests/console_browser.rs`.)
+
+mod common;
+use common::mocomp;
+use mocomp_testkit::{TempDir, workspace_root};
+use serde_json::{Value, json};
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A `mocomp run --dashboard` child and its console's address and token.
+#[derive(Debug)]
+pub struct Session {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+    /// The token from the printed link.
+    pub token: String,
+    agent: ureq::Agent,
+    stdout: Option<std::thread::JoinHandle<String>>,
+}
+
+impl Session {
+    /// Starts the example configuration with its simulated robot on `host` for `seconds`, the
+    /// console on a free loopback port, plus `extra` options.
+    pub fn start(dir: &TempDir, host: &str, seconds: u32, extra: &[&str]) -> Session {
+        let path = dir.path("run.toml");
+        let cfg = std::fs::read_to_string(workspace_root().join("examples/run-sim.toml"))
+            .unwrap()
+            .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
+        std::fs::write(&path, cfg).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_mocomp"))
+            .args(["run", "--config", &path, "--quiet", "--seconds"])
+            .arg(seconds.to_string())
+            .args(["--dashboard", "127.0.0.1:0"])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let mut lines = BufReader::new(child.stdout.take().unwrap());
+        // The first line names the console.
+        let mut first = String::new();
+        lines.read_line(&mut first).unwrap();
+        let url = first
+            .strip_prefix("dashboard: ")
+            .unwrap_or_else(|| panic!("first line: {first:?}"))
+            .trim()
+            .to_string();
+        let (base, token) = url.split_once("/?token=").unwrap();
+        // The rest of standard output (the summary), collected as it comes.
+        let stdout = std::thread::spawn(move || {
+            let mut rest = String::new();
+            for line in lines.lines() {
+                rest.push_str(&line.unwrap_or_default());
+                rest.push('\n');
+            }
+            rest
+        });
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(Duration::from_secs(10)))
+            .build()
+            .into();
+        Session {
+            child,
+            base: base.to_string(),
+            token: token.to_string(),
+            agent,
+            stdout: Some(stdout),
+        }
+    }
+
+    /// GET `path` (no token), its status code and JSON.
+    pub fn get(&self, path: &str) -> (u16, Value) {
+        let mut r = self
+            .agent
+            .get(format!("{}{path}", self.base))
+            .call()
+            .unwrap();
+        (
+            r.status().as_u16(),
+            r.body_mut().read_json().unwrap_or(Value::Null),
+        )
+    }
+
+    /// POST `body` to `path` with these headers.
+    pub fn post(&self, path: &str, headers: &[(&str, &str)], body: &Value) -> (u16, Value) {
+        let mut req = self.agent.post(format!("{}{path}", self.base));
+        for (k, v) in headers {
+            req = req.header(*k, *v);
+        }
+        let mut r = req.send_json(body).unwrap();
+        (
+            r.status().as_u16(),
+            r.body_mut().read_json().unwrap_or(Value::Null),
+        )
+    }
+
+    /// POST with the token.
+    pub fn post_auth(&self, path: &str, body: &Value) -> (u16, Value) {
+        let bearer = format!("Bearer {}", self.token);
+        self.post(path, &[("Authorization", &bearer)], body)
+    }
+
+    /// Waits (up to 30 s) until the status satisfies `f`; returns it.
+    pub fn wait_status(&self, what: &str, f: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let (code, s) = self.get("/api/status");
+            assert_eq!(code, 200, "{s}");
+            if f(&s) {
+                return s;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "waiting for {what}; last status {s}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Waits (up to 15 s) for the run to end; its exit success and standard output.
+    pub fn finish(mut self) -> (bool, String) {
+        let deadline = Instant::now() + Duration::from_secs(15);
+        let status = loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                break s;
+            }
+            if Instant::now() > deadline {
+                self.child.kill().ok();
+                panic!("the run did not end after its stop");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        (
+            status.success(),
+            self.stdout.take().unwrap().join().unwrap(),
+        )
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        self.child.kill().ok();
+        self.child.wait().ok();
+    }
+}
+
+#[test]
+fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_allowed() {
+    let dir = TempDir::new("mocomp-console");
+    let token_file = dir.path("token");
+    let s = Session::start(
+        &dir,
+        "127.0.0.95",
+        60,
+        &["--dashboard-token-file", &token_file],
+    );
+    // The token file holds the link's token, readable by its owner only.
+    use std::os::unix::fs::PermissionsExt;
+    let meta = std::fs::metadata(&token_file).unwrap();
+    assert_eq!(meta.permissions().mode() & 0o777, 0o600);
+    assert_eq!(
+        std::fs::read_to_string(&token_file).unwrap().trim(),
+        s.token
+    );
+
+    // Reading needs no token on loopback; the loop reaches its goal and tracks.
+    s.wait_status("tracking", |v| v["mode"] == "tracking");
+
+    // Without the token, or from another origin with it: refused, and nothing changes.
+    let (code, _) = s.post("/api/hold", &[], &json!({}));
+    assert_eq!(code, 401);
+    let wrong = format!("Bearer {}0", s.token);
+    let (code, _) = s.post("/api/hold", &[("Authorization", &wrong)], &json!({}));
+    assert_eq!(code, 401);
+    let bearer = format!("Bearer {}", s.token);
+    let (code, _) = s.post(
+        "/api/hold",
+        &[
+            ("Authorization", &bearer),
+            ("Origin", "http://evil.example"),
+        ],
+        &json!({}),
+    );
+    assert_eq!(code, 403);
+    let (code, _) = s.post("/api/stop", &[], &json!({}));
+    assert_eq!(code, 401);
+    std::thread::sleep(Duration::from_millis(200));
+    let (_, now) = s.get("/api/status");
+    assert_eq!(now["operator_hold"], false, "{now}");
+    assert_ne!(now["mode"], "holding", "{now}");
+    assert_eq!(now["running"], true, "{now}");
+
+    // The hold holds the loop, with the operator named as the reason.
+    let (code, v) = s.post_auth("/api/hold", &json!({}));
+    assert_eq!((code, &v["operator_hold"]), (200, &json!(true)));
+    let held = s.wait_status("the operator's hold", |v| {
+        v["mode"] == "holding" && v["reason"] == "Operator"
+    });
+    assert_eq!(held["operator_hold"], true);
+
+    // The status stream: JSON statuses at 25 a second of loop time (at least 20).
+    let (mut ws, _) = tungstenite::connect(format!("{}/ws", s.base.replace("http", "ws"))).unwrap();
+    if let tungstenite::stream::MaybeTlsStream::Plain(tcp) = ws.get_ref() {
+        tcp.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    }
+    let mut times = Vec::new();
+    while times.len() < 40 {
+        if let tungstenite::Message::Text(text) = ws.read().unwrap() {
+            let v: Value = serde_json::from_str(&text).unwrap();
+            // Held; the example's nodding head comes into the held coil now and then, and the
+            // coil gives way (retreating) before it holds again.
+            assert_eq!(v["operator_hold"], true, "{v}");
+            assert!(v["mode"] == "holding" || v["mode"] == "retreating", "{v}");
+            times.push(v["t"].as_f64().unwrap());
+        }
+    }
+    let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let median = steps[steps.len() / 2];
+    assert!(
+        median > 0.0 && median <= 0.05,
+        "median {median} s between statuses"
+    );
+    ws.close(None).ok();
+    // A WebSocket from another origin is refused.
+    let mut req = tungstenite::client::IntoClientRequest::into_client_request(format!(
+        "{}/ws",
+        s.base.replace("http", "ws")
+    ))
+    .unwrap();
+    req.headers_mut()
+        .insert("Origin", "http://evil.example".parse().unwrap());
+    match tungstenite::connect(req) {
+        Err(tungstenite::Error::Http(r)) => assert_eq!(r.status().as_u16(), 403),
+        other => panic!("a foreign origin's WebSocket was not refused: {other:?}"),
+    }
+
+    // Tuning: a bad value is refused naming the key, and changes nothing; a good one takes.
+    let (code, v) = s.post_auth("/api/params", &json!({"loop": {"speed_fraction": 3.0}}));
+    assert_eq!(code, 400, "{v}");
+    assert_eq!(v["key"], "loop.speed_fraction", "{v}");
+    assert!(v["error"].as_str().unwrap().contains("(0, 1]"), "{v}");
+    let (code, v) = s.post_auth("/api/params", &json!({"robot": {"model": "ur5"}}));
+    assert_eq!((code, v["key"].as_str()), (400, Some("robot.model")), "{v}");
+    let (_, c) = s.get("/api/config");
+    assert_eq!(c["config"]["loop"]["speed_fraction"], 0.5, "{c}");
+    let (code, v) = s.post_auth("/api/params", &json!({"loop": {"speed_fraction": 0.4}}));
+    assert_eq!(code, 200, "{v}");
+    assert_eq!(v["changed"], json!(["loop.speed_fraction"]));
+    let (_, c) = s.get("/api/config");
+    assert_eq!(c["config"]["loop"]["speed_fraction"], 0.4, "{c}");
+
+    // Resume: the loop comes back to its goal and tracks again.
+    let (code, _) = s.post_auth("/api/resume", &json!({}));
+    assert_eq!(code, 200);
+    s.wait_status("tracking after the resume", |v| {
+        v["mode"] == "tracking" && v["operator_hold"] == false
+    });
+    let (_, events) = s.get("/api/events");
+    let kinds: Vec<(&str, Option<&str>)> = events
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| (e["kind"].as_str().unwrap(), e["reason"].as_str()))
+        .collect();
+    let hold = kinds.iter().position(|k| *k == ("hold", Some("Operator")));
+    assert!(
+        hold.is_some_and(|h| kinds[h..].iter().any(|k| k.0 == "resume")),
+        "{kinds:?}"
+    );
+
+    // Stop: the run ends (stopj, standstill) well before its 60 s, and succeeds.
+    let (code, _) = s.post_auth("/api/stop", &json!({}));
+    assert_eq!(code, 200);
+    let (ok, summary) = s.finish();
+    assert!(ok, "{summary}");
+    assert!(summary.contains("Hold(Operator)"), "{summary}");
+    assert!(summary.contains("standstill"), "{summary}");
+}
+
+#[test]
+fn a_console_on_the_network_needs_the_flag_that_says_so() {
+    // The configuration is read first: an empty one (the simulated world) is good.
+    let dir = TempDir::new("mocomp-console-remote");
+    let path = dir.path("run.toml");
+    std::fs::write(&path, "").unwrap();
+    let out = mocomp(&["run", "--config", &path, "--dashboard", "10.1.2.3:0"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--dashboard-allow-remote"), "{err}");
+}
+
+/// The Python that runs the browser helper (the test venv's, or `MOCOMP_PYTHON`).
+fn python() -> std::path::PathBuf {
+    std::env::var_os("MOCOMP_PYTHON")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| workspace_root().join(".venv/bin/python"))
+}
+
+#[test]
+fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
+    // A real headless Chromium (Debian's chromium and chromium-driver) through Selenium in the
+    // test venv; a missing browser, driver or Selenium fails here, with how to install them.
+    for p in ["/usr/bin/chromium", "/usr/bin/chromedriver"] {
+        let p = std::env::var(if p.ends_with("driver") {
+            "MOCOMP_CHROMEDRIVER"
+        } else {
+            "MOCOMP_CHROMIUM"
+        })
+        .unwrap_or_else(|_| p.to_string());
+        assert!(
+            std::path::Path::new(&p).exists(),
+            "{p} missing: apt-get install chromium chromium-driver (scripts/test.sh does)"
+        );
+    }
+    let dir = TempDir::new("mocomp-console-browser");
+    let s = Session::start(&dir, "127.0.0.96", 90, &[]);
+    let shots = dir.path("shots");
+    std::fs::create_dir_all(&shots).unwrap();
+    let out = Command::new(python())
+        .arg(workspace_root().join("interop/console_browser.py"))
+        .arg(format!("{}/?token={}", s.base, s.token))
+        .arg(&shots)
+        .stderr(Stdio::inherit())
+        .output()
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot run the browser helper: {e}; {}",
+                mocomp_testkit::INSTALL_HINT
+            )
+        });
+    assert!(
+        out.status.success(),
+        "the browser helper failed (see its message above); {}",
+        mocomp_testkit::INSTALL_HINT
+    );
+    let seen: Value = serde_json::from_slice(&out.stdout).unwrap();
+    eprintln!("console in the browser: {seen}");
+    // What the page showed, checked again here (the helper asserts each in the page).
+    assert_eq!(seen["hold_without_token"], 401, "{seen}");
+    assert_eq!(seen["held_reason"], "Operator", "{seen}");
+    assert_eq!(seen["speed_fraction_after"], 0.45, "{seen}");
+    assert!(
+        seen["bad_value_error"]
+            .as_str()
+            .is_some_and(|e| e.contains("max_tcp_speed_m_s")),
+        "{seen}"
+    );
+    assert_eq!(seen["stopped"], true, "{seen}");
+    for shot in ["console-tracking.png", "console-holding.png"] {
+        let len = std::fs::metadata(std::path::Path::new(&shots).join(shot))
+            .unwrap()
+            .len();
+        assert!(len > 20_000, "{shot}: {len} bytes");
+    }
+    // The stop in the page ended the run.
+    let (ok, summary) = s.finish();
+    assert!(ok, "{summary}");
+    assert!(summary.contains("Hold(Operator)"), "{summary}");
+}

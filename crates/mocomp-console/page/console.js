@@ -1,0 +1,360 @@
+// The mocomp console's page: status over the WebSocket, the plot, the 3-D view, the operator's
+// buttons and the tuning form. Plain JavaScript, nothing fetched from elsewhere.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const HISTORY_S = 30;
+const state = {
+  status: null,
+  scene: null,
+  config: null,
+  history: [], // [t, deviation_mm, head_speed_mm_s]
+  latencies: [], // loop → page, ms (the newest 2000)
+  view: { az: -0.9, el: 0.45, dist: 1.6 },
+};
+// For tests and the latency benchmark.
+window.mocomp = state;
+
+function fmt(v, digits) {
+  return v === null || v === undefined || !Number.isFinite(v) ? "—" : v.toFixed(digits);
+}
+
+async function api(method, path, body) {
+  const init = { method, credentials: "same-origin", headers: {} };
+  if (body !== undefined) {
+    init.headers["Content-Type"] = "application/json";
+    init.body = JSON.stringify(body);
+  }
+  const r = await fetch(path, init);
+  let data = null;
+  try { data = await r.json(); } catch (_) { /* an empty body */ }
+  return { ok: r.ok, status: r.status, data };
+}
+
+// ---- status ---------------------------------------------------------------------------------
+
+function showStatus(s) {
+  state.status = s;
+  const badge = $("mode-badge");
+  badge.className = "badge " + s.mode;
+  $("mode").textContent = s.mode;
+  $("reason").textContent = s.reason ? s.reason : "";
+  $("deviation_mm").textContent = fmt(s.deviation_mm, 2);
+  $("deviation_deg").textContent = fmt(s.deviation_deg, 2);
+  $("head_speed_mm_s").textContent = fmt(s.head_speed_mm_s, 1);
+  $("head_speed_deg_s").textContent = fmt(s.head_speed_deg_s, 1);
+  $("clearance_mm").textContent = fmt(s.clearance_mm, 1);
+  $("standoff_mm").textContent = fmt(s.standoff_mm, 1);
+  $("rate_hz").textContent = fmt(s.rate_hz, 0);
+  $("horizon_ms").textContent = fmt(s.horizon_ms, 1);
+  $("sample_age_ms").textContent = fmt(s.sample_age_ms, 1);
+  $("force_n").textContent = fmt(s.force_n, 1);
+  $("t").textContent = fmt(s.t, 2);
+  $("hold").disabled = !s.running || s.operator_hold;
+  $("resume").disabled = !s.running || !s.operator_hold;
+  $("stop").disabled = !s.running;
+  if (Number.isFinite(s.cycle_unix_ms)) {
+    const lat = Date.now() - s.cycle_unix_ms;
+    state.latencies.push(lat);
+    if (state.latencies.length > 2000) state.latencies.shift();
+    $("latency").textContent = fmt(lat, 0);
+  }
+  if (s.running && s.mode !== "starting") {
+    state.history.push([s.t, s.deviation_mm, s.head_speed_mm_s]);
+    while (state.history.length && s.t - state.history[0][0] > HISTORY_S) state.history.shift();
+  }
+  drawPlot();
+  drawScene();
+}
+
+function connect() {
+  const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws");
+  ws.onopen = () => { $("link").textContent = "live"; $("link").className = "link up"; };
+  ws.onmessage = (m) => { try { showStatus(JSON.parse(m.data)); } catch (_) { /* a bad message */ } };
+  ws.onclose = () => {
+    $("link").textContent = "disconnected"; $("link").className = "link down";
+    setTimeout(connect, 1000);
+  };
+}
+
+// ---- plot -----------------------------------------------------------------------------------
+
+function niceMax(v) {
+  if (!(v > 0)) return 1;
+  const p = Math.pow(10, Math.floor(Math.log10(v)));
+  for (const m of [1, 2, 5, 10]) if (m * p >= v) return m * p;
+  return 10 * p;
+}
+
+function drawPlot() {
+  const c = $("plot"), g = c.getContext("2d");
+  const W = c.width, H = c.height, L = 46, R = 52, T = 12, B = 26;
+  g.clearRect(0, 0, W, H);
+  const h = state.history;
+  const tEnd = h.length ? h[h.length - 1][0] : HISTORY_S;
+  const t0 = tEnd - HISTORY_S;
+  // The deviation's scale follows its 95th percentile, so a far approach does not flatten the
+  // millimetres that matter while tracking; larger values run off the top.
+  const devs = h.map((p) => p[1]).filter(Number.isFinite).sort((a, b) => a - b);
+  const devMax = niceMax(Math.max(1, 1.2 * (devs.length ? devs[Math.floor(0.95 * (devs.length - 1))] : 0)));
+  const spdMax = niceMax(Math.max(10, ...h.map((p) => (Number.isFinite(p[2]) ? p[2] : 0))));
+  const x = (t) => L + ((t - t0) / HISTORY_S) * (W - L - R);
+  const yDev = (v) => H - B - (v / devMax) * (H - T - B);
+  const ySpd = (v) => H - B - (v / spdMax) * (H - T - B);
+  g.strokeStyle = "#e3e6ea"; g.fillStyle = "#66707a"; g.font = "11px system-ui, sans-serif";
+  for (let k = 0; k <= 4; k++) {
+    const y = T + (k / 4) * (H - T - B);
+    g.beginPath(); g.moveTo(L, y); g.lineTo(W - R, y); g.stroke();
+    g.textAlign = "right"; g.fillText(fmt(devMax * (1 - k / 4), devMax < 5 ? 1 : 0), L - 6, y + 4);
+    g.textAlign = "left"; g.fillText(fmt(spdMax * (1 - k / 4), 0), W - R + 6, y + 4);
+  }
+  g.textAlign = "center";
+  for (let s = 0; s <= HISTORY_S; s += 5) g.fillText("-" + (HISTORY_S - s) + " s", x(t0 + s), H - 8);
+  const line = (idx, y, color, width) => {
+    g.strokeStyle = color; g.lineWidth = width; g.beginPath();
+    let pen = false;
+    for (const p of h) {
+      if (!Number.isFinite(p[idx])) { pen = false; continue; }
+      if (pen) g.lineTo(x(p[0]), y(p[idx])); else g.moveTo(x(p[0]), y(p[idx]));
+      pen = true;
+    }
+    g.stroke(); g.lineWidth = 1;
+  };
+  g.save(); g.beginPath(); g.rect(L, T, W - L - R, H - T - B); g.clip();
+  line(2, ySpd, "#e08a3c", 1.2);
+  line(1, yDev, "#1f6fd1", 2);
+  g.restore();
+  g.textAlign = "left"; g.fillStyle = "#1f6fd1"; g.fillText("deviation mm", L + 6, T + 12);
+  g.fillStyle = "#e08a3c"; g.fillText("head speed mm/s", L + 96, T + 12);
+}
+
+// ---- 3-D view -------------------------------------------------------------------------------
+
+const mul = (r, v) => [
+  r[0][0] * v[0] + r[0][1] * v[1] + r[0][2] * v[2],
+  r[1][0] * v[0] + r[1][1] * v[1] + r[1][2] * v[2],
+  r[2][0] * v[0] + r[2][1] * v[1] + r[2][2] * v[2],
+];
+const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+const apply = (pose, v) => add(mul(pose.r, v), pose.p_mm);
+
+function projector(c) {
+  const v = state.view, s = state.status;
+  // Look at the head (or the coil, or the base's front) from an orbit around it.
+  const target = s && s.scene.head ? s.scene.head.p_mm : (s && s.scene.coil ? s.scene.coil.p_mm : [300, 0, 0]);
+  const ca = Math.cos(v.az), sa = Math.sin(v.az), ce = Math.cos(v.el), se = Math.sin(v.el);
+  const f = c.height * 1.4, dist = v.dist * 1000;
+  return (p) => {
+    const d = [p[0] - target[0], p[1] - target[1], p[2] - target[2]];
+    const x1 = ca * d[0] + sa * d[1], y1 = -sa * d[0] + ca * d[1];
+    const depth = dist - (ce * y1 + se * d[2]) ;
+    const up = -se * y1 + ce * d[2];
+    return [c.width / 2 + (f * x1) / depth, c.height / 2 - (f * up) / depth];
+  };
+}
+
+function polyline(g, P, pts, color, width, dash) {
+  g.strokeStyle = color; g.lineWidth = width || 1; g.setLineDash(dash || []);
+  g.beginPath();
+  pts.forEach((p, i) => { const q = P(p); if (i) g.lineTo(q[0], q[1]); else g.moveTo(q[0], q[1]); });
+  g.stroke(); g.setLineDash([]); g.lineWidth = 1;
+}
+
+function drawCoil(g, P, pose, color, dash) {
+  const r = state.scene.coil_radius_mm, ring = [];
+  for (let k = 0; k <= 32; k++) {
+    const a = (2 * Math.PI * k) / 32;
+    ring.push(apply(pose, [r * Math.cos(a), r * Math.sin(a), 0]));
+  }
+  polyline(g, P, ring, color, 2, dash);
+  polyline(g, P, [apply(pose, [0, 0, 0]), apply(pose, [0, 0, 40])], color, 1, [3, 3]);
+}
+
+function drawScene() {
+  const c = $("view3d"), g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  const s = state.status, sc = state.scene;
+  if (!s || !sc) return;
+  const P = projector(c);
+  // The floor grid at the base, and the base's axes.
+  for (let k = -4; k <= 8; k++) {
+    polyline(g, P, [[k * 100, -400, 0], [k * 100, 400, 0]], "#eceff2");
+  }
+  for (let k = -4; k <= 4; k++) polyline(g, P, [[-400, k * 100, 0], [800, k * 100, 0]], "#eceff2");
+  polyline(g, P, [[0, 0, 0], [100, 0, 0]], "#d33", 2);
+  polyline(g, P, [[0, 0, 0], [0, 100, 0]], "#3a3", 2);
+  polyline(g, P, [[0, 0, 0], [0, 0, 100]], "#33d", 2);
+  // The tracker: a box, and its line of sight to the head.
+  const tr = sc.tracker, box = [];
+  for (const [x, y] of [[-60, -20], [60, -20], [60, 20], [-60, 20], [-60, -20]]) box.push(apply(tr, [x, y, 0]));
+  polyline(g, P, box, "#444", 2);
+  if (s.scene.head) polyline(g, P, [tr.p_mm, s.scene.head.p_mm], "#bbb", 1, [2, 4]);
+  // The head model: the ellipsoid's meridians and parallels.
+  if (s.scene.head) {
+    const e = sc.head_from_ellipsoid, [a, b, cc] = sc.head_radii_mm;
+    const at = (u, v) => apply(s.scene.head, apply(e, [a * Math.cos(v) * Math.cos(u), b * Math.cos(v) * Math.sin(u), cc * Math.sin(v)]));
+    for (let m = 0; m < 12; m++) {
+      const u = (2 * Math.PI * m) / 12, pts = [];
+      for (let k = 0; k <= 24; k++) pts.push(at(u, -Math.PI / 2 + (Math.PI * k) / 24));
+      polyline(g, P, pts, "#c7a98f");
+    }
+    for (let k = 1; k < 8; k++) {
+      const v = -Math.PI / 2 + (Math.PI * k) / 8, pts = [];
+      for (let m = 0; m <= 32; m++) pts.push(at((2 * Math.PI * m) / 32, v));
+      polyline(g, P, pts, "#c7a98f");
+    }
+  }
+  // The arm: its joint frames' origins joined.
+  const links = s.scene.links_mm;
+  if (links.length) {
+    polyline(g, P, [[0, 0, 0], ...links], "#5b6770", 7);
+    g.fillStyle = "#20262d";
+    for (const p of links) { const q = P(p); g.beginPath(); g.arc(q[0], q[1], 4, 0, 2 * Math.PI); g.fill(); }
+  }
+  if (s.scene.goal) drawCoil(g, P, s.scene.goal, "#1b8a3a", [5, 4]);
+  if (s.scene.coil) drawCoil(g, P, s.scene.coil, "#d25f00");
+  g.fillStyle = "#66707a"; g.font = "11px system-ui, sans-serif"; g.textAlign = "left";
+  g.fillText(sc.robot + " · coil (orange) · goal (green, dashed) · head model · tracker", 8, c.height - 8);
+}
+
+function orbit() {
+  const c = $("view3d");
+  let drag = null;
+  c.addEventListener("mousedown", (e) => { drag = [e.clientX, e.clientY]; });
+  window.addEventListener("mouseup", () => { drag = null; });
+  window.addEventListener("mousemove", (e) => {
+    if (!drag) return;
+    state.view.az -= (e.clientX - drag[0]) * 0.01;
+    state.view.el = Math.max(-1.4, Math.min(1.4, state.view.el + (e.clientY - drag[1]) * 0.01));
+    drag = [e.clientX, e.clientY];
+    drawScene();
+  });
+  c.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    state.view.dist = Math.max(0.3, Math.min(5, state.view.dist * (e.deltaY > 0 ? 1.1 : 0.9)));
+    drawScene();
+  }, { passive: false });
+}
+
+// ---- events ---------------------------------------------------------------------------------
+
+function addEvent(e) {
+  const body = document.querySelector("#events tbody");
+  const tr = document.createElement("tr");
+  tr.className = e.kind;
+  for (const text of [fmt(e.t, 3), e.kind, e.reason || ""]) {
+    const td = document.createElement("td"); td.textContent = text; tr.appendChild(td);
+  }
+  body.insertBefore(tr, body.firstChild);
+  while (body.children.length > 500) body.removeChild(body.lastChild);
+}
+
+let eventsSeen = 0;
+async function pollEvents() {
+  const r = await api("GET", "/api/events");
+  if (r.ok && Array.isArray(r.data)) {
+    // The server keeps the newest 500; it only appends.
+    const fresh = r.data.length >= eventsSeen ? r.data.slice(eventsSeen) : r.data;
+    fresh.forEach(addEvent);
+    eventsSeen = r.data.length;
+  }
+}
+
+// ---- controls -------------------------------------------------------------------------------
+
+async function command(path) {
+  $("control-error").textContent = "";
+  const r = await api("POST", path);
+  if (!r.ok) $("control-error").textContent = (r.data && r.data.error) || ("refused: " + r.status);
+}
+
+function buttons() {
+  $("hold").addEventListener("click", () => command("/api/hold"));
+  $("resume").addEventListener("click", () => command("/api/resume"));
+  $("stop").addEventListener("click", () => $("stop-dialog").showModal());
+  $("cancel-stop").addEventListener("click", () => $("stop-dialog").close());
+  $("confirm-stop").addEventListener("click", () => { $("stop-dialog").close(); command("/api/stop"); });
+}
+
+// ---- tuning ---------------------------------------------------------------------------------
+
+function buildForm(cfg) {
+  const form = $("params");
+  form.textContent = "";
+  for (const [key, value] of Object.entries(cfg.loop)) {
+    const label = document.createElement("label");
+    label.htmlFor = "param-" + key; label.textContent = key;
+    const input = document.createElement("input");
+    input.id = "param-" + key; input.name = key; input.value = String(value);
+    input.dataset.current = String(value);
+    const err = document.createElement("span");
+    err.id = "error-" + key; err.className = "error";
+    form.append(label, input, err);
+  }
+}
+
+function parseValue(text) {
+  const t = text.trim();
+  if (t === "true") return true;
+  if (t === "false") return false;
+  const n = Number(t);
+  // A value that is not a number goes as text: the server names the key and the type it wants.
+  return t !== "" && Number.isFinite(n) ? n : t;
+}
+
+async function applyParams() {
+  const changed = {};
+  document.querySelectorAll("#params input").forEach((input) => {
+    $("error-" + input.name).textContent = "";
+    input.classList.remove("invalid");
+    if (input.value.trim() !== input.dataset.current) changed[input.name] = parseValue(input.value);
+  });
+  const result = $("params-result");
+  result.className = ""; result.textContent = "";
+  if (!Object.keys(changed).length) { result.textContent = "nothing changed"; return; }
+  const r = await api("POST", "/api/params", { loop: changed });
+  if (r.ok) {
+    result.className = "ok";
+    result.textContent = "applied: " + (r.data.changed.join(", ") || "nothing changed");
+    await loadConfig();
+    return;
+  }
+  const key = r.data && r.data.key ? r.data.key : "";
+  const name = key.startsWith("loop.") ? key.slice(5) : key;
+  const msg = (r.data && r.data.error) || ("refused: " + r.status);
+  if ($("error-" + name)) {
+    $("error-" + name).textContent = msg;
+    $("param-" + name).classList.add("invalid");
+  }
+  result.className = "error";
+  result.textContent = key ? key + ": " + msg : msg;
+}
+
+async function loadConfig() {
+  const r = await api("GET", "/api/config");
+  if (!r.ok) return;
+  state.config = r.data.config;
+  $("auth").hidden = r.data.authorized;
+  for (const id of ["hold", "resume", "stop", "apply-params"]) $(id).dataset.auth = r.data.authorized;
+  buildForm(r.data.config);
+}
+
+// ---- start ----------------------------------------------------------------------------------
+
+async function start() {
+  buttons();
+  orbit();
+  $("apply-params").addEventListener("click", applyParams);
+  const sc = await api("GET", "/api/scene");
+  if (sc.ok) state.scene = sc.data;
+  const h = await api("GET", "/api/history");
+  if (h.ok) state.history = h.data;
+  await loadConfig();
+  const s = await api("GET", "/api/status");
+  if (s.ok) showStatus(s.data);
+  await pollEvents();
+  setInterval(pollEvents, 500);
+  connect();
+}
+
+start();

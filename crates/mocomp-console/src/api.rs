@@ -1,0 +1,275 @@
+//! The HTTP API and WebSocket the page uses (and any other client with the token):
+//!
+//! | route | token | what |
+//! |---|---|---|
+//! | `GET /` (`?token=`) | — | the page; with a valid `?token=` it sets the page's cookie and redirects to `/` |
+//! | `GET /api/status` | reading | the newest status (JSON) |
+//! | `GET /api/events` | reading | the events kept, oldest first |
+//! | `GET /api/history` | reading | the plot's last 30 s: `[t_s, deviation_mm, head_speed_mm_s]` |
+//! | `GET /api/scene` | reading | the fixed scene (tracker, head model, coil) |
+//! | `GET /api/config` | reading | the running configuration and the sections that may change live |
+//! | `POST /api/params` | yes | a partial configuration (JSON); 400 `{"key", "error"}` when refused |
+//! | `POST /api/hold`, `/api/resume`, `/api/stop` | yes | the operator's hold, resume, stop |
+//! | `GET /ws` | reading | the status, 25 times a second, as JSON text messages |
+//!
+//! "Reading" needs the token unless the console listens on loopback ([`crate::auth`]). Every
+//! request must name this console as its host; a browser's request from another origin is
+//! refused. Bodies are limited to [`MAX_BODY`] before they are read.
+
+use crate::auth::{Site, Token, token_cookie};
+use crate::page;
+use crate::state::Shared;
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{DefaultBodyLimit, Query, State};
+use axum::http::header::{CACHE_CONTROL, CONTENT_TYPE, LOCATION, SET_COOKIE};
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use serde_json::json;
+use std::sync::Arc;
+
+/// The largest request body taken, bytes (a partial configuration is a few hundred).
+pub const MAX_BODY: usize = 64 * 1024;
+/// The largest WebSocket message taken from a client, bytes (the page sends none).
+const MAX_WS_MESSAGE: usize = 1024;
+
+/// The server's state.
+#[derive(Debug, Clone)]
+pub struct Api {
+    /// What the loop and the server share.
+    pub shared: Arc<Shared>,
+    /// The session's token.
+    pub token: Token,
+    /// Where the console listens.
+    pub site: Site,
+}
+
+/// The router.
+pub fn router(api: Api) -> Router {
+    Router::new()
+        .route("/", get(index))
+        .route(
+            "/console.js",
+            get(|| async { asset("text/javascript", page::JS) }),
+        )
+        .route(
+            "/console.css",
+            get(|| async { asset("text/css", page::CSS) }),
+        )
+        .route("/api/status", get(status))
+        .route("/api/events", get(events))
+        .route("/api/history", get(history))
+        .route("/api/scene", get(scene))
+        .route("/api/config", get(config))
+        .route("/api/params", post(params))
+        .route("/api/hold", post(hold))
+        .route("/api/resume", post(resume))
+        .route("/api/stop", post(stop))
+        .route("/ws", get(ws))
+        .layer(DefaultBodyLimit::max(MAX_BODY))
+        .with_state(api)
+}
+
+fn asset(content_type: &'static str, body: &'static str) -> Response {
+    (
+        [(CONTENT_TYPE, content_type), (CACHE_CONTROL, "no-cache")],
+        body,
+    )
+        .into_response()
+}
+
+fn refuse(code: StatusCode, why: &str) -> Response {
+    (code, axum::Json(json!({ "error": why }))).into_response()
+}
+
+impl Api {
+    /// A request that only reads: this console's host and origin, and the token unless reading
+    /// is open (loopback).
+    #[allow(clippy::result_large_err)] // a refusal is a response, built once
+    fn may_read(&self, headers: &HeaderMap) -> Result<(), Response> {
+        if !self.site.same_origin(headers) {
+            return Err(refuse(StatusCode::FORBIDDEN, "another host or origin"));
+        }
+        if self.site.open_reading() || self.token.carried_by(headers) {
+            Ok(())
+        } else {
+            Err(refuse(StatusCode::UNAUTHORIZED, "the token is needed"))
+        }
+    }
+
+    /// A request that changes something: this console's host and origin, and the token.
+    #[allow(clippy::result_large_err)]
+    fn may_change(&self, headers: &HeaderMap) -> Result<(), Response> {
+        if !self.site.same_origin(headers) {
+            return Err(refuse(StatusCode::FORBIDDEN, "another host or origin"));
+        }
+        if self.token.carried_by(headers) {
+            Ok(())
+        } else {
+            Err(refuse(
+                StatusCode::UNAUTHORIZED,
+                "the token is needed: open the link mocomp printed, or send Authorization: Bearer TOKEN",
+            ))
+        }
+    }
+}
+
+#[derive(Debug, serde::Deserialize)]
+struct TokenQuery {
+    token: Option<String>,
+}
+
+async fn index(
+    State(api): State<Api>,
+    headers: HeaderMap,
+    Query(q): Query<TokenQuery>,
+) -> Response {
+    if !api.site.same_origin(&headers) {
+        return refuse(StatusCode::FORBIDDEN, "another host or origin");
+    }
+    match q.token {
+        // The link's token becomes the page's cookie, and leaves the address bar (and history).
+        Some(t) if api.token.matches(&t) => (
+            StatusCode::SEE_OTHER,
+            [
+                (SET_COOKIE, token_cookie(&api.token)),
+                (LOCATION, "/".to_owned()),
+            ],
+        )
+            .into_response(),
+        Some(_) => refuse(StatusCode::UNAUTHORIZED, "wrong token"),
+        None => match api.may_read(&headers) {
+            Ok(()) => asset("text/html; charset=utf-8", page::HTML),
+            Err(r) => r,
+        },
+    }
+}
+
+async fn status(State(api): State<Api>, headers: HeaderMap) -> Response {
+    match api.may_read(&headers) {
+        Ok(()) => axum::Json(api.shared.status()).into_response(),
+        Err(r) => r,
+    }
+}
+
+async fn events(State(api): State<Api>, headers: HeaderMap) -> Response {
+    match api.may_read(&headers) {
+        Ok(()) => axum::Json(api.shared.events()).into_response(),
+        Err(r) => r,
+    }
+}
+
+async fn history(State(api): State<Api>, headers: HeaderMap) -> Response {
+    match api.may_read(&headers) {
+        Ok(()) => axum::Json(api.shared.history()).into_response(),
+        Err(r) => r,
+    }
+}
+
+async fn scene(State(api): State<Api>, headers: HeaderMap) -> Response {
+    match api.may_read(&headers) {
+        Ok(()) => axum::Json(api.shared.scene.clone()).into_response(),
+        Err(r) => r,
+    }
+}
+
+async fn config(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_read(&headers) {
+        return r;
+    }
+    axum::Json(json!({
+        "config": api.shared.config(),
+        "live_sections": mocomp_app::tuning::LIVE_SECTIONS,
+        "authorized": api.token.carried_by(&headers),
+    }))
+    .into_response()
+}
+
+async fn params(State(api): State<Api>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    let patch: serde_json::Value = match serde_json::from_slice(&body) {
+        Ok(v) => v,
+        Err(e) => {
+            return (
+                StatusCode::BAD_REQUEST,
+                axum::Json(json!({ "key": "(body)", "error": format!("not JSON: {e}") })),
+            )
+                .into_response();
+        }
+    };
+    let tuned = match mocomp_app::tuning::apply(&api.shared.config(), &patch) {
+        Ok(t) => t,
+        Err(refusal) => {
+            return (
+                StatusCode::BAD_REQUEST,
+                axum::Json(json!({ "key": refusal.key, "error": refusal.problem })),
+            )
+                .into_response();
+        }
+    };
+    if !tuned.changed.is_empty()
+        && let Err(e) = api.shared.controls.tune(tuned.config.params)
+    {
+        return refuse(StatusCode::CONFLICT, &e.to_string());
+    }
+    let changed = tuned.changed.clone();
+    api.shared.set_config(tuned.config);
+    axum::Json(json!({ "changed": changed })).into_response()
+}
+
+async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    api.shared.controls.set_hold(true);
+    axum::Json(json!({ "operator_hold": true })).into_response()
+}
+
+async fn resume(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    api.shared.controls.set_hold(false);
+    axum::Json(json!({ "operator_hold": false })).into_response()
+}
+
+async fn stop(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    api.shared.controls.stop();
+    axum::Json(json!({ "stopping": true })).into_response()
+}
+
+async fn ws(State(api): State<Api>, headers: HeaderMap, upgrade: WebSocketUpgrade) -> Response {
+    if let Err(r) = api.may_read(&headers) {
+        return r;
+    }
+    upgrade
+        .max_message_size(MAX_WS_MESSAGE)
+        .max_frame_size(MAX_WS_MESSAGE)
+        .on_upgrade(move |socket| stream_status(socket, api))
+}
+
+/// Sends each status as it is published, until the client leaves or the loop has ended.
+async fn stream_status(mut socket: WebSocket, api: Api) {
+    let mut rx = api.shared.subscribe();
+    loop {
+        let text = rx.borrow_and_update().clone();
+        if socket.send(Message::text(text.as_ref())).await.is_err() {
+            return;
+        }
+        tokio::select! {
+            changed = rx.changed() => if changed.is_err() { return },
+            incoming = socket.recv() => match incoming {
+                // The page sends nothing; a close or an error ends the stream.
+                Some(Ok(Message::Close(_)) | Err(_)) | None => return,
+                Some(Ok(_)) => {}
+            },
+        }
+    }
+}

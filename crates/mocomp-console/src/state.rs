@@ -1,0 +1,439 @@
+//! What the console knows of the running loop, and the observer that tells it. The observer runs
+//! on the live loop's logger thread (never on the loop's own), takes every cycle record from
+//! there, and publishes a status 25 times a second: to the WebSocket through a `watch` channel,
+//! and to the HTTP API through a small store. Units leave here in millimetres and degrees, the
+//! console's display units, named in every field.
+
+use mocomp_app::config::{Config, Setup};
+use mocomp_app::live::{Controls, Observer, Status, mode_name};
+use mocomp_control::{CycleRecord, Event, Mode, Reason};
+use mocomp_geom::nalgebra::Isometry3;
+use mocomp_kin::Arm;
+use serde::Serialize;
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::time::{SystemTime, UNIX_EPOCH};
+use tokio::sync::watch;
+
+/// Statuses published per second of loop time.
+pub const STATUS_RATE_HZ: f64 = 25.0;
+/// Seconds of deviation and head speed the plot shows.
+pub const HISTORY_S: f64 = 30.0;
+/// Events kept for a page that opens late.
+const EVENTS_KEPT: usize = 500;
+
+/// A pose for the 3-D view: position (mm) and rotation matrix (rows), in the robot's base frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PoseJson {
+    /// Position, mm.
+    pub p_mm: [f64; 3],
+    /// Rotation matrix, rows.
+    pub r: [[f64; 3]; 3],
+}
+
+impl PoseJson {
+    /// From an isometry in metres.
+    pub fn from_iso(iso: &Isometry3<f64>) -> Self {
+        let t = iso.translation.vector * 1e3;
+        let m = iso.rotation.to_rotation_matrix();
+        Self {
+            p_mm: [t.x, t.y, t.z],
+            r: std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])),
+        }
+    }
+}
+
+/// Where things are now, in the base frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SceneNow {
+    /// The arm's joint frames' origins, base to flange, mm (from FK of the measured joints).
+    pub links_mm: Vec<[f64; 3]>,
+    /// The coil where it is (FK of the measured joints, its mounting).
+    pub coil: Option<PoseJson>,
+    /// The coil at its goal on the head the loop predicts.
+    pub goal: Option<PoseJson>,
+    /// The head the loop predicts (its marker's frame).
+    pub head: Option<PoseJson>,
+}
+
+/// The status the page shows (`GET /api/status`, and each WebSocket message).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StatusJson {
+    /// Loop time, s.
+    pub t: f64,
+    /// The mode's kind: tracking, approaching, holding, faulted, retreating (or starting).
+    pub mode: String,
+    /// Why, when the mode has a reason.
+    pub reason: Option<String>,
+    /// The mode with its reason, as the log writes it.
+    pub mode_text: String,
+    /// Cycles per second over the last status interval.
+    pub rate_hz: f64,
+    /// Prediction horizon, ms.
+    pub horizon_ms: f64,
+    /// The newest tracker sample's age, ms.
+    pub sample_age_ms: f64,
+    /// From the cycle's start to its command acting, ms.
+    pub command_delay_ms: f64,
+    /// The measured coil's distance from its goal, mm.
+    pub deviation_mm: f64,
+    /// The same, rotation, degrees.
+    pub deviation_deg: f64,
+    /// The head's speed, mm/s.
+    pub head_speed_mm_s: f64,
+    /// The head's rotation speed, °/s.
+    pub head_speed_deg_s: f64,
+    /// The commanded coil's clearance from the predicted head, mm.
+    pub clearance_mm: f64,
+    /// The standoff the goal is backed off by, mm.
+    pub standoff_mm: f64,
+    /// Contact force, N (none until the force sensor is read).
+    pub force_n: Option<f64>,
+    /// Whether the operator holds the loop.
+    pub operator_hold: bool,
+    /// Whether the loop runs (false once it has ended).
+    pub running: bool,
+    /// Wall-clock time of the cycle this status is from, ms since the Unix epoch (the page
+    /// measures its latency against it).
+    pub cycle_unix_ms: f64,
+    /// Where things are.
+    pub scene: SceneNow,
+}
+
+impl StatusJson {
+    fn starting() -> Self {
+        Self {
+            t: 0.0,
+            mode: "starting".into(),
+            reason: None,
+            mode_text: "starting".into(),
+            rate_hz: 0.0,
+            horizon_ms: f64::NAN,
+            sample_age_ms: f64::NAN,
+            command_delay_ms: f64::NAN,
+            deviation_mm: f64::NAN,
+            deviation_deg: f64::NAN,
+            head_speed_mm_s: f64::NAN,
+            head_speed_deg_s: f64::NAN,
+            clearance_mm: f64::NAN,
+            standoff_mm: f64::NAN,
+            force_n: None,
+            operator_hold: false,
+            running: true,
+            cycle_unix_ms: f64::NAN,
+            scene: SceneNow {
+                links_mm: Vec::new(),
+                coil: None,
+                goal: None,
+                head: None,
+            },
+        }
+    }
+}
+
+/// One event for the page's log.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EventJson {
+    /// Loop time, s.
+    pub t: f64,
+    /// hold, retreat, resume, reached, outlier, coasting.
+    pub kind: &'static str,
+    /// The rule that fired, if any.
+    pub reason: Option<String>,
+    /// The event as the log writes it.
+    pub text: String,
+}
+
+impl EventJson {
+    fn new(t: f64, e: &Event) -> Self {
+        let (kind, reason) = match e {
+            Event::Hold(r) => ("hold", Some(reason_text(r))),
+            Event::Retreat(r) => ("retreat", Some(reason_text(r))),
+            Event::Resume => ("resume", None),
+            Event::Reached => ("reached", None),
+            Event::Outlier(..) => ("outlier", None),
+            Event::Coasting(..) => ("coasting", None),
+        };
+        Self {
+            t,
+            kind,
+            reason,
+            text: format!("{e:?}"),
+        }
+    }
+}
+
+/// A reason as the page shows it: its rule's name and values.
+pub fn reason_text(r: &Reason) -> String {
+    format!("{r:?}")
+}
+
+/// The scene's fixed parts (`GET /api/scene`), in the base frame, mm.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SceneJson {
+    /// The robot model.
+    pub robot: String,
+    /// The tracker, base_from_tracker.
+    pub tracker: PoseJson,
+    /// The head model: an ellipsoid in the head marker's frame (head_from_ellipsoid), semi-axes.
+    pub head_from_ellipsoid: PoseJson,
+    /// The ellipsoid's semi-axes, mm.
+    pub head_radii_mm: [f64; 3],
+    /// The coil's radius, mm.
+    pub coil_radius_mm: f64,
+    /// The coil's thickness, mm.
+    pub coil_thickness_mm: f64,
+}
+
+#[derive(Debug)]
+struct Store {
+    status: StatusJson,
+    events: VecDeque<EventJson>,
+    /// (t s, deviation mm, head speed mm/s), the last [`HISTORY_S`].
+    history: VecDeque<[f64; 3]>,
+    config: Config,
+}
+
+/// What the server and the observer share.
+#[derive(Debug)]
+pub struct Shared {
+    /// The loop's controls.
+    pub controls: Arc<Controls>,
+    /// The fixed scene.
+    pub scene: SceneJson,
+    store: Mutex<Store>,
+    status_tx: watch::Sender<Arc<str>>,
+}
+
+impl Shared {
+    /// The state of a session on `setup`, steered through `controls`.
+    pub fn new(setup: &Setup, controls: Arc<Controls>) -> Arc<Self> {
+        let file = &setup.file;
+        let status = StatusJson::starting();
+        let text: Arc<str> = serde_json::to_string(&status).unwrap_or_default().into();
+        let (status_tx, _) = watch::channel(text);
+        let radii = file.head.radii_m;
+        Arc::new(Self {
+            controls,
+            scene: SceneJson {
+                robot: setup.model.to_string(),
+                tracker: PoseJson::from_iso(&setup.base_from_tracker),
+                head_from_ellipsoid: PoseJson::from_iso(&file.head.head_from_ellipsoid.iso()),
+                head_radii_mm: radii.map(|r| r * 1e3),
+                coil_radius_mm: file.coil.radius_m * 1e3,
+                coil_thickness_mm: file.coil.thickness_m * 1e3,
+            },
+            store: Mutex::new(Store {
+                status,
+                events: VecDeque::new(),
+                history: VecDeque::new(),
+                config: file.clone(),
+            }),
+            status_tx,
+        })
+    }
+
+    fn store(&self) -> MutexGuard<'_, Store> {
+        self.store.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The newest status.
+    pub fn status(&self) -> StatusJson {
+        self.store().status.clone()
+    }
+
+    /// The events kept, oldest first.
+    pub fn events(&self) -> Vec<EventJson> {
+        self.store().events.iter().cloned().collect()
+    }
+
+    /// The plot's points: (t s, deviation mm, head speed mm/s).
+    pub fn history(&self) -> Vec<[f64; 3]> {
+        self.store().history.iter().copied().collect()
+    }
+
+    /// The running configuration.
+    pub fn config(&self) -> Config {
+        self.store().config.clone()
+    }
+
+    /// Replaces the running configuration (after the loop was given its change).
+    pub fn set_config(&self, config: Config) {
+        self.store().config = config;
+    }
+
+    /// A receiver of each status as JSON text.
+    pub fn subscribe(&self) -> watch::Receiver<Arc<str>> {
+        self.status_tx.subscribe()
+    }
+
+    fn publish(&self, status: StatusJson, point: Option<[f64; 3]>) {
+        let text: Arc<str> = serde_json::to_string(&status).unwrap_or_default().into();
+        {
+            let mut s = self.store();
+            if let Some(p) = point {
+                s.history.push_back(p);
+                while s.history.front().is_some_and(|q| p[0] - q[0] > HISTORY_S) {
+                    s.history.pop_front();
+                }
+            }
+            s.status = status;
+        }
+        self.status_tx.send_replace(text);
+    }
+
+    fn push_event(&self, e: EventJson) {
+        let mut s = self.store();
+        if s.events.len() == EVENTS_KEPT {
+            s.events.pop_front();
+        }
+        s.events.push_back(e);
+    }
+}
+
+/// The frames the observer computes the scene with.
+#[derive(Debug, Clone, Copy)]
+pub struct Frames {
+    arm: Arm,
+    flange_from_coil: Isometry3<f64>,
+    coil_from_head: Isometry3<f64>,
+}
+
+impl Frames {
+    /// The session's frames; a missing coil mounting is named.
+    pub fn of(setup: &Setup) -> Result<Self, mocomp_app::AppError> {
+        let flange_from_coil = setup.file.flange_from_coil()?;
+        // The goal may not be taught yet (a real head): the view then shows the head at the
+        // coil's goal frame.
+        let head_from_coil = setup
+            .file
+            .head_from_coil()
+            .unwrap_or_else(|_| Isometry3::identity());
+        Ok(Self {
+            arm: setup.arm,
+            flange_from_coil,
+            coil_from_head: head_from_coil.inverse(),
+        })
+    }
+}
+
+/// Tells the console what the loop does (on the logger thread).
+#[derive(Debug)]
+pub struct ConsoleObserver {
+    shared: Arc<Shared>,
+    frames: Frames,
+    last: Option<StatusJson>,
+    /// Loop time of the last published status, and cycles since.
+    published_t: f64,
+    cycles: u64,
+}
+
+impl ConsoleObserver {
+    /// An observer feeding `shared`.
+    pub fn new(shared: Arc<Shared>, frames: Frames) -> Self {
+        Self {
+            shared,
+            frames,
+            last: None,
+            published_t: f64::NEG_INFINITY,
+            cycles: 0,
+        }
+    }
+
+    fn status_of(&self, r: &CycleRecord, age_s: f64, rate_hz: f64) -> StatusJson {
+        let (mode, reason) = match r.mode {
+            Mode::Tracking => ("tracking", None),
+            Mode::Approaching => ("approaching", None),
+            Mode::Holding(x) => ("holding", Some(reason_text(&x))),
+            Mode::Faulted(x) => ("faulted", Some(reason_text(&x))),
+            Mode::Retreating(x) => ("retreating", Some(reason_text(&x))),
+        };
+        let now_ms = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(f64::NAN, |d| d.as_secs_f64() * 1e3);
+        let measured = r.q_actual.iter().all(|q| q.is_finite());
+        let links_mm = if measured {
+            self.frames
+                .arm
+                .link_frames(&r.q_actual)
+                .iter()
+                .map(|f| (f.translation.vector * 1e3).into())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let coil = measured.then(|| {
+            PoseJson::from_iso(
+                &(self.frames.arm.fk_flange(&r.q_actual) * self.frames.flange_from_coil),
+            )
+        });
+        let goal_coil = r.goal.map(|g| g * self.frames.flange_from_coil);
+        StatusJson {
+            t: r.t,
+            mode: mode.into(),
+            reason,
+            mode_text: mode_name(&r.mode),
+            rate_hz,
+            horizon_ms: r.horizon_s * 1e3,
+            sample_age_ms: r.sample_age_s * 1e3,
+            command_delay_ms: r.command_delay_s * 1e3,
+            deviation_mm: r.deviation.0 * 1e3,
+            deviation_deg: r.deviation.1.to_degrees(),
+            head_speed_mm_s: r.head_speed.0 * 1e3,
+            head_speed_deg_s: r.head_speed.1.to_degrees(),
+            clearance_mm: r.clearance_m * 1e3,
+            standoff_mm: r.standoff_m * 1e3,
+            force_n: None,
+            operator_hold: self.shared.controls.hold(),
+            running: true,
+            cycle_unix_ms: now_ms - age_s.max(0.0) * 1e3,
+            scene: SceneNow {
+                links_mm,
+                coil,
+                goal: goal_coil.map(|g| PoseJson::from_iso(&g)),
+                head: goal_coil.map(|g| PoseJson::from_iso(&(g * self.frames.coil_from_head))),
+            },
+        }
+    }
+}
+
+impl Observer for ConsoleObserver {
+    fn event(&mut self, t: f64, event: &Event) {
+        self.shared.push_event(EventJson::new(t, event));
+    }
+
+    fn status(&mut self, _: &Status) {}
+
+    fn cycle(&mut self, r: &CycleRecord, age_s: f64) {
+        self.cycles += 1;
+        let dt = r.t - self.published_t;
+        if dt < 1.0 / STATUS_RATE_HZ {
+            return;
+        }
+        // Cycles since the last status, this one included, over the loop time between them.
+        let rate = if dt.is_finite() {
+            self.cycles as f64 / dt
+        } else {
+            0.0
+        };
+        let status = self.status_of(r, age_s, rate);
+        let point = [r.t, status.deviation_mm, status.head_speed_mm_s];
+        self.last = Some(status.clone());
+        self.shared.publish(status, Some(point));
+        self.published_t = r.t;
+        self.cycles = 0;
+    }
+}
+
+impl Drop for ConsoleObserver {
+    /// The loop has ended (its logger drops the observer): the page shows it.
+    fn drop(&mut self) {
+        let mut last = self.last.take().unwrap_or_else(StatusJson::starting);
+        last.running = false;
+        last.mode = "stopped".into();
+        last.mode_text = "stopped".into();
+        last.reason = None;
+        last.rate_hz = 0.0;
+        self.shared.publish(last, None);
+    }
+}

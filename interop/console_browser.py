@@ -1,0 +1,147 @@
+"""Drives mocomp's operator console in a real headless Chromium (Debian's `chromium` and
+`chromium-driver`) through Selenium, and prints one JSON object with what it saw.
+
+usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR
+
+The console must serve a running `mocomp run` on the simulated world. The script checks, in the
+page, that: without the token the page is read-only and a hold is refused (401); the token link
+gives the page its cookie; the status changes as the loop runs; a tuning change takes and shows;
+a bad value shows its error beside the field; the hold button holds the loop and resume resumes
+it; the stop, after its confirmation, ends the run. It writes screenshots (tracking, holding) and
+reports the loop-to-page latency the page measured. Any failure is an exception (exit 1).
+Browser and driver paths: $MOCOMP_CHROMIUM (default /usr/bin/chromium) and
+$MOCOMP_CHROMEDRIVER (default /usr/bin/chromedriver); nothing is downloaded.
+"""
+
+import json
+import os
+import statistics
+import sys
+import time
+
+# Selenium must not try to fetch a browser or driver: use Debian's.
+os.environ.setdefault("SE_OFFLINE", "true")
+
+from selenium import webdriver  # noqa: E402
+from selenium.webdriver.chrome.service import Service  # noqa: E402
+from selenium.webdriver.common.by import By  # noqa: E402
+
+
+def wait(what, f, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    last = None
+    while time.monotonic() < deadline:
+        try:
+            last = f()
+            if last:
+                return last
+        except Exception as e:  # a stale element while the page redraws
+            last = e
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for {what} (last: {last!r})")
+
+
+def text(d, element_id):
+    # The DOM's text, not as styled (the mode badge is upper-cased by CSS).
+    return d.find_element(By.ID, element_id).get_attribute("textContent").strip()
+
+
+def main():
+    url, shots = sys.argv[1], sys.argv[2]
+    base, token = url.split("/?token=")
+    options = webdriver.ChromeOptions()
+    options.binary_location = os.environ.get("MOCOMP_CHROMIUM", "/usr/bin/chromium")
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--window-size=1400,1200", "--no-first-run", "--disable-extensions"):
+        options.add_argument(arg)
+    service = Service(executable_path=os.environ.get("MOCOMP_CHROMEDRIVER", "/usr/bin/chromedriver"))
+    d = webdriver.Chrome(options=options, service=service)
+    seen = {"browser": d.capabilities.get("browserVersion")}
+    try:
+        # Without the token: read-only, and a hold from the page is refused.
+        d.get(base + "/")
+        wait("the read-only banner", lambda: d.find_element(By.ID, "auth").is_displayed())
+        refused = d.execute_async_script(
+            "const done = arguments[0];"
+            "fetch('/api/hold', {method: 'POST'}).then(r => done(r.status));")
+        assert refused == 401, refused
+        seen["hold_without_token"] = refused
+        # The link with the token: the cookie is set and the address bar loses the token.
+        d.get(url)
+        wait("the redirect to /", lambda: d.current_url.rstrip("/") == base)
+        assert "token=" not in d.current_url
+        wait("the banner to go", lambda: not d.find_element(By.ID, "auth").is_displayed())
+        assert token not in d.page_source
+        # The status changes as the loop runs.
+        wait("tracking", lambda: text(d, "mode") == "tracking", 40)
+        t0 = float(text(d, "t"))
+        wait("the loop time to advance", lambda: float(text(d, "t")) > t0 + 0.5)
+        dev = wait("a deviation", lambda: text(d, "deviation_mm") not in ("", "—") and text(d, "deviation_mm"))
+        seen["deviation_mm_shown"] = float(dev)
+        seen["rate_hz_shown"] = float(text(d, "rate_hz"))
+        wait("the plot's history", lambda: d.execute_script("return window.mocomp.history.length") > 25)
+        time.sleep(1.0)
+        d.execute_script("window.scrollTo(0, 0)")
+        d.save_screenshot(os.path.join(shots, "console-tracking.png"))
+        # A tuning change takes and shows.
+        field = d.find_element(By.ID, "param-speed_fraction")
+        field.clear()
+        field.send_keys("0.45")
+        d.find_element(By.ID, "apply-params").click()
+        wait("the change applied", lambda: "applied: loop.speed_fraction" in text(d, "params-result"))
+        wait("the form to show the new value",
+             lambda: d.find_element(By.ID, "param-speed_fraction").get_attribute("value") == "0.45")
+        cfg = d.execute_async_script(
+            "const done = arguments[0];"
+            "fetch('/api/config').then(r => r.json()).then(j => done(j.config.loop.speed_fraction));")
+        assert abs(cfg - 0.45) < 1e-12, cfg
+        seen["speed_fraction_after"] = cfg
+        # A bad value shows its error beside the field, and changes nothing.
+        bad = d.find_element(By.ID, "param-max_tcp_speed_m_s")
+        before = bad.get_attribute("value")
+        bad.clear()
+        bad.send_keys("-1")
+        d.find_element(By.ID, "apply-params").click()
+        err = wait("the error beside the field", lambda: text(d, "error-max_tcp_speed_m_s"))
+        assert "must be" in err, err
+        assert "invalid" in d.find_element(By.ID, "param-max_tcp_speed_m_s").get_attribute("class")
+        seen["bad_value_error"] = err
+        still = d.execute_async_script(
+            "const done = arguments[0];"
+            "fetch('/api/config').then(r => r.json()).then(j => done(j.config.loop.max_tcp_speed_m_s));")
+        assert str(still) == before or float(before) == still, (still, before)
+        # Hold, then resume.
+        d.find_element(By.ID, "hold").click()
+        wait("holding", lambda: text(d, "mode") == "holding" and "Operator" in text(d, "reason"))
+        seen["held_reason"] = text(d, "reason")
+        assert not d.find_element(By.ID, "resume").get_attribute("disabled")
+        time.sleep(0.5)
+        d.execute_script("window.scrollTo(0, 0)")
+        d.save_screenshot(os.path.join(shots, "console-holding.png"))
+        d.find_element(By.ID, "resume").click()
+        wait("tracking again", lambda: text(d, "mode") == "tracking", 40)
+        rows = d.execute_script(
+            "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
+        assert any("hold" in r and "Operator" in r for r in rows), rows
+        seen["events_shown"] = len(rows)
+        lat = d.execute_script("return window.mocomp.latencies.slice()")
+        lat = [x for x in lat if x == x]
+        lat.sort()
+        seen["latency_ms"] = {
+            "n": len(lat),
+            "median": statistics.median(lat),
+            "p99": lat[min(len(lat) - 1, int(0.99 * (len(lat) - 1) + 0.5))],
+        }
+        # Stop, after its confirmation.
+        d.find_element(By.ID, "stop").click()
+        wait("the confirmation", lambda: d.find_element(By.ID, "stop-dialog").is_displayed())
+        d.find_element(By.ID, "confirm-stop").click()
+        wait("stopped", lambda: text(d, "mode") == "stopped", 20)
+        seen["stopped"] = True
+    finally:
+        d.quit()
+    print(json.dumps(seen))
+
+
+if __name__ == "__main__":
+    main()
