@@ -1,14 +1,18 @@
 """Drives mocomp's operator console in a real headless Chromium (Debian's `chromium` and
 `chromium-driver`) through Selenium, and prints one JSON object with what it saw.
 
-usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR
+usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR [loop|camera]
 
-The console must serve a running `mocomp run` on the simulated world. The script checks, in the
+The console must serve a running `mocomp run` on the simulated world. With `loop` (the default)
+the script checks, in the
 page, that: without the token the page is read-only and a hold is refused (401); the token link
 gives the page its cookie; the status changes as the loop runs; a tuning change takes and shows;
 a bad value shows its error beside the field; the hold button holds the loop and resume resumes
 it; the stop, after its confirmation, ends the run. It writes screenshots (tracking, holding) and
-reports the loop-to-page latency the page measured. Any failure is an exception (exit 1).
+reports the loop-to-page latency the page measured. With `camera` (a session on the simulated
+depth camera) it checks the IR frame with the pipeline's overlays shows, a scan area drawn with
+the mouse and a new threshold take effect in the pipeline, a bad depth range shows its error
+beside the field, and writes the IR screenshots (whole image, and the scan area drawn). Any failure is an exception (exit 1).
 Browser and driver paths: $MOCOMP_CHROMIUM (default /usr/bin/chromium) and
 $MOCOMP_CHROMEDRIVER (default /usr/bin/chromedriver); nothing is downloaded.
 """
@@ -46,16 +50,19 @@ def text(d, element_id):
     return d.find_element(By.ID, element_id).get_attribute("textContent").strip()
 
 
-def main():
-    url, shots = sys.argv[1], sys.argv[2]
-    base, token = url.split("/?token=")
+def browser():
     options = webdriver.ChromeOptions()
     options.binary_location = os.environ.get("MOCOMP_CHROMIUM", "/usr/bin/chromium")
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                 "--window-size=1400,1200", "--no-first-run", "--disable-extensions"):
         options.add_argument(arg)
     service = Service(executable_path=os.environ.get("MOCOMP_CHROMEDRIVER", "/usr/bin/chromedriver"))
-    d = webdriver.Chrome(options=options, service=service)
+    return webdriver.Chrome(options=options, service=service)
+
+
+def loop_session(url, shots):
+    base, token = url.split("/?token=")
+    d = browser()
     seen = {"browser": d.capabilities.get("browserVersion")}
     try:
         # Without the token: read-only, and a hold from the page is refused.
@@ -140,8 +147,82 @@ def main():
         seen["stopped"] = True
     finally:
         d.quit()
-    print(json.dumps(seen))
+    return seen
+
+
+def frame_brightness(d):
+    """The mean of the IR canvas's red channel (0 before a frame is drawn)."""
+    return d.execute_script(
+        "const c = document.getElementById('ir-canvas');"
+        "const px = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;"
+        "let s = 0; for (let i = 0; i < px.length; i += 4) s += px[i];"
+        "return s / (px.length / 4);")
+
+
+def camera_config(d):
+    return d.execute_async_script(
+        "const done = arguments[0];"
+        "fetch('/api/config').then(r => r.json()).then(j => done(j.config.tracker.camera.params));")
+
+
+def camera_session(url, shots):
+    from selenium.webdriver.common.action_chains import ActionChains
+    d = browser()
+    seen = {}
+    try:
+        d.get(url)
+        wait("tracking on the camera's poses", lambda: text(d, "mode") == "tracking", 40)
+        wait("the camera panel", lambda: d.find_element(By.ID, "camera-panel").is_displayed())
+        wait("an IR frame drawn", lambda: frame_brightness(d) > 10)
+        wait("the marker found", lambda: "FRE" in text(d, "camera-meta"))
+        seen["camera_meta"] = text(d, "camera-meta")
+        time.sleep(0.6)
+        d.execute_script("document.getElementById('camera-panel').scrollIntoView()")
+        d.save_screenshot(os.path.join(shots, "console-ir-whole.png"))
+        # A new threshold takes effect in the pipeline.
+        field = d.find_element(By.ID, "cam-ir_threshold")
+        field.clear()
+        field.send_keys("25000")
+        d.find_element(By.ID, "apply-camera").click()
+        wait("the threshold applied",
+             lambda: "applied: tracker.camera.params.ir_threshold" in text(d, "camera-result"))
+        assert camera_config(d)["ir_threshold"] == 25000
+        # A scan area drawn with the mouse around the middle of the frame.
+        canvas = d.find_element(By.ID, "ir-canvas")
+        d.execute_script("arguments[0].scrollIntoView({block: 'center'})", canvas)
+        time.sleep(0.2)
+        w, h = canvas.size["width"], canvas.size["height"]
+        ActionChains(d).move_to_element_with_offset(canvas, int(-0.2 * w), int(-0.2 * h)) \
+            .click_and_hold().move_by_offset(int(0.2 * w), int(0.2 * h)) \
+            .move_by_offset(int(0.2 * w), int(0.2 * h)).release().perform()
+        area = wait("the scan area applied", lambda: camera_config(d)["scan_area"])
+        assert 80 <= area[0] < 180 and 60 <= area[1] < 150 and 330 < area[2] <= 430 and 270 < area[3] <= 370, area
+        seen["scan_area"] = area
+        wait("the pipeline to use it",
+             lambda: d.execute_script("return window.mocomp.status.camera.blobs") == 4)
+        wait("the form to show it", lambda: d.find_element(By.ID, "cam-scan_area").get_attribute("value") != "")
+        # A bad depth range shows its error beside the field, and changes nothing.
+        bad = d.find_element(By.ID, "cam-depth_min_mm")
+        bad.clear()
+        bad.send_keys("3000")
+        d.find_element(By.ID, "apply-camera").click()
+        err = wait("the error beside the field", lambda: text(d, "cam-error-depth_min_mm"))
+        assert "depth_max_mm" in err, err
+        assert camera_config(d)["depth_min_mm"] == 400
+        seen["bad_value_error"] = err
+        # Tracking on, with the new scan area.
+        wait("found in the scan area", lambda: "FRE" in text(d, "camera-meta"))
+        assert text(d, "mode") in ("tracking", "approaching"), text(d, "mode")
+        time.sleep(0.6)
+        d.execute_script("document.getElementById('camera-panel').scrollIntoView()")
+        d.save_screenshot(os.path.join(shots, "console-ir-scan-area.png"))
+        seen["mode"] = text(d, "mode")
+    finally:
+        d.quit()
+    return seen
 
 
 if __name__ == "__main__":
-    main()
+    which = sys.argv[3] if len(sys.argv) > 3 else "loop"
+    run = camera_session if which == "camera" else loop_session
+    print(json.dumps(run(sys.argv[1], sys.argv[2])))

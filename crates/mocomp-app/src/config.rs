@@ -149,8 +149,10 @@ pub struct TrackerSection {
     pub timestamps: Timestamps,
     /// The sender's constant latency from acquisition to sending, s (with "estimated").
     pub fixed_latency_s: f64,
-    /// The simulated tracker.
+    /// The simulated tracker (and the simulated world the camera sees).
     pub simulated: SimTrackerSection,
+    /// The simulated depth camera (source "camera").
+    pub camera: CameraSection,
 }
 
 impl Default for TrackerSection {
@@ -162,6 +164,7 @@ impl Default for TrackerSection {
             timestamps: Timestamps::Estimated,
             fixed_latency_s: 0.0,
             simulated: SimTrackerSection::default(),
+            camera: CameraSection::default(),
         }
     }
 }
@@ -174,6 +177,17 @@ pub enum TrackerSource {
     Openigtlink,
     /// The simulated tracker, served over OpenIGTLink on loopback.
     Simulated,
+    /// A simulated depth camera (IR + depth frames) tracked by the paper's pipeline
+    /// (`[tracker.camera]`), its poses served over OpenIGTLink on loopback.
+    Camera,
+}
+
+impl TrackerSource {
+    /// Whether the head and its tracker are simulated (the simulated tracker or camera), so the
+    /// frames and the goal have defaults.
+    pub fn simulated(self) -> bool {
+        matches!(self, Self::Simulated | Self::Camera)
+    }
 }
 
 impl std::fmt::Display for TrackerSource {
@@ -181,6 +195,7 @@ impl std::fmt::Display for TrackerSource {
         f.write_str(match self {
             Self::Openigtlink => "openigtlink",
             Self::Simulated => "simulated",
+            Self::Camera => "camera",
         })
     }
 }
@@ -224,6 +239,44 @@ impl Default for SimTrackerSection {
             flange_from_marker: pose_const([0.0, 0.06, 0.02, std::f64::consts::PI, 0.0, 0.0]),
             motion: HeadMotion::Random(mocomp_sim::motion::RandomMotion::default()),
             model: TrackerModel::default(),
+        }
+    }
+}
+
+/// `[tracker.camera]`: a simulated depth camera (a Kinect v2's intrinsics: 512×424 IR and depth)
+/// at the tracker's place, seeing the head marker's fiducials in the simulated world of
+/// `[tracker.simulated]` (rest pose, motion). Each frame is rendered (the fiducials as bright
+/// discs with depth holes, IR and depth noise) and tracked by the paper's pipeline with
+/// `params`; the poses go out over OpenIGTLink on loopback, as from a tracking server.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraSection {
+    /// Frames per second.
+    pub rate_hz: f64,
+    /// Seeds the frames' noise (and where the distractors are).
+    pub seed: u64,
+    /// Large saturated patches in view (sunlight), which the pipeline must reject as too large.
+    pub sun_spots: usize,
+    /// Fiducial-sized bright spots in view (reflections), which it must leave unmatched.
+    pub reflections: usize,
+    /// The head marker's fiducials (.toml with points_mm, Atracsys .ini, NDI .rom; relative to
+    /// the configuration file); default: the NDI 8700449 geometry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<String>,
+    /// The pipeline's steps 2–7 (as `mocomp track --params`); changeable while the loop runs.
+    pub params: mocomp_vision::TrackParams,
+}
+
+impl Default for CameraSection {
+    /// A Kinect v2's 30 frames a second, the pipeline's defaults.
+    fn default() -> Self {
+        Self {
+            rate_hz: 30.0,
+            seed: 1,
+            sun_spots: 0,
+            reflections: 0,
+            geometry: None,
+            params: mocomp_vision::TrackParams::default(),
         }
     }
 }
@@ -540,6 +593,11 @@ impl Config {
             1.0,
             false,
         )?;
+        let cam = &self.tracker.camera;
+        Check::range("tracker.camera.rate_hz", cam.rate_hz, 1.0, 120.0, false)?;
+        cam.params
+            .validate("tracker.camera.params")
+            .map_err(|e| AppError::Config(e.to_string()))?;
         let s = &self.tracker.simulated;
         s.motion
             .validate()
@@ -571,7 +629,7 @@ impl Config {
     /// Whether the world is the built-in simulation (robot and tracker), where the frames have
     /// defaults.
     pub fn simulated_world(&self) -> bool {
-        self.robot.simulate && self.tracker.source == TrackerSource::Simulated
+        self.robot.simulate && self.tracker.source.simulated()
     }
 
     /// base_from_tracker: the calibration file (relative to `dir`), the inline pose, or (in the
@@ -587,7 +645,7 @@ impl Config {
         if let Some(y) = &self.calibration.base_from_tracker {
             return Ok(y.iso());
         }
-        if self.tracker.source == TrackerSource::Simulated {
+        if self.tracker.source.simulated() {
             return Ok(pose_const(SIM_BASE_FROM_TRACKER).iso());
         }
         Err(AppError::Config(
@@ -613,7 +671,9 @@ impl Config {
     pub fn head_from_coil(&self) -> Result<Isometry3<f64>, AppError> {
         match (&self.goal.head_from_coil, self.tracker.source) {
             (Some(p), _) => Ok(p.iso()),
-            (None, TrackerSource::Simulated) => Ok(pose_const(SIM_HEAD_FROM_COIL).iso()),
+            (None, TrackerSource::Simulated | TrackerSource::Camera) => {
+                Ok(pose_const(SIM_HEAD_FROM_COIL).iso())
+            }
             (None, TrackerSource::Openigtlink) => Err(AppError::Config(
                 "goal.head_from_coil: a real head needs its goal (teach it: mocomp teach-goal)"
                     .into(),

@@ -172,6 +172,7 @@ pub fn render_dir(
                 sun_spots: 1,
                 reflections: 4,
                 hand: i % 5 == 4,
+                placement_seed: None,
             };
         }
         if let Some(h) = o.hide {

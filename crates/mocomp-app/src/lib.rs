@@ -17,6 +17,7 @@ macro_rules! refuse {
 pub mod baseline;
 pub mod blame;
 pub mod calibration;
+pub mod camera;
 pub mod collect;
 pub mod config;
 pub mod config_file;

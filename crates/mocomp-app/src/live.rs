@@ -13,6 +13,7 @@
 //! (stopj) and the report says how that went; the operator's hold and resume; new loop
 //! parameters.
 
+use crate::camera::VisionLink;
 use crate::config::Setup;
 use crate::driver::Requests;
 use crate::world::World;
@@ -134,6 +135,8 @@ pub struct Controls {
     hold: AtomicBool,
     params_tx: SyncSender<LoopParams>,
     params_rx: Mutex<Option<Receiver<LoopParams>>>,
+    /// The simulated camera's pipeline, once the session has started one.
+    vision: OnceLock<Arc<VisionLink>>,
 }
 
 impl Controls {
@@ -145,7 +148,13 @@ impl Controls {
             hold: AtomicBool::new(false),
             params_tx,
             params_rx: Mutex::new(Some(rx)),
+            vision: OnceLock::new(),
         })
+    }
+
+    /// The session's camera pipeline (its parameters, its newest frame), when it has one.
+    pub fn vision(&self) -> Option<&Arc<VisionLink>> {
+        self.vision.get()
     }
 
     /// Ends the loop at its next cycle; the robot is then stopped.
@@ -657,6 +666,9 @@ pub fn run(
     let clock = Arc::clone(&world.clock);
     // Set once, here: it cannot have been set before.
     loop_clock.set(Arc::clone(&clock)).ok();
+    if let Some(v) = &world.vision {
+        controls.vision.set(Arc::clone(v)).ok();
+    }
     let client = world.client(setup, &file.tracker.device);
     // The simulators (the rest of `world`) stay up until the end of this function.
     let robot = world.robot;

@@ -1,14 +1,16 @@
 //! Changing a running session's configuration (the console's `POST /api/params`): a partial
 //! configuration, merged into the running one and checked as a file is, each refusal naming its
-//! key. Only keys the loop can take between two cycles may change: `[loop]`'s. The rest (the
+//! key. Only keys the session can take while it runs may change: `[loop]`'s (between two cycles)
+//! and `[tracker.camera.params]` (the camera's pipeline, before its next frame). The rest (the
 //! robot, the tracker, the frames, the goal, the models, the predictor) fixes what the session
 //! connected to and computed at start, and changes with a restart.
 
 use crate::config::Config;
 use serde_json::{Map, Value};
 
-/// The sections whose keys may change while the loop runs.
-pub const LIVE_SECTIONS: [&str; 1] = ["loop"];
+/// The sections whose keys may change while the loop runs: the loop's parameters, and the
+/// camera pipeline's.
+pub const LIVE_SECTIONS: [&str; 2] = ["loop", "tracker.camera.params"];
 
 /// A change refused: the key (`loop.speed_fraction`, or the section when the whole change is
 /// malformed) and why.
@@ -77,14 +79,15 @@ pub fn apply(current: &Config, patch: &Value) -> Result<Tuned, Refusal> {
     }) {
         return Err(Refusal::new(
             k.clone(),
-            "cannot change while the loop runs (only [loop] keys can); change it in the \
-             configuration file and restart",
+            "cannot change while the loop runs (only [loop] and [tracker.camera.params] keys \
+             can); change it in the configuration file and restart",
         ));
     }
     // Only the live sections are taken over: the rest of `current` stays as it was loaded (a
     // recorded motion's samples, which a round trip through JSON would not keep).
     let mut config = current.clone();
     config.params = parsed.params;
+    config.tracker.camera.params = parsed.tracker.camera.params;
     config.check().map_err(|e| {
         let message = e.to_string();
         // The checks name their key first (`loop.speed_fraction = 2: must be …`).
@@ -186,6 +189,39 @@ mod tests {
         // Not an object, or empty.
         assert_eq!(refused(json!([1, 2])).key, "(body)");
         assert_eq!(refused(json!({})).key, "(body)");
+    }
+
+    #[test]
+    fn the_camera_pipelines_keys_change_and_are_checked_as_in_the_file() {
+        let c = Config::default();
+        let t = apply(
+            &c,
+            &json!({"tracker": {"camera": {"params": {"ir_threshold": 30000, "scan_area": [10, 20, 300, 200]}}}}),
+        )
+        .unwrap();
+        assert_eq!(t.config.tracker.camera.params.ir_threshold, 30000);
+        assert_eq!(
+            t.config.tracker.camera.params.scan_area,
+            Some([10, 20, 300, 200])
+        );
+        assert_eq!(t.changed.len(), 2);
+        let r = apply(
+            &c,
+            &json!({"tracker": {"camera": {"params": {"depth_min_mm": 3000}}}}),
+        )
+        .unwrap_err();
+        assert_eq!(r.key, "tracker.camera.params.depth_min_mm");
+        assert!(r.problem.contains("must be below depth_max_mm"), "{r}");
+        // Cleared again (null: the whole image).
+        let back = apply(
+            &t.config,
+            &json!({"tracker": {"camera": {"params": {"scan_area": null}}}}),
+        )
+        .unwrap();
+        assert_eq!(back.config.tracker.camera.params.scan_area, None);
+        // The camera's other keys are not live.
+        let r = apply(&c, &json!({"tracker": {"camera": {"rate_hz": 15.0}}})).unwrap_err();
+        assert_eq!(r.key, "tracker.camera.rate_hz");
     }
 
     #[test]

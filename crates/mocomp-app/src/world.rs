@@ -1,8 +1,10 @@
 //! What a live session (`run`, `teach-goal`, `calibrate collect`) connects to, from the configuration: the
 //! robot (a UR at an address, or an in-process simulated controller serving real RTDE on
-//! loopback) and the tracker (an OpenIGTLink server, or the simulated tracker serving the head
-//! marker and the flange's calibration marker over OpenIGTLink on loopback).
+//! loopback) and the tracker (an OpenIGTLink server, the simulated tracker serving the head
+//! marker and the flange's calibration marker over OpenIGTLink on loopback, or the simulated
+//! depth camera whose frames the paper's pipeline tracks, [`crate::camera`]).
 
+use crate::camera::{CameraServer, VisionLink};
 use crate::config::{Setup, Timestamps, TrackerSource};
 use crate::{AppError, Context};
 use mocomp_geom::{Clock, MonotonicClock};
@@ -25,8 +27,11 @@ pub struct World {
     pub realtime: Option<mocomp_rt::RtReport>,
     /// Keeps the CPUs out of deep idle states while the world runs (held for its drop).
     _cpu_latency: Option<mocomp_rt::CpuLatencyGuard>,
+    /// The simulated camera's pipeline parameters and newest frame (source "camera").
+    pub vision: Option<Arc<VisionLink>>,
     // Dropped after the robot client (field order): the simulators.
     tracker: Option<TrackerServer>,
+    camera: Option<CameraServer>,
     sim: Option<Arc<Sim>>,
 }
 
@@ -88,10 +93,22 @@ impl World {
         } else {
             None
         };
-        let tracker_addr = match (&tracker, &file.tracker.igtl) {
-            (Some(t), _) => t.addr().to_string(),
-            (None, Some(a)) => a.clone(),
-            (None, None) => return Err(AppError::Config("tracker.igtl: needed".into())),
+        let (camera, vision) = if file.tracker.source == TrackerSource::Camera {
+            let link = VisionLink::new(file.tracker.camera.params);
+            (
+                Some(CameraServer::start(setup, Arc::clone(&link))?),
+                Some(link),
+            )
+        } else {
+            (None, None)
+        };
+        let tracker_addr = match (&tracker, &camera, &file.tracker.igtl) {
+            (Some(t), _, _) => t.addr().to_string(),
+            (None, Some(c), _) => c.addr().to_string(),
+            (None, None, Some(a)) => a.clone(),
+            (None, None, None) => {
+                return Err(AppError::Config("tracker.igtl: needed".into()));
+            }
         };
         if realtime.is_some_and(|c| c.cpu.is_none() && c.simulator_cpu.is_some()) {
             // The simulators are pinned; the loop is not.
@@ -116,7 +133,9 @@ impl World {
             tracker_addr,
             realtime: report,
             _cpu_latency: cpu_latency,
+            vision,
             tracker,
+            camera,
             sim,
         })
     }
@@ -128,7 +147,8 @@ impl World {
         let mut icfg = ClientConfig::new(&self.tracker_addr);
         icfg.device = Some(device.to_string());
         icfg.fixed_latency_s = t.fixed_latency_s;
-        icfg.timestamps = if self.tracker.is_some() || t.timestamps == Timestamps::Synchronized {
+        let simulated = self.tracker.is_some() || self.camera.is_some();
+        icfg.timestamps = if simulated || t.timestamps == Timestamps::Synchronized {
             TimestampMode::Synchronized
         } else {
             TimestampMode::Estimated

@@ -1,4 +1,9 @@
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
 //! The operator's console over its HTTP API and WebSocket, on `mocomp run --dashboard` with the
 //! simulated world: what a request without the token or from another origin may not do, the
 //! operator's hold and resume as the loop's mode shows them, live tuning with its refusals, the
@@ -26,11 +31,17 @@ pub struct Session {
 }
 
 impl Session {
-    /// Starts the example configuration with its simulated robot on `host` for `seconds`, the
-    /// console on a free loopback port, plus `extra` options.
-    pub fn start(dir: &TempDir, host: &str, seconds: u32, extra: &[&str]) -> Session {
+    /// Starts the example configuration `example` (in `examples/`) with its simulated robot on
+    /// `host` for `seconds`, the console on a free loopback port, plus `extra` options.
+    pub fn start(
+        dir: &TempDir,
+        example: &str,
+        host: &str,
+        seconds: u32,
+        extra: &[&str],
+    ) -> Session {
         let path = dir.path("run.toml");
-        let cfg = std::fs::read_to_string(workspace_root().join("examples/run-sim.toml"))
+        let cfg = std::fs::read_to_string(workspace_root().join("examples").join(example))
             .unwrap()
             .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
         std::fs::write(&path, cfg).unwrap();
@@ -158,6 +169,7 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     let token_file = dir.path("token");
     let s = Session::start(
         &dir,
+        "run-sim.toml",
         "127.0.0.95",
         60,
         &["--dashboard-token-file", &token_file],
@@ -305,8 +317,9 @@ fn python() -> std::path::PathBuf {
         .unwrap_or_else(|| workspace_root().join(".venv/bin/python"))
 }
 
-#[test]
-fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
+/// Runs the browser helper (`interop/console_browser.py`) on the session's console in `mode`,
+/// its screenshots into `shots`; what it saw.
+fn browse(s: &Session, shots: &str, mode: &str) -> Value {
     // A real headless Chromium (Debian's chromium and chromium-driver) through Selenium in the
     // test venv; a missing browser, driver or Selenium fails here, with how to install them.
     for p in ["/usr/bin/chromium", "/usr/bin/chromedriver"] {
@@ -321,14 +334,12 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
             "{p} missing: apt-get install chromium chromium-driver (scripts/test.sh does)"
         );
     }
-    let dir = TempDir::new("mocomp-console-browser");
-    let s = Session::start(&dir, "127.0.0.96", 90, &[]);
-    let shots = dir.path("shots");
-    std::fs::create_dir_all(&shots).unwrap();
+    std::fs::create_dir_all(shots).unwrap();
     let out = Command::new(python())
         .arg(workspace_root().join("interop/console_browser.py"))
         .arg(format!("{}/?token={}", s.base, s.token))
-        .arg(&shots)
+        .arg(shots)
+        .arg(mode)
         .stderr(Stdio::inherit())
         .output()
         .unwrap_or_else(|e| {
@@ -343,7 +354,16 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
         mocomp_testkit::INSTALL_HINT
     );
     let seen: Value = serde_json::from_slice(&out.stdout).unwrap();
-    eprintln!("console in the browser: {seen}");
+    eprintln!("console in the browser ({mode}): {seen}");
+    seen
+}
+
+#[test]
+fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
+    let dir = TempDir::new("mocomp-console-browser");
+    let s = Session::start(&dir, "run-sim.toml", "127.0.0.96", 90, &[]);
+    let shots = dir.path("shots");
+    let seen = browse(&s, &shots, "loop");
     // What the page showed, checked again here (the helper asserts each in the page).
     assert_eq!(seen["hold_without_token"], 401, "{seen}");
     assert_eq!(seen["held_reason"], "Operator", "{seen}");
@@ -365,4 +385,32 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
     let (ok, summary) = s.finish();
     assert!(ok, "{summary}");
     assert!(summary.contains("Hold(Operator)"), "{summary}");
+}
+
+#[test]
+fn the_page_shows_the_cameras_frames_and_tunes_its_pipeline_in_a_real_browser() {
+    let dir = TempDir::new("mocomp-console-camera");
+    let s = Session::start(&dir, "run-camera.toml", "127.0.0.99", 90, &[]);
+    let shots = dir.path("shots");
+    let seen = browse(&s, &shots, "camera");
+    // The scan area drawn with the mouse, in the frame's pixels, around the middle.
+    let area: Vec<u64> = serde_json::from_value(seen["scan_area"].clone()).unwrap();
+    assert!(area[0] < area[2] && area[1] < area[3], "{seen}");
+    assert!(
+        seen["bad_value_error"]
+            .as_str()
+            .is_some_and(|e| e.contains("depth_min_mm")),
+        "{seen}"
+    );
+    for shot in ["console-ir-whole.png", "console-ir-scan-area.png"] {
+        let len = std::fs::metadata(std::path::Path::new(&shots).join(shot))
+            .unwrap()
+            .len();
+        assert!(len > 20_000, "{shot}: {len} bytes");
+    }
+    // The new parameters reached the pipeline the loop tracks with: its poses kept coming.
+    let (_, status) = s.get("/api/status");
+    let cam = &status["camera"];
+    assert!(cam["frames"].as_u64().unwrap() > 30, "{status}");
+    assert!(cam["found_now"].as_bool().unwrap(), "{status}");
 }

@@ -63,6 +63,7 @@ function showStatus(s) {
     state.history.push([s.t, s.deviation_mm, s.head_speed_mm_s]);
     while (state.history.length && s.t - state.history[0][0] > HISTORY_S) state.history.shift();
   }
+  showCamera(s.camera);
   drawPlot();
   drawScene();
 }
@@ -278,41 +279,56 @@ function buttons() {
 
 // ---- tuning ---------------------------------------------------------------------------------
 
-function buildForm(cfg) {
-  const form = $("params");
+// The two forms: the loop's parameters, and the camera pipeline's. Each field's id is its
+// prefix and key; its error is shown beside it.
+const FORMS = {
+  loop: { form: "params", input: "param-", error: "error-", result: "params-result", key: "loop." },
+  camera: { form: "cam-params", input: "cam-", error: "cam-error-", result: "camera-result", key: "tracker.camera.params." },
+};
+
+function show(value) {
+  if (value === null || value === undefined) return "";
+  return Array.isArray(value) ? value.join(", ") : String(value);
+}
+
+function buildForm(which, values) {
+  const f = FORMS[which], form = $(f.form);
   form.textContent = "";
-  for (const [key, value] of Object.entries(cfg.loop)) {
+  for (const [key, value] of Object.entries(values)) {
     const label = document.createElement("label");
-    label.htmlFor = "param-" + key; label.textContent = key;
+    label.htmlFor = f.input + key; label.textContent = key;
     const input = document.createElement("input");
-    input.id = "param-" + key; input.name = key; input.value = String(value);
-    input.dataset.current = String(value);
+    input.id = f.input + key; input.name = key; input.value = show(value);
+    input.dataset.current = show(value);
     const err = document.createElement("span");
-    err.id = "error-" + key; err.className = "error";
+    err.id = f.error + key; err.className = "error";
     form.append(label, input, err);
   }
 }
 
 function parseValue(text) {
   const t = text.trim();
+  if (t === "") return null;
   if (t === "true") return true;
   if (t === "false") return false;
+  if (t.includes(",")) return t.split(",").map((x) => Number(x.trim()));
   const n = Number(t);
   // A value that is not a number goes as text: the server names the key and the type it wants.
-  return t !== "" && Number.isFinite(n) ? n : t;
+  return Number.isFinite(n) ? n : t;
 }
 
-async function applyParams() {
-  const changed = {};
-  document.querySelectorAll("#params input").forEach((input) => {
-    $("error-" + input.name).textContent = "";
+async function applyForm(which) {
+  const f = FORMS[which], changed = {};
+  document.querySelectorAll("#" + f.form + " input").forEach((input) => {
+    $(f.error + input.name).textContent = "";
     input.classList.remove("invalid");
     if (input.value.trim() !== input.dataset.current) changed[input.name] = parseValue(input.value);
   });
-  const result = $("params-result");
+  const result = $(f.result);
   result.className = ""; result.textContent = "";
   if (!Object.keys(changed).length) { result.textContent = "nothing changed"; return; }
-  const r = await api("POST", "/api/params", { loop: changed });
+  const body = which === "loop" ? { loop: changed } : { tracker: { camera: { params: changed } } };
+  const r = await api("POST", "/api/params", body);
   if (r.ok) {
     result.className = "ok";
     result.textContent = "applied: " + (r.data.changed.join(", ") || "nothing changed");
@@ -320,11 +336,11 @@ async function applyParams() {
     return;
   }
   const key = r.data && r.data.key ? r.data.key : "";
-  const name = key.startsWith("loop.") ? key.slice(5) : key;
+  const name = key.startsWith(f.key) ? key.slice(f.key.length) : key;
   const msg = (r.data && r.data.error) || ("refused: " + r.status);
-  if ($("error-" + name)) {
-    $("error-" + name).textContent = msg;
-    $("param-" + name).classList.add("invalid");
+  if ($(f.error + name)) {
+    $(f.error + name).textContent = msg;
+    $(f.input + name).classList.add("invalid");
   }
   result.className = "error";
   result.textContent = key ? key + ": " + msg : msg;
@@ -335,8 +351,69 @@ async function loadConfig() {
   if (!r.ok) return;
   state.config = r.data.config;
   $("auth").hidden = r.data.authorized;
-  for (const id of ["hold", "resume", "stop", "apply-params"]) $(id).dataset.auth = r.data.authorized;
-  buildForm(r.data.config);
+  buildForm("loop", r.data.config.loop);
+  buildForm("camera", r.data.config.tracker.camera.params);
+}
+
+// ---- the camera -----------------------------------------------------------------------------
+
+const camera = { loading: false, drag: null, bitmap: null };
+
+function imagePoint(e) {
+  const c = $("ir-canvas"), box = c.getBoundingClientRect();
+  const x = Math.round(((e.clientX - box.left) / box.width) * c.width);
+  const y = Math.round(((e.clientY - box.top) / box.height) * c.height);
+  return [Math.max(0, Math.min(c.width, x)), Math.max(0, Math.min(c.height, y))];
+}
+
+function drawCamera() {
+  const c = $("ir-canvas"), g = c.getContext("2d");
+  if (camera.bitmap) g.drawImage(camera.bitmap, 0, 0, c.width, c.height);
+  if (camera.drag) {
+    const [a, b] = camera.drag;
+    g.strokeStyle = "#ff0"; g.setLineDash([4, 3]); g.lineWidth = 1;
+    g.strokeRect(Math.min(a[0], b[0]) + 0.5, Math.min(a[1], b[1]) + 0.5, Math.abs(b[0] - a[0]), Math.abs(b[1] - a[1]));
+    g.setLineDash([]);
+  }
+}
+
+async function refreshFrame() {
+  if ($("camera-panel").hidden || camera.loading) return;
+  camera.loading = true;
+  try {
+    const r = await fetch("/api/frame.png", { credentials: "same-origin", cache: "no-store" });
+    if (r.ok) {
+      camera.bitmap = await createImageBitmap(await r.blob());
+      drawCamera();
+    }
+  } catch (_) { /* the next refresh tries again */ }
+  camera.loading = false;
+}
+
+function cameraControls() {
+  const c = $("ir-canvas");
+  c.addEventListener("mousedown", (e) => { const p = imagePoint(e); camera.drag = [p, p]; drawCamera(); });
+  c.addEventListener("mousemove", (e) => { if (camera.drag) { camera.drag[1] = imagePoint(e); drawCamera(); } });
+  window.addEventListener("mouseup", () => {
+    if (!camera.drag) return;
+    const [a, b] = camera.drag;
+    camera.drag = null;
+    if (Math.abs(b[0] - a[0]) < 4 || Math.abs(b[1] - a[1]) < 4) return;
+    $("cam-scan_area").value = [Math.min(a[0], b[0]), Math.min(a[1], b[1]), Math.max(a[0], b[0]), Math.max(a[1], b[1])].join(", ");
+    applyForm("camera");
+  });
+  $("apply-camera").addEventListener("click", () => applyForm("camera"));
+  $("clear-scan-area").addEventListener("click", () => { $("cam-scan_area").value = ""; applyForm("camera"); });
+  setInterval(refreshFrame, 200);
+}
+
+function showCamera(cam) {
+  $("camera-panel").hidden = !cam;
+  if (!cam) return;
+  const rate = cam.frames ? (100 * cam.found) / cam.frames : 0;
+  $("camera-meta").textContent = "frames " + cam.frames + " · found " + fmt(rate, 1) + " % · " +
+    (cam.found_now ? "FRE " + fmt(cam.fre_mm, 2) + " mm" : "not found: " + (cam.not_found || "?")) +
+    " · blobs " + cam.blobs;
 }
 
 // ---- start ----------------------------------------------------------------------------------
@@ -344,7 +421,8 @@ async function loadConfig() {
 async function start() {
   buttons();
   orbit();
-  $("apply-params").addEventListener("click", applyParams);
+  cameraControls();
+  $("apply-params").addEventListener("click", () => applyForm("loop"));
   const sc = await api("GET", "/api/scene");
   if (sc.ok) state.scene = sc.data;
   const h = await api("GET", "/api/history");

@@ -10,6 +10,7 @@
 //! | `GET /api/config` | reading | the running configuration and the sections that may change live |
 //! | `POST /api/params` | yes | a partial configuration (JSON); 400 `{"key", "error"}` when refused |
 //! | `POST /api/hold`, `/api/resume`, `/api/stop` | yes | the operator's hold, resume, stop |
+//! | `GET /api/frame.png` | reading | the camera's newest IR frame with the pipeline's overlays (404 without a camera) |
 //! | `GET /ws` | reading | the status, 25 times a second, as JSON text messages |
 //!
 //! "Reading" needs the token unless the console listens on loopback ([`crate::auth`]). Every
@@ -63,6 +64,7 @@ pub fn router(api: Api) -> Router {
         .route("/api/history", get(history))
         .route("/api/scene", get(scene))
         .route("/api/config", get(config))
+        .route("/api/frame.png", get(frame_png))
         .route("/api/params", post(params))
         .route("/api/hold", post(hold))
         .route("/api/resume", post(resume))
@@ -211,14 +213,59 @@ async fn params(State(api): State<Api>, headers: HeaderMap, body: Bytes) -> Resp
                 .into_response();
         }
     };
-    if !tuned.changed.is_empty()
+    let camera_changed = tuned
+        .changed
+        .iter()
+        .any(|k| k.starts_with("tracker.camera.params."));
+    let vision = api.shared.controls.vision();
+    if camera_changed && vision.is_none() {
+        return (
+            StatusCode::CONFLICT,
+            axum::Json(json!({
+                "key": "tracker.camera.params",
+                "error": "this session has no camera (tracker.source is not \"camera\")",
+            })),
+        )
+            .into_response();
+    }
+    if tuned.changed.iter().any(|k| k.starts_with("loop."))
         && let Err(e) = api.shared.controls.tune(tuned.config.params)
     {
         return refuse(StatusCode::CONFLICT, &e.to_string());
     }
+    if camera_changed
+        && let Some(v) = vision
+        && let Err(e) = v.set_params(tuned.config.tracker.camera.params)
+    {
+        // Checked by the tuning already: this cannot refuse what it accepted.
+        return refuse(StatusCode::BAD_REQUEST, &e.to_string());
+    }
     let changed = tuned.changed.clone();
     api.shared.set_config(tuned.config);
     axum::Json(json!({ "changed": changed })).into_response()
+}
+
+async fn frame_png(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_read(&headers) {
+        return r;
+    }
+    let Some(vision) = api.shared.controls.vision().cloned() else {
+        return refuse(StatusCode::NOT_FOUND, "this session has no camera");
+    };
+    // Drawing and encoding take milliseconds: off the server's thread.
+    match tokio::task::spawn_blocking(move || vision.overlay_png()).await {
+        Ok(Ok(Some(png))) => (
+            [(CONTENT_TYPE, "image/png"), (CACHE_CONTROL, "no-store")],
+            png,
+        )
+            .into_response(),
+        Ok(Ok(None)) => refuse(StatusCode::NOT_FOUND, "no frame yet"),
+        Ok(Err(e)) => refuse(StatusCode::INTERNAL_SERVER_ERROR, &e.to_string()),
+        Err(_) => refuse(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "drawing the frame failed",
+        ),
+    }
 }
 
 async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {

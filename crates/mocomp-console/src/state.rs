@@ -56,6 +56,36 @@ pub struct SceneNow {
     pub head: Option<PoseJson>,
 }
 
+/// The camera pipeline's newest frame, for a session on the simulated camera.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CameraJson {
+    /// Frames taken.
+    pub frames: u64,
+    /// Frames in which the marker was found.
+    pub found: u64,
+    /// Whether the newest frame found it.
+    pub found_now: bool,
+    /// Its registration error, mm.
+    pub fre_mm: Option<f64>,
+    /// Blobs in the newest frame.
+    pub blobs: usize,
+    /// Why the newest frame has no pose.
+    pub not_found: Option<String>,
+}
+
+impl CameraJson {
+    fn of(p: &mocomp_app::camera::Preview) -> Self {
+        Self {
+            frames: p.frames,
+            found: p.found,
+            found_now: p.result.detection.is_some(),
+            fre_mm: p.result.detection.as_ref().map(|d| d.fre_m * 1e3),
+            blobs: p.result.blobs.len(),
+            not_found: p.result.not_found.as_ref().map(ToString::to_string),
+        }
+    }
+}
+
 /// The status the page shows (`GET /api/status`, and each WebSocket message).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StatusJson {
@@ -96,6 +126,8 @@ pub struct StatusJson {
     /// Wall-clock time of the cycle this status is from, ms since the Unix epoch (the page
     /// measures its latency against it).
     pub cycle_unix_ms: f64,
+    /// The camera pipeline's newest frame (a session on the simulated camera).
+    pub camera: Option<CameraJson>,
     /// Where things are.
     pub scene: SceneNow,
 }
@@ -121,6 +153,7 @@ impl StatusJson {
             operator_hold: false,
             running: true,
             cycle_unix_ms: f64::NAN,
+            camera: None,
             scene: SceneNow {
                 links_mm: Vec::new(),
                 coil: None,
@@ -387,6 +420,12 @@ impl ConsoleObserver {
             operator_hold: self.shared.controls.hold(),
             running: true,
             cycle_unix_ms: now_ms - age_s.max(0.0) * 1e3,
+            camera: self
+                .shared
+                .controls
+                .vision()
+                .and_then(|v| v.preview())
+                .map(|p| CameraJson::of(&p)),
             scene: SceneNow {
                 links_mm,
                 coil,

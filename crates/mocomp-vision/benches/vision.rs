@@ -14,6 +14,7 @@ fn bench(c: &mut Criterion) {
         sun_spots: 2,
         reflections: 6,
         hand: true,
+        placement_seed: None,
     };
     let busy = render(&g, &o);
     let mut tracker = Tracker::new(Intrinsics::kinect_v2(), TrackParams::default(), g).unwrap();

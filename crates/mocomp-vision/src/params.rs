@@ -2,10 +2,10 @@
 //! Units are in the key names (millimetres and pixels at this edge).
 
 use crate::error::VisionError;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// How blob centroids weight their pixels.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CentroidWeighting {
     /// Every pixel counts once.
@@ -18,7 +18,7 @@ pub enum CentroidWeighting {
 }
 
 /// How the pose is computed from the identified fiducials.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Registration {
     /// Least-squares rigid fit of all matched fiducials (Kabsch, with the reflection guard).
@@ -29,7 +29,7 @@ pub enum Registration {
 }
 
 /// Pipeline parameters (TOML; unknown keys rejected).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackParams {
     /// IR threshold: pixels at or above it are candidates (counts, 16-bit).

@@ -19,6 +19,9 @@ pub struct Distractors {
     /// A hand passing close to the camera: moderately bright, nearer than the depth range, and
     /// covering part of the image (it may hide fiducials).
     pub hand: bool,
+    /// Seeds where the sun spots and reflections are (`None`: the frame's seed, so they move
+    /// from frame to frame; a live camera's stay where they are).
+    pub placement_seed: Option<u64>,
 }
 
 /// What to render.
@@ -145,7 +148,8 @@ pub fn render(geometry: &MarkerGeometry, o: &RenderOptions) -> Rendered {
     }
     // Distractors.
     let place = |rng_u: f64, rng_v: f64| (rng_u * w as f64, rng_v * h as f64);
-    let mut drng = ChaCha8Rng::seed_from_u64(o.seed ^ 0x5eed_d15c);
+    let mut drng =
+        ChaCha8Rng::seed_from_u64(o.distractors.placement_seed.unwrap_or(o.seed) ^ 0x5eed_d15c);
     for _ in 0..o.distractors.sun_spots {
         let (u, v) = place(drng.random(), drng.random());
         let r = 14.0 + 10.0 * drng.random::<f64>();

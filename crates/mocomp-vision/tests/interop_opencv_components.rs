@@ -83,6 +83,7 @@ fn labelling_matches_opencv() {
             sun_spots: 2,
             reflections: 8,
             hand: seed % 2 == 0,
+            placement_seed: None,
         };
         let img = render(&g, &o);
         let mask: Vec<bool> = img.ir.iter().map(|&v| v >= 20_000).collect();

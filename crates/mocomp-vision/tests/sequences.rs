@@ -102,6 +102,7 @@ fn distractors_do_not_break_tracking() {
             sun_spots: 2,
             reflections: 6,
             hand: i % 4 == 0,
+            placement_seed: None,
         };
     });
     println!("{}", s.line("distractors"));
@@ -182,6 +183,7 @@ fn frames_without_markers_are_not_found_not_errors() {
         sun_spots: 3,
         reflections: 10,
         hand: true,
+        placement_seed: None,
     };
     let img = render(&g, &o);
     let res = tracker
