@@ -125,6 +125,12 @@ def loop_session(url, shots):
         time.sleep(0.5)
         d.execute_script("window.scrollTo(0, 0)")
         d.save_screenshot(os.path.join(shots, "console-holding.png"))
+        # Teaching the goal while the head nods: refused, and the page says why.
+        d.find_element(By.ID, "teach").click()
+        wait("the teach confirmation", lambda: d.find_element(By.ID, "teach-dialog").is_displayed())
+        d.find_element(By.ID, "confirm-teach").click()
+        why = wait("the teach refusal", lambda: "moved" in text(d, "teach-result") and text(d, "teach-result"))
+        seen["teach_refused"] = why
         d.find_element(By.ID, "resume").click()
         wait("tracking again", lambda: text(d, "mode") == "tracking", 40)
         rows = d.execute_script(

@@ -6,6 +6,7 @@
 
 use mocomp_control::{Controller, CycleRecord, LoopParams};
 use mocomp_geom::PoseSource;
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_ur::Robot;
 use std::time::Instant;
 
@@ -34,6 +35,8 @@ pub struct Requests {
     pub hold: Option<bool>,
     /// New loop parameters, validated.
     pub params: Option<LoopParams>,
+    /// A new goal (`head_from_coil`), checked.
+    pub goal: Option<Isometry3<f64>>,
 }
 
 /// Runs `controller` at `pace` until the pace ends it. Each record carries the cycle's compute
@@ -50,6 +53,9 @@ pub fn drive<P: Pace + ?Sized>(
         }
         if let Some(params) = &requests.params {
             controller.set_params(params);
+        }
+        if let Some(goal) = &requests.goal {
+            controller.set_goal(goal);
         }
         let started = Instant::now();
         let (robot, source) = pace.loop_io();
@@ -172,6 +178,7 @@ mod tests {
                     _ => None,
                 },
                 params: None,
+                goal: None,
             }
         }
     }

@@ -19,6 +19,7 @@ use crate::driver::Requests;
 use crate::world::World;
 use crate::{AppError, Context};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopParams, Mode, Reason};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, PoseSource};
 use mocomp_igtl::client::IgtlPoseSource;
 use mocomp_ur::{Robot, UrRobot};
@@ -135,6 +136,8 @@ pub struct Controls {
     hold: AtomicBool,
     params_tx: SyncSender<LoopParams>,
     params_rx: Mutex<Option<Receiver<LoopParams>>>,
+    goal_tx: SyncSender<Isometry3<f64>>,
+    goal_rx: Mutex<Option<Receiver<Isometry3<f64>>>>,
     /// The simulated camera's pipeline, once the session has started one.
     vision: OnceLock<Arc<VisionLink>>,
 }
@@ -143,11 +146,14 @@ impl Controls {
     /// Controls with nothing asked yet.
     pub fn new() -> Arc<Self> {
         let (params_tx, rx) = sync_channel(PENDING_PARAMS);
+        let (goal_tx, goal_rx) = sync_channel(1);
         Arc::new(Self {
             stop: AtomicBool::new(false),
             hold: AtomicBool::new(false),
             params_tx,
             params_rx: Mutex::new(Some(rx)),
+            goal_tx,
+            goal_rx: Mutex::new(Some(goal_rx)),
             vision: OnceLock::new(),
         })
     }
@@ -188,6 +194,28 @@ impl Controls {
                 Err(AppError::Refused("the loop has ended".into()))
             }
         }
+    }
+
+    /// A new goal (`head_from_coil`, checked with the loop's goal check) for the loop to take at
+    /// its next cycle.
+    pub fn set_goal(&self, head_from_coil: Isometry3<f64>) -> Result<(), AppError> {
+        match self.goal_tx.try_send(head_from_coil) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => Err(AppError::Refused(
+                "an earlier goal is still waiting for the loop; try again".into(),
+            )),
+            Err(TrySendError::Disconnected(_)) => {
+                Err(AppError::Refused("the loop has ended".into()))
+            }
+        }
+    }
+
+    /// The loop's end of the goal channel (once).
+    fn take_goals(&self) -> Option<Receiver<Isometry3<f64>>> {
+        self.goal_rx
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take()
     }
 
     /// The loop's end of the parameter channel (once).
@@ -550,6 +578,8 @@ struct Live<'a> {
     controls: &'a Controls,
     /// The loop's end of the parameter channel (`None`: another loop took it).
     params: Option<Receiver<LoopParams>>,
+    /// The loop's end of the goal channel.
+    goals: Option<Receiver<Isometry3<f64>>>,
     /// The operator's hold as last passed on.
     held: bool,
     t_end: f64,
@@ -611,9 +641,14 @@ impl crate::driver::Pace for Live<'_> {
             Some(Ok(p)) => Some(p),
             Some(Err(TryRecvError::Empty | TryRecvError::Disconnected)) | None => None,
         };
+        let goal = match self.goals.as_ref().map(Receiver::try_recv) {
+            Some(Ok(g)) => Some(g),
+            Some(Err(TryRecvError::Empty | TryRecvError::Disconnected)) | None => None,
+        };
         Requests {
             hold: changed,
             params,
+            goal,
         }
     }
 }
@@ -688,6 +723,7 @@ pub fn run(
         clock: clock.as_ref(),
         controls,
         params: controls.take_params(),
+        goals: controls.take_goals(),
         held: false,
         t_end,
         patience: Duration::from_secs_f64(3.0 * period),

@@ -104,7 +104,14 @@ fn teach_on(setup: &Setup, world: &mut World, samples: usize) -> Result<Taught, 
     let Some(q) = q else {
         refuse!("no robot state");
     };
-    let mean = mocomp_geom::average(&heads, None).what(|| "averaging the head samples")?;
+    goal_from(setup, &heads, &q)
+}
+
+/// The goal from head marker samples (`tracker_from_head`, the head still) and the robot's
+/// joints (the coil still): their mean, its spread, and the loop's goal check.
+fn goal_from(setup: &Setup, heads: &[Isometry3<f64>], q: &[f64; 6]) -> Result<Taught, AppError> {
+    let file = &setup.file;
+    let mean = mocomp_geom::average(heads, None).what(|| "averaging the head samples")?;
     let n = heads.len() as f64;
     let spread = (
         (heads
@@ -133,7 +140,7 @@ fn teach_on(setup: &Setup, world: &mut World, samples: usize) -> Result<Taught, 
     }
     let base_from_head = setup.base_from_tracker * mean;
     let head_from_coil =
-        base_from_head.inverse() * setup.arm.fk_flange(&q) * file.flange_from_coil()?;
+        base_from_head.inverse() * setup.arm.fk_flange(q) * file.flange_from_coil()?;
     // The loop's own goal check (the whole coil model against the head model, the approach axis
     // into the head), so a goal taught here is never one the loop refuses.
     let distance_m = match check_goal(
@@ -157,9 +164,47 @@ fn teach_on(setup: &Setup, world: &mut World, samples: usize) -> Result<Taught, 
         head_from_coil,
         spread,
         distance_m,
-        samples,
+        samples: heads.len(),
         previous: file.head_from_coil().ok(),
     })
+}
+
+/// Joint motion across a live teaching window beyond which the coil was not held still, rad.
+const MAX_JOINT_MOTION_RAD: f64 = 1e-3;
+/// Fewest head estimates a live teaching window needs.
+pub const MIN_LIVE_SAMPLES: usize = 50;
+
+/// Teaches the goal while the loop runs, held (the console's "teach goal"): from the loop's own
+/// head estimates and measured joints of its last cycles (`(tracker_from_head, joints)`, oldest
+/// first). The head and the coil must have stood still over them.
+pub fn teach_live(
+    setup: &Setup,
+    window: &[(Isometry3<f64>, [f64; 6])],
+) -> Result<Taught, AppError> {
+    if window.len() < MIN_LIVE_SAMPLES {
+        refuse!(
+            "the loop has {} head estimates of the last cycles (need {MIN_LIVE_SAMPLES}): is the \
+             head marker in view?",
+            window.len()
+        );
+    }
+    let Some(&(_, q)) = window.last() else {
+        refuse!("no robot state");
+    };
+    let moved = window
+        .iter()
+        .flat_map(|(_, w)| w.iter().zip(&q).map(|(a, b)| (a - b).abs()))
+        .fold(0.0f64, f64::max);
+    // NaN joints (no reading) count as moved.
+    if moved.is_nan() || moved > MAX_JOINT_MOTION_RAD {
+        refuse!(
+            "the robot moved while the goal was taught ({:.2}° at a joint): hold the loop and \
+             let the coil stand still",
+            moved.to_degrees()
+        );
+    }
+    let heads: Vec<Isometry3<f64>> = window.iter().map(|(h, _)| *h).collect();
+    goal_from(setup, &heads, &q)
 }
 
 /// Connects `setup`'s world and teaches the goal from `samples` head samples (the robot must

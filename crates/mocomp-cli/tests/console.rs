@@ -18,6 +18,17 @@ use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+/// Writes the example configuration `example` (in `examples/`) with its simulated robot on
+/// `host` into `dir`; its path.
+fn write_example(dir: &TempDir, example: &str, host: &str) -> String {
+    let path = dir.path("run.toml");
+    let cfg = std::fs::read_to_string(workspace_root().join("examples").join(example))
+        .unwrap()
+        .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
+    std::fs::write(&path, cfg).unwrap();
+    path
+}
+
 /// A `mocomp run --dashboard` child and its console's address and token.
 #[derive(Debug)]
 pub struct Session {
@@ -40,13 +51,13 @@ impl Session {
         seconds: u32,
         extra: &[&str],
     ) -> Session {
-        let path = dir.path("run.toml");
-        let cfg = std::fs::read_to_string(workspace_root().join("examples").join(example))
-            .unwrap()
-            .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
-        std::fs::write(&path, cfg).unwrap();
+        Self::start_file(&write_example(dir, example, host), seconds, extra)
+    }
+
+    /// Starts the configuration at `path` for `seconds`, the console on a free loopback port.
+    pub fn start_file(path: &str, seconds: u32, extra: &[&str]) -> Session {
         let mut child = Command::new(env!("CARGO_BIN_EXE_mocomp"))
-            .args(["run", "--config", &path, "--quiet", "--seconds"])
+            .args(["run", "--config", path, "--quiet", "--seconds"])
             .arg(seconds.to_string())
             .args(["--dashboard", "127.0.0.1:0"])
             .args(extra)
@@ -413,4 +424,65 @@ fn the_page_shows_the_cameras_frames_and_tunes_its_pipeline_in_a_real_browser() 
     let cam = &status["camera"];
     assert!(cam["frames"].as_u64().unwrap() > 30, "{status}");
     assert!(cam["found_now"].as_bool().unwrap(), "{status}");
+}
+
+#[test]
+fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
+    let dir = TempDir::new("mocomp-console-teach");
+    // A still head: the goal is taught from the loop's head estimates of its last 0.5 s.
+    let path = write_example(&dir, "run-sim.toml", "127.0.0.94");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("kind = \"nods\"", "kind = \"still\"");
+    std::fs::write(&path, &text).unwrap();
+    let s = Session::start_file(&path, 60, &[]);
+    s.wait_status("tracking", |v| v["mode"] == "tracking");
+    // Not while the loop follows the head.
+    let (code, v) = s.post_auth("/api/teach", &json!({}));
+    assert_eq!(code, 409, "{v}");
+    assert!(v["error"].as_str().unwrap().contains("hold"), "{v}");
+    // Without the token: refused, nothing written.
+    s.post_auth("/api/hold", &json!({}));
+    s.wait_status("held", |v| v["mode"] == "holding");
+    // The arm decelerates and stands; the window must see it still.
+    std::thread::sleep(Duration::from_millis(800));
+    let (code, _) = s.post("/api/teach", &[], &json!({}));
+    assert_eq!(code, 401);
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), text);
+    // Taught: the coil sat on its goal, so the new goal is the old one within the tracking
+    // error, and the file has it.
+    let (code, v) = s.post_auth("/api/teach", &json!({}));
+    assert_eq!(code, 200, "{v}");
+    let taught: Vec<f64> = serde_json::from_value(v["head_from_coil"].clone()).unwrap();
+    let old = [0.0, 0.0, 0.113, std::f64::consts::PI, 0.0, 0.0];
+    for k in 0..3 {
+        assert!((taught[k] - old[k]).abs() < 2e-3, "{taught:?}");
+    }
+    assert!(
+        (2.0..4.0).contains(&v["distance_mm"].as_f64().unwrap()),
+        "{v}"
+    );
+    assert!(v["written"].as_str().unwrap().ends_with("run.toml"), "{v}");
+    let file: toml::Value = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let in_file: Vec<f64> = file["goal"]["head_from_coil"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_float().unwrap())
+        .collect();
+    for k in 0..6 {
+        assert!(
+            (in_file[k] - taught[k]).abs() < 1e-9,
+            "{in_file:?} {taught:?}"
+        );
+    }
+    let (_, c) = s.get("/api/config");
+    // (The file keeps ten decimals: below a nanometre.)
+    let in_use = c["config"]["goal"]["head_from_coil"][2].as_f64().unwrap();
+    assert!((in_use - in_file[2]).abs() < 1e-9, "{c}");
+    // Resumed, the loop follows the taught goal.
+    s.post_auth("/api/resume", &json!({}));
+    s.wait_status("tracking the taught goal", |v| {
+        v["mode"] == "tracking" && v["deviation_mm"].as_f64().is_some_and(|d| d < 1.0)
+    });
 }

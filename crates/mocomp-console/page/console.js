@@ -53,6 +53,7 @@ function showStatus(s) {
   $("hold").disabled = !s.running || s.operator_hold;
   $("resume").disabled = !s.running || !s.operator_hold;
   $("stop").disabled = !s.running;
+  $("teach").disabled = !s.running || !s.operator_hold;
   if (Number.isFinite(s.cycle_unix_ms)) {
     const lat = Date.now() - s.cycle_unix_ms;
     state.latencies.push(lat);
@@ -275,6 +276,25 @@ function buttons() {
   $("stop").addEventListener("click", () => $("stop-dialog").showModal());
   $("cancel-stop").addEventListener("click", () => $("stop-dialog").close());
   $("confirm-stop").addEventListener("click", () => { $("stop-dialog").close(); command("/api/stop"); });
+  $("teach").addEventListener("click", () => $("teach-dialog").showModal());
+  $("cancel-teach").addEventListener("click", () => $("teach-dialog").close());
+  $("confirm-teach").addEventListener("click", teach);
+}
+
+async function teach() {
+  $("teach-dialog").close();
+  const out = $("teach-result");
+  out.className = ""; out.textContent = "teaching…";
+  const r = await api("POST", "/api/teach");
+  if (r.ok) {
+    out.className = "ok";
+    out.textContent = "goal taught: " + fmt(r.data.distance_mm, 1) + " mm off the head" +
+      (r.data.written ? ", written to " + r.data.written : "");
+    await loadConfig();
+  } else {
+    out.className = "error";
+    out.textContent = (r.data && r.data.error) || ("refused: " + r.status);
+  }
 }
 
 // ---- tuning ---------------------------------------------------------------------------------

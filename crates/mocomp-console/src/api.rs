@@ -10,6 +10,7 @@
 //! | `GET /api/config` | reading | the running configuration and the sections that may change live |
 //! | `POST /api/params` | yes | a partial configuration (JSON); 400 `{"key", "error"}` when refused |
 //! | `POST /api/hold`, `/api/resume`, `/api/stop` | yes | the operator's hold, resume, stop |
+//! | `POST /api/teach` | yes | while held: the coil's pose on the head becomes the goal (and is written to the configuration file); 409 with why when refused |
 //! | `GET /api/frame.png` | reading | the camera's newest IR frame with the pipeline's overlays (404 without a camera) |
 //! | `GET /ws` | reading | the status, 25 times a second, as JSON text messages |
 //!
@@ -69,6 +70,7 @@ pub fn router(api: Api) -> Router {
         .route("/api/hold", post(hold))
         .route("/api/resume", post(resume))
         .route("/api/stop", post(stop))
+        .route("/api/teach", post(teach))
         .route("/ws", get(ws))
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(api)
@@ -290,6 +292,57 @@ async fn stop(State(api): State<Api>, headers: HeaderMap) -> Response {
     }
     api.shared.controls.stop();
     axum::Json(json!({ "stopping": true })).into_response()
+}
+
+async fn teach(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    if !api.shared.controls.hold() {
+        return refuse(
+            StatusCode::CONFLICT,
+            "hold the loop first: the coil must stand still where the goal is to be",
+        );
+    }
+    let shared = Arc::clone(&api.shared);
+    // Averaging and the file's rewrite take a while: off the server's thread.
+    let done = tokio::task::spawn_blocking(move || -> Result<serde_json::Value, String> {
+        let setup = &shared.setup;
+        let taught = mocomp_app::teach::teach_live(setup, &shared.teach_window())
+            .map_err(|e| e.to_string())?;
+        shared
+            .controls
+            .set_goal(taught.head_from_coil)
+            .map_err(|e| e.to_string())?;
+        let pose = mocomp_geom::ur_pose_from_iso(&taught.head_from_coil);
+        let mut config = shared.config();
+        config.goal.head_from_coil = mocomp_app::config::Pose::try_from(pose).ok();
+        shared.set_config(config);
+        // Kept across restarts: the configuration file gets the goal, its comments kept.
+        let written = match &setup.path {
+            Some(path) => {
+                mocomp_app::teach::write_goal(path, &taught).map_err(|e| {
+                    format!("the goal is in use, but writing it to the file failed: {e}")
+                })?;
+                Some(path.display().to_string())
+            }
+            None => None,
+        };
+        Ok(json!({
+            "head_from_coil": pose,
+            "distance_mm": taught.distance_m * 1e3,
+            "spread_mm": taught.spread.0 * 1e3,
+            "spread_deg": taught.spread.1.to_degrees(),
+            "samples": taught.samples,
+            "written": written,
+        }))
+    })
+    .await;
+    match done {
+        Ok(Ok(v)) => axum::Json(v).into_response(),
+        Ok(Err(why)) => refuse(StatusCode::CONFLICT, &why),
+        Err(_) => refuse(StatusCode::INTERNAL_SERVER_ERROR, "teaching failed"),
+    }
 }
 
 async fn ws(State(api): State<Api>, headers: HeaderMap, upgrade: WebSocketUpgrade) -> Response {

@@ -21,6 +21,8 @@ pub const STATUS_RATE_HZ: f64 = 25.0;
 pub const HISTORY_S: f64 = 30.0;
 /// Events kept for a page that opens late.
 const EVENTS_KEPT: usize = 500;
+/// Seconds of the loop's head estimates and joints kept for teaching the goal.
+const TEACH_WINDOW_S: f64 = 0.5;
 
 /// A pose for the 3-D view: position (mm) and rotation matrix (rows), in the robot's base frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -220,6 +222,8 @@ pub struct SceneJson {
 
 #[derive(Debug)]
 struct Store {
+    /// The loop's last [`TEACH_WINDOW_S`] of (tracker_from_head, joints), oldest first.
+    teach_window: Vec<(Isometry3<f64>, [f64; 6])>,
     status: StatusJson,
     events: VecDeque<EventJson>,
     /// (t s, deviation mm, head speed mm/s), the last [`HISTORY_S`].
@@ -232,6 +236,8 @@ struct Store {
 pub struct Shared {
     /// The loop's controls.
     pub controls: Arc<Controls>,
+    /// The session's setup (its frames, its file).
+    pub setup: Setup,
     /// The fixed scene.
     pub scene: SceneJson,
     store: Mutex<Store>,
@@ -248,6 +254,7 @@ impl Shared {
         let radii = file.head.radii_m;
         Arc::new(Self {
             controls,
+            setup: setup.clone(),
             scene: SceneJson {
                 robot: setup.model.to_string(),
                 tracker: PoseJson::from_iso(&setup.base_from_tracker),
@@ -257,6 +264,7 @@ impl Shared {
                 coil_thickness_mm: file.coil.thickness_m * 1e3,
             },
             store: Mutex::new(Store {
+                teach_window: Vec::new(),
                 status,
                 events: VecDeque::new(),
                 history: VecDeque::new(),
@@ -290,6 +298,11 @@ impl Shared {
         self.store().config.clone()
     }
 
+    /// The loop's head estimates and joints of its last cycles, oldest first (for teaching).
+    pub fn teach_window(&self) -> Vec<(Isometry3<f64>, [f64; 6])> {
+        self.store().teach_window.clone()
+    }
+
     /// Replaces the running configuration (after the loop was given its change).
     pub fn set_config(&self, config: Config) {
         self.store().config = config;
@@ -300,10 +313,18 @@ impl Shared {
         self.status_tx.subscribe()
     }
 
-    fn publish(&self, status: StatusJson, point: Option<[f64; 3]>) {
+    fn publish(
+        &self,
+        status: StatusJson,
+        point: Option<[f64; 3]>,
+        window: Option<Vec<(Isometry3<f64>, [f64; 6])>>,
+    ) {
         let text: Arc<str> = serde_json::to_string(&status).unwrap_or_default().into();
         {
             let mut s = self.store();
+            if let Some(w) = window {
+                s.teach_window = w;
+            }
             if let Some(p) = point {
                 s.history.push_back(p);
                 while s.history.front().is_some_and(|q| p[0] - q[0] > HISTORY_S) {
@@ -355,6 +376,8 @@ impl Frames {
 pub struct ConsoleObserver {
     shared: Arc<Shared>,
     frames: Frames,
+    /// (t, tracker_from_head, joints) of the last [`TEACH_WINDOW_S`].
+    window: VecDeque<(f64, Isometry3<f64>, [f64; 6])>,
     last: Option<StatusJson>,
     /// Loop time of the last published status, and cycles since.
     published_t: f64,
@@ -367,6 +390,7 @@ impl ConsoleObserver {
         Self {
             shared,
             frames,
+            window: VecDeque::new(),
             last: None,
             published_t: f64::NEG_INFINITY,
             cycles: 0,
@@ -445,6 +469,20 @@ impl Observer for ConsoleObserver {
 
     fn cycle(&mut self, r: &CycleRecord, age_s: f64) {
         self.cycles += 1;
+        match r.head_now {
+            Some(h) if r.q_actual.iter().all(|q| q.is_finite()) => {
+                self.window.push_back((r.t, h, r.q_actual));
+                while self
+                    .window
+                    .front()
+                    .is_some_and(|w| r.t - w.0 > TEACH_WINDOW_S)
+                {
+                    self.window.pop_front();
+                }
+            }
+            // The head or the arm unknown: nothing to teach from.
+            _ => self.window.clear(),
+        }
         let dt = r.t - self.published_t;
         if dt < 1.0 / STATUS_RATE_HZ {
             return;
@@ -458,7 +496,8 @@ impl Observer for ConsoleObserver {
         let status = self.status_of(r, age_s, rate);
         let point = [r.t, status.deviation_mm, status.head_speed_mm_s];
         self.last = Some(status.clone());
-        self.shared.publish(status, Some(point));
+        let window = self.window.iter().map(|(_, h, q)| (*h, *q)).collect();
+        self.shared.publish(status, Some(point), Some(window));
         self.published_t = r.t;
         self.cycles = 0;
     }
@@ -473,6 +512,6 @@ impl Drop for ConsoleObserver {
         last.mode_text = "stopped".into();
         last.reason = None;
         last.rate_hz = 0.0;
-        self.shared.publish(last, None);
+        self.shared.publish(last, None, Some(Vec::new()));
     }
 }

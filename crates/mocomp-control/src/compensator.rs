@@ -119,6 +119,9 @@ pub struct CycleRecord {
     /// The measured flange's distance from the goal for the head as estimated now (the state's
     /// time), m and rad: the deviation a live system can report. NaN without a head estimate.
     pub deviation: (f64, f64),
+    /// The head marker now (`tracker_from_head` estimated for the cycle's time), when known:
+    /// what teaching the goal while the loop runs averages.
+    pub head_now: Option<Isometry3<f64>>,
     /// Compute time of the cycle, ns (filled by the caller that owns a clock for it).
     pub compute_ns: u64,
 }
@@ -145,6 +148,7 @@ impl CycleRecord {
             required_m: f64::NAN,
             coasting: false,
             deviation: (f64::NAN, f64::NAN),
+            head_now: None,
             compute_ns: 0,
         }
     }
@@ -281,6 +285,28 @@ impl Compensator {
     /// Whether the operator holds the loop.
     pub fn operator_hold(&self) -> bool {
         self.operator_hold
+    }
+
+    /// A new goal (`head_from_coil`), from the next cycle: taught while the loop runs. Refused,
+    /// with the goal unchanged, when the goal check refuses it. The coil goes to it by a planned
+    /// path once the loop follows again.
+    pub fn set_goal(&mut self, head_from_coil: &Isometry3<f64>) -> Result<(), GoalError> {
+        let clear = check_goal(
+            &self.cfg.head,
+            &self.cfg.coil,
+            head_from_coil,
+            self.cfg.params.coil_min_distance_m,
+        )?;
+        if self.anchor == self.cfg.head_from_coil_goal {
+            self.anchor = *head_from_coil;
+            self.standoff = 0.0;
+        }
+        self.cfg.head_from_coil_goal = *head_from_coil;
+        self.goal_check = Ok(clear);
+        self.coil_lever = head_from_coil.translation.vector.norm();
+        self.path = None;
+        self.replan = true;
+        Ok(())
     }
 
     /// New loop parameters, from the next cycle (the console's tuning). The goal's check, which
@@ -874,6 +900,7 @@ impl Compensator {
         }
         rec.required_m = required;
         if head_known && let Some(tracker_from_head) = self.predictor.predict(now) {
+            rec.head_now = Some(tracker_from_head);
             let goal_now = self.goal_for(&tracker_from_head);
             let flange = self.arm.fk_flange(&state.actual_q);
             rec.deviation = (

@@ -6,6 +6,7 @@
 use crate::compensator::{Compensator, CycleRecord};
 use crate::config::LoopParams;
 use mocomp_geom::PoseSource;
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_ur::Robot;
 
 /// A controller of the coil robot.
@@ -29,6 +30,10 @@ pub trait Controller {
     /// New loop parameters (validated by the caller), from the next cycle. A controller without
     /// them (the paper's pipeline) ignores them.
     fn set_params(&mut self, _params: &LoopParams) {}
+
+    /// A new goal (`head_from_coil`, checked by the caller), from the next cycle. A controller
+    /// without one (the paper's pipeline, which has its own) ignores it.
+    fn set_goal(&mut self, _head_from_coil: &Isometry3<f64>) {}
 }
 
 impl Controller for Compensator {
@@ -51,5 +56,10 @@ impl Controller for Compensator {
 
     fn set_params(&mut self, params: &LoopParams) {
         Compensator::set_params(self, *params);
+    }
+
+    fn set_goal(&mut self, head_from_coil: &Isometry3<f64>) {
+        // Checked by the caller with the same check: a refusal here keeps the goal as it was.
+        Compensator::set_goal(self, head_from_coil).ok();
     }
 }

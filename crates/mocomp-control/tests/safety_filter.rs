@@ -385,3 +385,27 @@ fn a_hold_decelerates_the_arm_to_standstill_on_its_last_command() {
         largest_step(&r, held + 0.3, 2.5)
     );
 }
+
+#[test]
+fn a_goal_set_while_running_is_checked_first_and_a_refused_one_changes_nothing() {
+    let arm = Arm::new(Model::Ur3e);
+    let cfg = LoopConfig::new(
+        base_from_tracker(),
+        flange_from_coil(),
+        head_from_coil_goal(),
+        PERIOD,
+    );
+    let mut comp = Compensator::new(cfg, arm, PERIOD);
+    let inside = Isometry3::from_parts(
+        mocomp_geom::nalgebra::Translation3::new(0.0, 0.0, 0.05),
+        head_from_coil_goal().rotation,
+    );
+    assert!(matches!(
+        comp.set_goal(&inside),
+        Err(mocomp_control::GoalError::InsideHead { .. })
+    ));
+    assert_eq!(comp.config().head_from_coil_goal, head_from_coil_goal());
+    let higher = head_from_coil_goal() * Isometry3::translation(0.0, 0.0, -0.01);
+    comp.set_goal(&higher).unwrap();
+    assert_eq!(comp.config().head_from_coil_goal, higher);
+}
