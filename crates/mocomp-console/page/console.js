@@ -58,7 +58,7 @@ function showStatus(s) {
     const lat = Date.now() - s.cycle_unix_ms;
     state.latencies.push(lat);
     if (state.latencies.length > 2000) state.latencies.shift();
-    $("latency").textContent = fmt(lat, 0);
+    $("latency").textContent = fmt(Math.max(0, lat), 0);
   }
   if (s.running && s.mode !== "starting") {
     state.history.push([s.t, s.deviation_mm, s.head_speed_mm_s]);
@@ -363,7 +363,7 @@ async function applyForm(which) {
     $(f.input + name).classList.add("invalid");
   }
   result.className = "error";
-  result.textContent = key ? key + ": " + msg : msg;
+  result.textContent = key && !msg.startsWith(key) ? key + ": " + msg : msg;
 }
 
 async function loadConfig() {
