@@ -4,6 +4,7 @@
 
 use crate::calibration::{self, Measurement, MoveState, Station, move_state};
 use crate::config::{CollectSection, Setup, TrackerSource};
+use crate::live::Controls;
 use crate::world::World;
 use crate::{AppError, Context};
 use mocomp_calib::plan::{PlanOptions, TrackerView, plan};
@@ -20,6 +21,11 @@ use std::time::{Duration, Instant};
 /// What the collection is doing, for a progress display.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Progress {
+    /// The poses are planned; the collection waits for the operator's go (a console's start).
+    Waiting {
+        /// How many poses.
+        poses: usize,
+    },
     /// The poses are planned around `center` (base_from_flange); the arm is about to move.
     Planned {
         /// How many.
@@ -65,10 +71,17 @@ struct Live<'a> {
     world: &'a mut World,
     source: &'a mut dyn PoseSource,
     c: &'a CollectSection,
+    /// A front end's stop, checked while the station waits.
+    controls: Option<&'a Controls>,
 }
 
 impl Live<'_> {
+    /// Feeds the program's watchdog while the station waits, and ends the collection when a
+    /// front end asked to stop (the caller then stops the robot).
     fn feed(&mut self) -> Result<(), AppError> {
+        if self.controls.is_some_and(Controls::stop_requested) {
+            refuse!("stopped by the operator");
+        }
         self.world
             .robot
             .keep_alive()
@@ -154,12 +167,15 @@ impl Station for Live<'_> {
 
 /// Runs the collection on `setup`'s world, solves, and saves the calibration to `out` (default:
 /// `calibrate.out` beside the configuration) with the pairs beside it. `notice` is told what
-/// starts; `progress`, how the collection goes.
+/// starts; `progress`, how the collection goes. With `controls` (a console), the arm moves only
+/// after the operator's go ([`Controls::request_start`]), and the operator's stop ends the
+/// collection and stops the robot.
 pub fn collect(
     setup: &Setup,
     out: Option<&Path>,
     notice: &mut dyn Write,
     progress: &mut dyn FnMut(Progress),
+    controls: Option<&Controls>,
 ) -> Result<Collected, AppError> {
     let c = setup.file.calibrate.clone();
     let arm = setup.arm;
@@ -197,6 +213,19 @@ pub fn collect(
         .keep_alive_while(|| plan(&arm, &o))
         .what(|| "keeping the robot's program running while planning")?
         .what(|| "planning the calibration poses")?;
+    if let Some(controls) = controls {
+        progress(Progress::Waiting { poses: poses.len() });
+        while !controls.start_requested() {
+            if controls.stop_requested() {
+                refuse!("stopped by the operator before the arm moved");
+            }
+            world
+                .robot
+                .keep_alive()
+                .what(|| "keeping the robot's program running while waiting for the go")?;
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
     progress(Progress::Planned {
         poses: poses.len(),
         center,
@@ -206,6 +235,7 @@ pub fn collect(
         world: &mut world,
         source: &mut source,
         c: &c,
+        controls,
     };
     let result = calibration::collect(
         &mut station,

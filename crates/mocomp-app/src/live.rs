@@ -134,6 +134,7 @@ const PENDING_PARAMS: usize = 4;
 pub struct Controls {
     stop: AtomicBool,
     hold: AtomicBool,
+    start: AtomicBool,
     params_tx: SyncSender<LoopParams>,
     params_rx: Mutex<Option<Receiver<LoopParams>>>,
     goal_tx: SyncSender<Isometry3<f64>>,
@@ -150,6 +151,7 @@ impl Controls {
         Arc::new(Self {
             stop: AtomicBool::new(false),
             hold: AtomicBool::new(false),
+            start: AtomicBool::new(false),
             params_tx,
             params_rx: Mutex::new(Some(rx)),
             goal_tx,
@@ -171,6 +173,17 @@ impl Controls {
     /// Whether the stop was asked.
     pub fn stop_requested(&self) -> bool {
         self.stop.load(Ordering::Relaxed)
+    }
+
+    /// The operator's go for a procedure that waits for one before the arm moves (the
+    /// calibration collection with a console).
+    pub fn request_start(&self) {
+        self.start.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether the operator gave the go.
+    pub fn start_requested(&self) -> bool {
+        self.start.load(Ordering::Relaxed)
     }
 
     /// The operator's hold (`true`) or resume.

@@ -7,6 +7,7 @@
 mod args;
 mod calibrate;
 mod config;
+mod dashboard;
 mod demo;
 mod fk;
 mod ik;

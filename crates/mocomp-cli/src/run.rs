@@ -1,14 +1,12 @@
 //! `mocomp run --config FILE`: the live session ([`mocomp_app::live`]) until Ctrl-C or
 //! `duration_s`; prints a status line each second, the events, and the summary.
 
-use crate::UsageError;
+use crate::dashboard::DashboardArgs;
 use clap::Args;
 use mocomp_app::live::{Both, Controls, Observer, RunReport, Status, mode_name};
 use mocomp_app::{AppError, config::Setup};
-use mocomp_console::{Console, ConsoleError, ConsoleOptions};
 use mocomp_control::Event;
 use std::io::Write;
-use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -35,18 +33,9 @@ pub struct RunCmd {
     /// Print the summary as one JSON object (figures, holds, protective stops, real time).
     #[arg(long)]
     pub json: bool,
-    /// Serve the operator's console (a web page: status, plots, 3-D view, events, hold, resume,
-    /// stop, tuning) on ADDR [default: 127.0.0.1:8080; port 0: any free port]. Prints one line
-    /// `dashboard: http://ADDR/?token=TOKEN` at start.
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = mocomp_console::DEFAULT_ADDR)]
-    pub dashboard: Option<SocketAddr>,
-    /// Let the console listen on an address other than loopback (it is then reachable from the
-    /// network, and every request needs the token).
-    #[arg(long, requires = "dashboard")]
-    pub dashboard_allow_remote: bool,
-    /// Write the console's token to this file, readable by its owner only (0600).
-    #[arg(long, value_name = "FILE", requires = "dashboard")]
-    pub dashboard_token_file: Option<PathBuf>,
+    /// The operator's console.
+    #[command(flatten)]
+    pub dashboard: DashboardArgs,
 }
 
 /// Status and events on standard error.
@@ -98,25 +87,7 @@ impl RunCmd {
         // With --json, standard output is the summary alone; what starts goes to standard error.
         let mut stderr = std::io::stderr();
         let progress: &mut dyn Write = if self.json { &mut stderr } else { out };
-        let console = match self.dashboard {
-            Some(addr) => {
-                let options = ConsoleOptions {
-                    addr,
-                    allow_remote: self.dashboard_allow_remote,
-                    token_file: self.dashboard_token_file.clone(),
-                };
-                let console = Console::start(&options, &setup, Arc::clone(&controls)).map_err(
-                    |e| match e {
-                        ConsoleError::Remote(_) => UsageError(e.to_string()).into(),
-                        other => anyhow::Error::new(other),
-                    },
-                )?;
-                writeln!(progress, "dashboard: {}", console.url())?;
-                progress.flush()?;
-                Some(console)
-            }
-            None => None,
-        };
+        let console = self.dashboard.start(&setup, &controls, progress)?;
         let lines: Box<dyn Observer> = if self.quiet {
             Box::new(mocomp_app::live::Silent)
         } else {

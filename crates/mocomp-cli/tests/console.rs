@@ -15,6 +15,7 @@ use common::mocomp;
 use mocomp_testkit::{TempDir, workspace_root};
 use serde_json::{Value, json};
 use std::io::{BufRead, BufReader};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -56,11 +57,17 @@ impl Session {
 
     /// Starts the configuration at `path` for `seconds`, the console on a free loopback port.
     pub fn start_file(path: &str, seconds: u32, extra: &[&str]) -> Session {
+        let seconds = seconds.to_string();
+        let mut args = vec!["run", "--config", path, "--quiet", "--seconds", &seconds];
+        args.extend(["--dashboard", "127.0.0.1:0"]);
+        args.extend(extra);
+        Self::spawn(&args)
+    }
+
+    /// Runs `mocomp` with `args` (which ask for a console); its first line names the console.
+    pub fn spawn(args: &[&str]) -> Session {
         let mut child = Command::new(env!("CARGO_BIN_EXE_mocomp"))
-            .args(["run", "--config", path, "--quiet", "--seconds"])
-            .arg(seconds.to_string())
-            .args(["--dashboard", "127.0.0.1:0"])
-            .args(extra)
+            .args(args)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -132,7 +139,12 @@ impl Session {
 
     /// Waits (up to 30 s) until the status satisfies `f`; returns it.
     pub fn wait_status(&self, what: &str, f: impl Fn(&Value) -> bool) -> Value {
-        let deadline = Instant::now() + Duration::from_secs(30);
+        self.wait_status_for(what, 30, f)
+    }
+
+    /// Waits (up to `seconds`) until the status satisfies `f`; returns it.
+    pub fn wait_status_for(&self, what: &str, seconds: u64, f: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(seconds);
         loop {
             let (code, s) = self.get("/api/status");
             assert_eq!(code, 200, "{s}");
@@ -341,7 +353,7 @@ fn browse(s: &Session, shots: &str, mode: &str) -> Value {
         })
         .unwrap_or_else(|_| p.to_string());
         assert!(
-            std::path::Path::new(&p).exists(),
+            Path::new(&p).exists(),
             "{p} missing: apt-get install chromium chromium-driver (scripts/test.sh does)"
         );
     }
@@ -387,7 +399,7 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
     );
     assert_eq!(seen["stopped"], true, "{seen}");
     for shot in ["console-tracking.png", "console-holding.png"] {
-        let len = std::fs::metadata(std::path::Path::new(&shots).join(shot))
+        let len = std::fs::metadata(Path::new(&shots).join(shot))
             .unwrap()
             .len();
         assert!(len > 20_000, "{shot}: {len} bytes");
@@ -414,7 +426,7 @@ fn the_page_shows_the_cameras_frames_and_tunes_its_pipeline_in_a_real_browser() 
         "{seen}"
     );
     for shot in ["console-ir-whole.png", "console-ir-scan-area.png"] {
-        let len = std::fs::metadata(std::path::Path::new(&shots).join(shot))
+        let len = std::fs::metadata(Path::new(&shots).join(shot))
             .unwrap()
             .len();
         assert!(len > 20_000, "{shot}: {len} bytes");
@@ -485,4 +497,81 @@ fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
     s.wait_status("tracking the taught goal", |v| {
         v["mode"] == "tracking" && v["deviation_mm"].as_f64().is_some_and(|d| d < 1.0)
     });
+}
+
+#[test]
+fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_saves() {
+    let dir = TempDir::new("mocomp-console-calibrate");
+    let path = write_example(&dir, "run-sim.toml", "127.0.0.93");
+    // Fewer, quicker poses than the example's.
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("poses = 15", "poses = 6")
+        .replace("settle_s = 0.3", "settle_s = 0.1")
+        .replace("samples_per_pose = 10", "samples_per_pose = 4");
+    std::fs::write(&path, text).unwrap();
+    let out = dir.path("calibration.toml");
+    let s = Session::spawn(&[
+        "calibrate",
+        "collect",
+        "--config",
+        &path,
+        "--out",
+        &out,
+        "--quiet",
+        "--dashboard",
+        "127.0.0.1:0",
+    ]);
+    let waiting = s.wait_status("the collection waiting for the go", |v| {
+        v["calibration"]["state"] == "waiting"
+    });
+    assert_eq!(waiting["calibration"]["planned"], 6, "{waiting}");
+    assert_eq!(waiting["mode"], "waiting");
+    // Nothing moves without the go; the loop's buttons have no loop here.
+    std::thread::sleep(Duration::from_millis(500));
+    let (_, still) = s.get("/api/status");
+    assert_eq!(still["calibration"]["state"], "waiting", "{still}");
+    let (code, _) = s.post_auth("/api/hold", &json!({}));
+    assert_eq!(code, 409);
+    let (code, _) = s.post("/api/calibrate", &[], &json!({}));
+    assert_eq!(code, 401);
+    assert!(!Path::new(&out).exists());
+    // The go: the arm moves through the poses, the page sees each, then the result.
+    let (code, v) = s.post_auth("/api/calibrate", &json!({}));
+    assert_eq!(code, 200, "{v}");
+    let (code, _) = s.post_auth("/api/calibrate", &json!({}));
+    assert_eq!(code, 409, "a second go is refused");
+    // The progress as the page sees it, over the WebSocket, until the run ends and closes it.
+    let (mut ws, _) = tungstenite::connect(format!("{}/ws", s.base.replace("http", "ws"))).unwrap();
+    if let tungstenite::stream::MaybeTlsStream::Plain(tcp) = ws.get_ref() {
+        tcp.set_read_timeout(Some(Duration::from_secs(90))).unwrap();
+    }
+    let mut progress = Vec::new();
+    let mut last_state = String::new();
+    while let Ok(m) = ws.read() {
+        if let tungstenite::Message::Text(text) = m {
+            let v: Value = serde_json::from_str(&text).unwrap();
+            let c = &v["calibration"];
+            let done = c["done"].as_u64().unwrap();
+            if progress.last() != Some(&done) {
+                progress.push(done);
+            }
+            last_state = c["state"].as_str().unwrap().to_string();
+            if last_state == "done" || last_state == "failed" {
+                assert_eq!(last_state, "done", "{v}");
+                assert!(c["message"].as_str().unwrap().contains("saved"), "{v}");
+                break;
+            }
+        }
+    }
+    // Pose by pose (a status may be coalesced with the next: not every count shows).
+    assert!(progress.windows(2).all(|w| w[0] < w[1]), "{progress:?}");
+    assert!(
+        progress.len() >= 3,
+        "{progress:?} (last state {last_state})"
+    );
+    let (ok, printed) = s.finish();
+    assert!(ok, "{printed}");
+    assert!(printed.contains("measured 6 of 6 poses"), "{printed}");
+    assert!(Path::new(&out).exists(), "{printed}");
 }

@@ -65,6 +65,7 @@ function showStatus(s) {
     while (state.history.length && s.t - state.history[0][0] > HISTORY_S) state.history.shift();
   }
   showCamera(s.camera);
+  showCalibration(s.calibration);
   drawPlot();
   drawScene();
 }
@@ -375,6 +376,28 @@ async function loadConfig() {
   buildForm("camera", r.data.config.tracker.camera.params);
 }
 
+// ---- the calibration collection -------------------------------------------------------------
+
+function showCalibration(c) {
+  $("calibration-panel").hidden = !c;
+  if (!c) return;
+  // No loop runs: its buttons have nothing to act on.
+  for (const id of ["hold", "resume", "teach"]) $(id).disabled = true;
+  $("start-calibration").disabled = c.state !== "waiting";
+  $("cal-progress").max = Math.max(1, c.planned);
+  $("cal-progress").value = c.done;
+  let text = c.done + " of " + c.planned + " poses";
+  if (c.missed.length) text += "; marker not seen at " + c.missed.join(", ");
+  if (c.message) text += " · " + c.message;
+  $("cal-text").textContent = text;
+}
+
+function calibrationControls() {
+  $("start-calibration").addEventListener("click", () => $("calibrate-dialog").showModal());
+  $("cancel-calibrate").addEventListener("click", () => $("calibrate-dialog").close());
+  $("confirm-calibrate").addEventListener("click", () => { $("calibrate-dialog").close(); command("/api/calibrate"); });
+}
+
 // ---- the camera -----------------------------------------------------------------------------
 
 const camera = { loading: false, drag: null, bitmap: null };
@@ -442,6 +465,7 @@ async function start() {
   buttons();
   orbit();
   cameraControls();
+  calibrationControls();
   $("apply-params").addEventListener("click", () => applyForm("loop"));
   const sc = await api("GET", "/api/scene");
   if (sc.ok) state.scene = sc.data;

@@ -10,6 +10,7 @@
 //! | `GET /api/config` | reading | the running configuration and the sections that may change live |
 //! | `POST /api/params` | yes | a partial configuration (JSON); 400 `{"key", "error"}` when refused |
 //! | `POST /api/hold`, `/api/resume`, `/api/stop` | yes | the operator's hold, resume, stop |
+//! | `POST /api/calibrate` | yes | a calibration collection waiting for the go: start it (the arm moves); 409 otherwise |
 //! | `POST /api/teach` | yes | while held: the coil's pose on the head becomes the goal (and is written to the configuration file); 409 with why when refused |
 //! | `GET /api/frame.png` | reading | the camera's newest IR frame with the pipeline's overlays (404 without a camera) |
 //! | `GET /ws` | reading | the status, 25 times a second, as JSON text messages |
@@ -71,6 +72,7 @@ pub fn router(api: Api) -> Router {
         .route("/api/resume", post(resume))
         .route("/api/stop", post(stop))
         .route("/api/teach", post(teach))
+        .route("/api/calibrate", post(calibrate))
         .route("/ws", get(ws))
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(api)
@@ -274,6 +276,12 @@ async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {
     if let Err(r) = api.may_change(&headers) {
         return r;
     }
+    if api.shared.status().calibration.is_some() {
+        return refuse(
+            StatusCode::CONFLICT,
+            "a calibration collection runs, not the loop: stop it instead",
+        );
+    }
     api.shared.controls.set_hold(true);
     axum::Json(json!({ "operator_hold": true })).into_response()
 }
@@ -281,6 +289,12 @@ async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {
 async fn resume(State(api): State<Api>, headers: HeaderMap) -> Response {
     if let Err(r) = api.may_change(&headers) {
         return r;
+    }
+    if api.shared.status().calibration.is_some() {
+        return refuse(
+            StatusCode::CONFLICT,
+            "a calibration collection runs, not the loop: stop it instead",
+        );
     }
     api.shared.controls.set_hold(false);
     axum::Json(json!({ "operator_hold": false })).into_response()
@@ -292,6 +306,25 @@ async fn stop(State(api): State<Api>, headers: HeaderMap) -> Response {
     }
     api.shared.controls.stop();
     axum::Json(json!({ "stopping": true })).into_response()
+}
+
+async fn calibrate(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    let waiting = api
+        .shared
+        .status()
+        .calibration
+        .is_some_and(|c| c.state == "waiting");
+    if !waiting || api.shared.controls.start_requested() {
+        return refuse(
+            StatusCode::CONFLICT,
+            "no calibration collection is waiting for the go (mocomp calibrate collect --dashboard)",
+        );
+    }
+    api.shared.controls.request_start();
+    axum::Json(json!({ "started": true })).into_response()
 }
 
 async fn teach(State(api): State<Api>, headers: HeaderMap) -> Response {

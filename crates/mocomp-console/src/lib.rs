@@ -12,9 +12,10 @@ pub mod page;
 pub mod state;
 
 use auth::{Site, Token};
+use mocomp_app::collect::Progress;
 use mocomp_app::config::Setup;
 use mocomp_app::live::Controls;
-use state::{ConsoleObserver, Frames, Shared};
+use state::{CalibrationJson, ConsoleObserver, Frames, Shared};
 use std::io::Write;
 use std::net::{SocketAddr, TcpListener};
 use std::path::{Path, PathBuf};
@@ -165,6 +166,67 @@ impl Console {
     /// The link an operator opens: it carries the token once, and the page keeps it as a cookie.
     pub fn url(&self) -> String {
         format!("http://{}/?token={}", self.addr, self.token.as_str())
+    }
+
+    /// Tells the page how a calibration collection goes (`mocomp calibrate collect
+    /// --dashboard`): give it each [`Progress`], then the outcome.
+    pub fn calibration_progress(&self, p: &Progress) {
+        let mut c = self.calibration();
+        let event = match p {
+            Progress::Waiting { poses } => {
+                c = CalibrationJson {
+                    state: "waiting",
+                    planned: *poses,
+                    done: 0,
+                    missed: Vec::new(),
+                    message: None,
+                };
+                Some(format!("{poses} poses planned; waiting for the go"))
+            }
+            Progress::Planned { poses, .. } => {
+                c.state = "collecting";
+                c.planned = *poses;
+                Some("the arm moves".to_string())
+            }
+            Progress::Pose { index, seen } => {
+                c.done = index + 1;
+                if !seen {
+                    c.missed.push(index + 1);
+                }
+                Some(if *seen {
+                    format!("pose {} measured", index + 1)
+                } else {
+                    format!("pose {}: marker not seen", index + 1)
+                })
+            }
+        };
+        self.shared.publish_calibration(c, event);
+    }
+
+    /// The collection's outcome: `Ok` with a summary, or why it failed.
+    pub fn calibration_finished(&self, outcome: Result<String, String>) {
+        let mut c = self.calibration();
+        let (state, message) = match outcome {
+            Ok(m) => ("done", m),
+            Err(m) => ("failed", m),
+        };
+        c.state = state;
+        c.message = Some(message.clone());
+        self.shared.publish_calibration(c, Some(message));
+    }
+
+    /// The calibration progress published so far.
+    fn calibration(&self) -> CalibrationJson {
+        self.shared
+            .status()
+            .calibration
+            .unwrap_or_else(|| CalibrationJson {
+                state: "waiting",
+                planned: 0,
+                done: 0,
+                missed: Vec::new(),
+                message: None,
+            })
     }
 
     /// The observer the live loop tells (give it to [`mocomp_app::live::run`]).

@@ -88,6 +88,21 @@ impl CameraJson {
     }
 }
 
+/// A calibration collection's progress (`mocomp calibrate collect --dashboard`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationJson {
+    /// waiting (for the operator's go), collecting, done, failed.
+    pub state: &'static str,
+    /// Poses planned.
+    pub planned: usize,
+    /// Poses done.
+    pub done: usize,
+    /// Poses (1-based) where the marker was not seen.
+    pub missed: Vec<usize>,
+    /// The outcome: the solution's residuals and where it was saved, or why it failed.
+    pub message: Option<String>,
+}
+
 /// The status the page shows (`GET /api/status`, and each WebSocket message).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StatusJson {
@@ -130,6 +145,8 @@ pub struct StatusJson {
     pub cycle_unix_ms: f64,
     /// The camera pipeline's newest frame (a session on the simulated camera).
     pub camera: Option<CameraJson>,
+    /// A calibration collection's progress (a `calibrate collect` session).
+    pub calibration: Option<CalibrationJson>,
     /// Where things are.
     pub scene: SceneNow,
 }
@@ -156,6 +173,7 @@ impl StatusJson {
             running: true,
             cycle_unix_ms: f64::NAN,
             camera: None,
+            calibration: None,
             scene: SceneNow {
                 links_mm: Vec::new(),
                 coil: None,
@@ -336,6 +354,41 @@ impl Shared {
         self.status_tx.send_replace(text);
     }
 
+    /// Publishes a calibration collection's progress as the status, with an event when `event`
+    /// says what happened.
+    pub fn publish_calibration(&self, c: CalibrationJson, event: Option<String>) {
+        let mut status = StatusJson::starting();
+        let (mode, reason) = match c.state {
+            "waiting" => (
+                "waiting",
+                format!(
+                    "{} calibration poses planned: press Start (the arm will move)",
+                    c.planned
+                ),
+            ),
+            "collecting" => (
+                "calibrating",
+                format!("pose {} of {}", c.done + 1, c.planned),
+            ),
+            other => (other, c.message.clone().unwrap_or_default()),
+        };
+        status.mode = mode.into();
+        status.mode_text = format!("{mode}: {reason}");
+        status.reason = Some(reason);
+        status.running = matches!(c.state, "waiting" | "collecting");
+        status.calibration = Some(c);
+        if let Some(text) = event {
+            let t = self.status().t;
+            self.push_event(EventJson {
+                t,
+                kind: "calibration",
+                reason: None,
+                text,
+            });
+        }
+        self.publish(status, None, None);
+    }
+
     fn push_event(&self, e: EventJson) {
         let mut s = self.store();
         if s.events.len() == EVENTS_KEPT {
@@ -450,6 +503,7 @@ impl ConsoleObserver {
                 .vision()
                 .and_then(|v| v.preview())
                 .map(|p| CameraJson::of(&p)),
+            calibration: None,
             scene: SceneNow {
                 links_mm,
                 coil,

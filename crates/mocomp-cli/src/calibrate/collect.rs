@@ -1,11 +1,14 @@
 //! `mocomp calibrate collect --config FILE`: the calibration collection on the live robot
 //! ([`mocomp_app::collect`]) with a progress bar; prints the report and where it was saved.
 
+use crate::dashboard::DashboardArgs;
 use clap::Args;
 use mocomp_app::collect::{Collected, Progress};
 use mocomp_app::config::Setup;
+use mocomp_app::live::Controls;
 use std::io::Write;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Collect calibration pairs on the configured robot, solve and save (the arm moves).
 ///
@@ -23,12 +26,22 @@ pub struct CollectCmd {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// The operator's console: the collection waits for its Start (the arm moves only then),
+    /// shows its progress, and its Stop (or Ctrl-C) ends it and stops the robot.
+    #[command(flatten)]
+    pub dashboard: DashboardArgs,
 }
 
 impl CollectCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let setup = Setup::load(&self.config)?;
+        let controls = Controls::new();
+        let console = self.dashboard.start(&setup, &controls, out)?;
+        if console.is_some() {
+            let controls = Arc::clone(&controls);
+            ctrlc::set_handler(move || controls.stop())?;
+        }
         let bar = crate::print::bar(
             0,
             "{prefix} [{bar:30}] {pos}/{len} poses, {elapsed} {msg}",
@@ -39,27 +52,51 @@ impl CollectCmd {
             &setup,
             self.out.as_deref(),
             out,
-            &mut |p| match p {
-                Progress::Planned { poses, center } => {
-                    // Before the arm moves, whether or not the bar shows (standard output is
-                    // `out`, held by this thread: the lock is reentrant and the order kept).
-                    bar.suspend(|| {
+            &mut |p| {
+                if let Some(c) = &console {
+                    c.calibration_progress(&p);
+                }
+                match p {
+                    Progress::Waiting { poses } => {
+                        bar.suspend(|| {
+                        println!("{poses} calibration poses planned: press Start in the console (the arm will move)");
+                    });
+                    }
+                    Progress::Planned { poses, center } => {
+                        // Before the arm moves, whether or not the bar shows (standard output is
+                        // `out`, held by this thread: the lock is reentrant and the order kept).
+                        bar.suspend(|| {
                         println!(
                             "{poses} calibration poses around the flange at [{}]; the arm will move: keep the space clear",
                             crate::print::row(&mocomp_geom::ur_pose_from_iso(&center))
                         );
                     });
-                    bar.set_length(poses as u64);
-                }
-                Progress::Pose { index, seen } => {
-                    if !seen {
-                        bar.set_message(format!("marker not seen at pose {}", index + 1));
+                        bar.set_length(poses as u64);
                     }
-                    bar.inc(1);
+                    Progress::Pose { index, seen } => {
+                        if !seen {
+                            bar.set_message(format!("marker not seen at pose {}", index + 1));
+                        }
+                        bar.inc(1);
+                    }
                 }
             },
+            console.as_ref().map(|_| controls.as_ref()),
         );
         bar.finish_and_clear();
+        if let Some(c) = &console {
+            c.calibration_finished(match &result {
+                Ok(got) => Ok(format!(
+                    "{} of {} poses measured; residuals {:.3} mm, {:.3}° RMS; saved {}",
+                    got.pairs.len(),
+                    got.planned,
+                    got.solved.rms_mm,
+                    got.solved.rms_deg,
+                    got.out.display()
+                )),
+                Err(e) => Err(e.to_string()),
+            });
+        }
         print(out, &result?, &setup)
     }
 }
