@@ -272,8 +272,9 @@ async fn frame_png(State(api): State<Api>, headers: HeaderMap) -> Response {
     }
 }
 
-async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {
-    if let Err(r) = api.may_change(&headers) {
+/// The operator's hold (`true`) or resume: only while a loop runs.
+fn set_hold(api: &Api, headers: &HeaderMap, hold: bool) -> Response {
+    if let Err(r) = api.may_change(headers) {
         return r;
     }
     if api.shared.status().calibration.is_some() {
@@ -282,22 +283,16 @@ async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {
             "a calibration collection runs, not the loop: stop it instead",
         );
     }
-    api.shared.controls.set_hold(true);
-    axum::Json(json!({ "operator_hold": true })).into_response()
+    api.shared.controls.set_hold(hold);
+    axum::Json(json!({ "operator_hold": hold })).into_response()
+}
+
+async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {
+    set_hold(&api, &headers, true)
 }
 
 async fn resume(State(api): State<Api>, headers: HeaderMap) -> Response {
-    if let Err(r) = api.may_change(&headers) {
-        return r;
-    }
-    if api.shared.status().calibration.is_some() {
-        return refuse(
-            StatusCode::CONFLICT,
-            "a calibration collection runs, not the loop: stop it instead",
-        );
-    }
-    api.shared.controls.set_hold(false);
-    axum::Json(json!({ "operator_hold": false })).into_response()
+    set_hold(&api, &headers, false)
 }
 
 async fn stop(State(api): State<Api>, headers: HeaderMap) -> Response {
