@@ -31,6 +31,8 @@ use crate::AppError;
 use crate::baseline::{PaperController, PaperPipeline};
 use crate::calibration::MoveState;
 use crate::config::Config;
+use crate::driver::Requests;
+use crate::live::{Controls, Observer};
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode};
@@ -676,6 +678,33 @@ pub enum Phase {
     Compensating(Controller),
 }
 
+/// A front end watching the experiment as it runs (`mocomp demo --dashboard`): each controller's
+/// run is paced in real time (one second of the stepped clock per second of the wall clock; the
+/// record is the same as unpaced, the lockstep decides it), its cycles are told to an observer,
+/// and the operator's hold and stop reach it.
+pub struct Watch<'a> {
+    /// The operator's requests: hold and resume (the `mocomp` controller's; the paper's pipeline
+    /// has none), and stop (the run ends; the experiment then ends early).
+    pub controls: &'a Controls,
+    /// Makes the observer of one controller's run, given the loop configuration the experiment
+    /// calibrated (its frames place the scene).
+    pub observer: &'a mut dyn FnMut(Controller, &LoopConfig) -> Box<dyn Observer>,
+}
+
+impl std::fmt::Debug for Watch<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Watch").finish_non_exhaustive()
+    }
+}
+
+/// One run's watching: its observer, the wall clock it is paced by, the hold passed on.
+struct Watching<'a> {
+    controls: &'a Controls,
+    observer: Box<dyn Observer>,
+    wall0: Instant,
+    held: bool,
+}
+
 /// Spins until `f` holds or `limit` passes.
 fn spin(
     limit: Duration,
@@ -1181,8 +1210,9 @@ impl Rig {
         cfg: &ExperimentConfig,
         loop_cfg: LoopConfig,
         progress: &mut dyn FnMut(Phase, f64),
+        watch: Option<&mut Watch<'_>>,
     ) -> Result<Run, ExperimentError> {
-        self.compensate_inner(controller, cfg, loop_cfg, progress)
+        self.compensate_inner(controller, cfg, loop_cfg, progress, watch)
             .map_err(|e| match e {
                 ExperimentError::Io { what, source, .. } => ExperimentError::Io {
                     what,
@@ -1199,8 +1229,15 @@ impl Rig {
         cfg: &ExperimentConfig,
         loop_cfg: LoopConfig,
         progress: &mut dyn FnMut(Phase, f64),
+        watch: Option<&mut Watch<'_>>,
     ) -> Result<Run, ExperimentError> {
         self.reset(cfg)?;
+        let watching = watch.map(|w| Watching {
+            controls: w.controls,
+            observer: (w.observer)(controller, &loop_cfg),
+            wall0: Instant::now(),
+            held: false,
+        });
         let t0 = self.clock.now_s();
         let trajectory = cfg.motion.trajectory();
         let rest = self.scene.world_from_head_rest;
@@ -1230,6 +1267,7 @@ impl Rig {
             inputs: 0,
             records: Vec::with_capacity(n),
             progress,
+            watching,
         };
         crate::driver::drive(ctl.as_mut(), &mut pace)?;
         let records = pace.records;
@@ -1263,6 +1301,8 @@ struct Lockstep<'a, 'p> {
     inputs: u64,
     records: Vec<Record>,
     progress: &'p mut dyn FnMut(Phase, f64),
+    /// A front end watching, if any.
+    watching: Option<Watching<'a>>,
 }
 
 impl crate::driver::Pace for Lockstep<'_, '_> {
@@ -1271,6 +1311,17 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
     fn next_cycle(&mut self) -> Result<Option<f64>, ExperimentError> {
         if self.k >= self.n {
             return Ok(None);
+        }
+        if let Some(watching) = &self.watching {
+            if watching.controls.stop_requested() {
+                return Ok(None);
+            }
+            // Paced in real time: the tick is due when as much wall time has passed.
+            let due = watching.wall0
+                + Duration::from_secs_f64((self.world.clock.now_s() - self.t0).max(0.0));
+            if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(wait);
+            }
         }
         let w = &mut *self.world;
         w.track()?;
@@ -1326,6 +1377,12 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             event: rec.event,
             coil_clearance_m: self.coil.distance(&self.head, &head_from_coil),
         });
+        if let Some(watching) = self.watching.as_mut() {
+            watching.observer.cycle(&rec, 0.0);
+            if let Some(e) = &rec.event {
+                watching.observer.event(rec.t, e);
+            }
+        }
         if self.k.is_multiple_of(50) {
             (self.progress)(
                 Phase::Compensating(self.controller),
@@ -1335,6 +1392,19 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
         self.k += 1;
         Ok(())
     }
+
+    fn requests(&mut self) -> Requests {
+        let Some(watching) = self.watching.as_mut() else {
+            return Requests::default();
+        };
+        let hold = watching.controls.hold();
+        let changed = (hold != watching.held).then_some(hold);
+        watching.held = hold;
+        Requests {
+            hold: changed,
+            ..Requests::default()
+        }
+    }
 }
 
 /// Runs the whole experiment: the scene, both calibrations, then each controller in `order`.
@@ -1343,6 +1413,17 @@ pub fn run_experiment(
     cfg: &ExperimentConfig,
     order: &[Controller],
     progress: &mut dyn FnMut(Phase, f64),
+) -> Result<Outcome, ExperimentError> {
+    run_experiment_watched(cfg, order, progress, None)
+}
+
+/// [`run_experiment`], with a front end watching each controller's run in real time (see
+/// [`Watch`]). A stop ends the runs early; the caller decides what to do with the outcome.
+pub fn run_experiment_watched(
+    cfg: &ExperimentConfig,
+    order: &[Controller],
+    progress: &mut dyn FnMut(Phase, f64),
+    mut watch: Option<&mut Watch<'_>>,
 ) -> Result<Outcome, ExperimentError> {
     cfg.validate()?;
     let scene = build_scene(cfg)?;
@@ -1369,7 +1450,7 @@ pub fn run_experiment(
     loop_cfg.coil = cfg.coil;
     let mut runs = Vec::with_capacity(order.len());
     for &c in order {
-        runs.push(world.compensate(c, cfg, loop_cfg.clone(), progress)?);
+        runs.push(world.compensate(c, cfg, loop_cfg.clone(), progress, watch.as_deref_mut())?);
     }
     let head_peak_speed = cfg.motion.trajectory().peak_speeds(cfg.duration_s);
     Ok(Outcome {

@@ -7,17 +7,22 @@
 //! lists), then the command-line options; `--print-config` prints the result as a file instead
 //! of running.
 
+use crate::dashboard::DashboardArgs;
 use anyhow::Context;
 use clap::Args;
 use mocomp_app::AppError;
+use mocomp_app::config::Setup;
 use mocomp_app::config::{Config, unused_by_experiment};
-use mocomp_app::experiment::{Controller, ExperimentConfig, Phase, run_experiment};
+use mocomp_app::experiment::{Controller, ExperimentConfig, Phase, Watch, run_experiment_watched};
+use mocomp_app::live::{Controls, Observer, Silent};
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
+use mocomp_kin::Arm;
 use mocomp_kin::Model;
 use mocomp_sim::HeadMotion;
 use std::io::Write;
 use std::net::IpAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// The paper's two-robot experiment on the simulated world: `paper` and `mocomp` compared.
 ///
@@ -44,6 +49,10 @@ pub struct DemoCmd {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// The operator's console: each controller's run is paced in real time (the record is the
+    /// same), its status shows in the page, and its hold (mocomp's run) and stop reach it.
+    #[command(flatten)]
+    pub dashboard: DashboardArgs,
     /// Compensation time per controller, seconds [30].
     #[arg(long)]
     pub seconds: Option<f64>,
@@ -216,7 +225,29 @@ impl DemoCmd {
             "{prefix:>28} [{bar:30}] {percent:>3}% {elapsed}",
             self.quiet,
         );
-        let outcome = run_experiment(
+        let controls = Controls::new();
+        let setup = Setup::new(config.clone(), None, PathBuf::new())?;
+        let console = self.dashboard.start(&setup, &controls, out)?;
+        if console.is_some() {
+            let controls = Arc::clone(&controls);
+            ctrlc::set_handler(move || controls.stop())?;
+        }
+        if let Some(c) = &console {
+            c.phase("placing the robots");
+        }
+        let arm = Arm::new(exp.coil_robot);
+        let mut observer = |c: Controller, loop_cfg: &mocomp_control::LoopConfig| {
+            let o: Box<dyn Observer> = match &console {
+                Some(console) => Box::new(console.experiment_observer(c.name(), arm, loop_cfg)),
+                None => Box::new(Silent),
+            };
+            o
+        };
+        let mut watch = Watch {
+            controls: &controls,
+            observer: &mut observer,
+        };
+        let outcome = run_experiment_watched(
             &exp,
             &[Controller::Paper, Controller::Mocomp],
             &mut |phase, f| {
@@ -226,11 +257,23 @@ impl DemoCmd {
                     Phase::CalibratingHeadRobot => "calibrating the head robot".to_string(),
                     Phase::Compensating(c) => format!("compensating: {}", c.name()),
                 };
+                if let Some(c) = &console
+                    && !matches!(phase, Phase::Compensating(_))
+                {
+                    c.phase(&name);
+                }
                 bar.set_prefix(name);
                 bar.set_position((f * 1000.0) as u64);
             },
+            console.is_some().then_some(&mut watch),
         )?;
         bar.finish_and_clear();
+        if controls.stop_requested() {
+            return Err(AppError::Refused(
+                "stopped by the operator before the experiment ended: no record written".into(),
+            )
+            .into());
+        }
         // The configuration it ran with goes beside the record: `--config` with it repeats the run.
         let w = mocomp_report::demo::write(&outcome, &exp, &file, &self.out)?;
         if self.json {

@@ -575,3 +575,55 @@ fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_sav
     assert!(printed.contains("measured 6 of 6 poses"), "{printed}");
     assert!(Path::new(&out).exists(), "{printed}");
 }
+
+#[test]
+fn the_demo_with_a_console_runs_in_real_time_shows_each_controller_and_records_the_same() {
+    let dir = TempDir::new("mocomp-console-demo");
+    let (paced, plain) = (dir.path("paced"), dir.path("plain"));
+    let hosts = ["--coil-host", "127.0.0.91", "--head-host", "127.0.0.92"];
+    let mut args = vec!["demo", "--seconds", "3", "--quiet", "--out", &paced];
+    args.extend(hosts);
+    args.extend(["--dashboard", "127.0.0.1:0"]);
+    let s = Session::spawn(&args);
+    // Each controller's run shows, with the experiment's own scene.
+    s.wait_status_for("the paper's run", 90, |v| v["controller"] == "paper");
+    let first = s.wait_status_for("mocomp's run", 30, |v| {
+        v["controller"] == "mocomp" && v["t"].as_f64().is_some()
+    });
+    assert!(first["scene_version"].as_u64().unwrap() >= 2, "{first}");
+    assert!(
+        !first["scene"]["links_mm"].as_array().unwrap().is_empty(),
+        "{first}"
+    );
+    // Paced in real time: the experiment's clock advances no faster than the wall clock.
+    let wall = Instant::now();
+    let t0 = first["t"].as_f64().unwrap();
+    let later = s.wait_status_for("a second of mocomp's run", 30, |v| {
+        wall.elapsed() >= Duration::from_secs(1) || v["controller"] != "mocomp"
+    });
+    let elapsed = wall.elapsed().as_secs_f64();
+    if later["controller"] == "mocomp" {
+        let dt = later["t"].as_f64().unwrap() - t0;
+        assert!(
+            dt > 0.2 && dt < elapsed + 0.1,
+            "{dt} s of the experiment in {elapsed} s"
+        );
+    }
+    let (ok, printed) = s.finish();
+    assert!(ok, "{printed}");
+    // The same options without the console: the same record, byte for byte.
+    let mut args = vec!["demo", "--seconds", "3", "--quiet", "--out", &plain];
+    args.extend(hosts);
+    let out = mocomp(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let a = std::fs::read(Path::new(&paced).join("demo.csv")).unwrap();
+    let b = std::fs::read(Path::new(&plain).join("demo.csv")).unwrap();
+    assert!(
+        a == b,
+        "the paced run's record differs from the unpaced one"
+    );
+}

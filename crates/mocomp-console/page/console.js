@@ -33,8 +33,19 @@ async function api(method, path, body) {
 
 // ---- status ---------------------------------------------------------------------------------
 
+async function refreshScene() {
+  const sc = await api("GET", "/api/scene");
+  if (sc.ok) { state.scene = sc.data; drawScene(); }
+}
+
 function showStatus(s) {
   state.status = s;
+  // An experiment's run places its own scene: fetch it again when it changes.
+  if (state.scene && s.scene_version !== state.scene.version && !state.sceneLoading) {
+    state.sceneLoading = true;
+    refreshScene().finally(() => { state.sceneLoading = false; });
+  }
+  $("controller").textContent = s.controller ? "controller: " + s.controller : "";
   const badge = $("mode-badge");
   badge.className = "badge " + s.mode;
   $("mode").textContent = s.mode;

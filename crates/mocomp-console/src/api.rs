@@ -176,7 +176,7 @@ async fn history(State(api): State<Api>, headers: HeaderMap) -> Response {
 
 async fn scene(State(api): State<Api>, headers: HeaderMap) -> Response {
     match api.may_read(&headers) {
-        Ok(()) => axum::Json(api.shared.scene.clone()).into_response(),
+        Ok(()) => axum::Json(api.shared.scene()).into_response(),
         Err(r) => r,
     }
 }

@@ -229,6 +229,24 @@ impl Console {
             })
     }
 
+    /// The observer of one controller's run in the experiment (`mocomp demo --dashboard`): the
+    /// scene becomes the experiment's (the coil robot `arm`, the frames it calibrated).
+    pub fn experiment_observer(
+        &self,
+        controller: &'static str,
+        arm: mocomp_kin::Arm,
+        loop_cfg: &mocomp_control::LoopConfig,
+    ) -> ConsoleObserver {
+        self.shared.set_scene(arm.model().to_string(), loop_cfg);
+        ConsoleObserver::new(Arc::clone(&self.shared), Frames::of_loop(arm, loop_cfg))
+            .of_controller(controller)
+    }
+
+    /// Shows a phase that is not a loop's (starting, calibrating) as the status.
+    pub fn phase(&self, what: &str) {
+        self.shared.publish_phase(what);
+    }
+
     /// The observer the live loop tells (give it to [`mocomp_app::live::run`]).
     pub fn observer(&self) -> ConsoleObserver {
         ConsoleObserver::new(Arc::clone(&self.shared), self.frames)

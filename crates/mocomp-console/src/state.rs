@@ -6,7 +6,7 @@
 
 use mocomp_app::config::{Config, Setup};
 use mocomp_app::live::{Controls, Observer, Status, mode_name};
-use mocomp_control::{CycleRecord, Event, Mode, Reason};
+use mocomp_control::{CycleRecord, Event, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
 use serde::Serialize;
@@ -147,6 +147,10 @@ pub struct StatusJson {
     pub camera: Option<CameraJson>,
     /// A calibration collection's progress (a `calibrate collect` session).
     pub calibration: Option<CalibrationJson>,
+    /// The controller running (in the experiment: `paper` or `mocomp`).
+    pub controller: Option<&'static str>,
+    /// The scene's version ([`SceneJson::version`]).
+    pub scene_version: u64,
     /// Where things are.
     pub scene: SceneNow,
 }
@@ -174,6 +178,8 @@ impl StatusJson {
             cycle_unix_ms: f64::NAN,
             camera: None,
             calibration: None,
+            controller: None,
+            scene_version: 0,
             scene: SceneNow {
                 links_mm: Vec::new(),
                 coil: None,
@@ -224,6 +230,9 @@ pub fn reason_text(r: &Reason) -> String {
 /// The scene's fixed parts (`GET /api/scene`), in the base frame, mm.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SceneJson {
+    /// Changes when the scene is replaced (the status carries it: a page fetches the scene
+    /// again).
+    pub version: u64,
     /// The robot model.
     pub robot: String,
     /// The tracker, base_from_tracker.
@@ -256,8 +265,8 @@ pub struct Shared {
     pub controls: Arc<Controls>,
     /// The session's setup (its frames, its file).
     pub setup: Setup,
-    /// The fixed scene.
-    pub scene: SceneJson,
+    /// The fixed scene (replaced when an experiment's run places its own).
+    scene: Mutex<SceneJson>,
     store: Mutex<Store>,
     status_tx: watch::Sender<Arc<str>>,
 }
@@ -273,14 +282,15 @@ impl Shared {
         Arc::new(Self {
             controls,
             setup: setup.clone(),
-            scene: SceneJson {
+            scene: Mutex::new(SceneJson {
+                version: 0,
                 robot: setup.model.to_string(),
                 tracker: PoseJson::from_iso(&setup.base_from_tracker),
                 head_from_ellipsoid: PoseJson::from_iso(&file.head.head_from_ellipsoid.iso()),
                 head_radii_mm: radii.map(|r| r * 1e3),
                 coil_radius_mm: file.coil.radius_m * 1e3,
                 coil_thickness_mm: file.coil.thickness_m * 1e3,
-            },
+            }),
             store: Mutex::new(Store {
                 teach_window: Vec::new(),
                 status,
@@ -290,6 +300,40 @@ impl Shared {
             }),
             status_tx,
         })
+    }
+
+    /// The fixed scene.
+    pub fn scene(&self) -> SceneJson {
+        self.scene
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Places the scene of an experiment's run: the coil robot, the calibrated tracker, the
+    /// models; its version moves on, so a page fetches it again.
+    pub fn set_scene(&self, robot: String, loop_cfg: &LoopConfig) {
+        let mut s = self.scene.lock().unwrap_or_else(PoisonError::into_inner);
+        let r = loop_cfg.head.radii;
+        *s = SceneJson {
+            version: s.version + 1,
+            robot,
+            tracker: PoseJson::from_iso(&loop_cfg.base_from_tracker),
+            head_from_ellipsoid: PoseJson::from_iso(&loop_cfg.head.head_from_ellipsoid),
+            head_radii_mm: [r.x * 1e3, r.y * 1e3, r.z * 1e3],
+            coil_radius_mm: loop_cfg.coil.radius * 1e3,
+            coil_thickness_mm: loop_cfg.coil.thickness * 1e3,
+        };
+    }
+
+    /// Publishes a phase that is not a loop's (starting the simulators, calibrating): the mode
+    /// `starting` with `what` as its reason.
+    pub fn publish_phase(&self, what: &str) {
+        let mut status = StatusJson::starting();
+        status.reason = Some(what.to_string());
+        status.mode_text = format!("starting: {what}");
+        status.scene_version = self.scene().version;
+        self.publish(status, None, None);
     }
 
     fn store(&self) -> MutexGuard<'_, Store> {
@@ -407,6 +451,15 @@ pub struct Frames {
 }
 
 impl Frames {
+    /// The frames of a loop configuration on `arm` (an experiment's run).
+    pub fn of_loop(arm: Arm, loop_cfg: &LoopConfig) -> Self {
+        Self {
+            arm,
+            flange_from_coil: loop_cfg.flange_from_coil,
+            coil_from_head: loop_cfg.head_from_coil_goal.inverse(),
+        }
+    }
+
     /// The session's frames; a missing coil mounting is named.
     pub fn of(setup: &Setup) -> Result<Self, mocomp_app::AppError> {
         let flange_from_coil = setup.file.flange_from_coil()?;
@@ -429,6 +482,8 @@ impl Frames {
 pub struct ConsoleObserver {
     shared: Arc<Shared>,
     frames: Frames,
+    /// The controller it watches, when it says (the experiment's).
+    controller: Option<&'static str>,
     /// (t, tracker_from_head, joints) of the last [`TEACH_WINDOW_S`].
     window: VecDeque<(f64, Isometry3<f64>, [f64; 6])>,
     last: Option<StatusJson>,
@@ -443,11 +498,18 @@ impl ConsoleObserver {
         Self {
             shared,
             frames,
+            controller: None,
             window: VecDeque::new(),
             last: None,
             published_t: f64::NEG_INFINITY,
             cycles: 0,
         }
+    }
+
+    /// The same, naming the controller it watches.
+    pub fn of_controller(mut self, name: &'static str) -> Self {
+        self.controller = Some(name);
+        self
     }
 
     fn status_of(&self, r: &CycleRecord, age_s: f64, rate_hz: f64) -> StatusJson {
@@ -504,6 +566,8 @@ impl ConsoleObserver {
                 .and_then(|v| v.preview())
                 .map(|p| CameraJson::of(&p)),
             calibration: None,
+            controller: self.controller,
+            scene_version: self.shared.scene().version,
             scene: SceneNow {
                 links_mm,
                 coil,
