@@ -1,7 +1,7 @@
 """Drives mocomp's operator console in a real headless Chromium (Debian's `chromium` and
 `chromium-driver`) through Selenium, and prints one JSON object with what it saw.
 
-usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR [loop|camera]
+usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR [loop|camera|calibrate]
 
 The console must serve a running `mocomp run` on the simulated world. With `loop` (the default)
 the script checks, in the
@@ -12,7 +12,9 @@ it; the stop, after its confirmation, ends the run. It writes screenshots (track
 reports the loop-to-page latency the page measured. With `camera` (a session on the simulated
 depth camera) it checks the IR frame with the pipeline's overlays shows, a scan area drawn with
 the mouse and a new threshold take effect in the pipeline, a bad depth range shows its error
-beside the field, and writes the IR screenshots (whole image, and the scan area drawn). Any failure is an exception (exit 1).
+beside the field, and writes the IR screenshots (whole image, and the scan area drawn). With
+`calibrate` (a `calibrate collect --dashboard`) it starts the collection from the page's button
+after its confirmation and waits for the outcome. Any failure is an exception (exit 1).
 Browser and driver paths: $MOCOMP_CHROMIUM (default /usr/bin/chromium) and
 $MOCOMP_CHROMEDRIVER (default /usr/bin/chromedriver); nothing is downloaded.
 """
@@ -228,7 +230,34 @@ def camera_session(url, shots):
     return seen
 
 
+def calibrate_session(url, shots):
+    d = browser()
+    seen = {}
+    try:
+        d.get(url)
+        panel = lambda: d.find_element(By.ID, "calibration-panel")  # noqa: E731
+        wait("the calibration panel", lambda: panel().is_displayed(), 90)
+        start = lambda: d.find_element(By.ID, "start-calibration")  # noqa: E731
+        wait("the start button", lambda: start().get_attribute("disabled") is None, 90)
+        # No loop runs: its buttons are off.
+        assert d.find_element(By.ID, "hold").get_attribute("disabled") is not None
+        seen["waiting"] = text(d, "reason")
+        start().click()
+        wait("the confirmation", lambda: d.find_element(By.ID, "calibrate-dialog").is_displayed())
+        d.find_element(By.ID, "confirm-calibrate").click()
+        wait("the first pose", lambda: int(d.find_element(By.ID, "cal-progress").get_attribute("value")) >= 1, 60)
+        seen["collecting"] = text(d, "mode")
+        wait("the outcome", lambda: "saved" in text(d, "cal-text"), 120)
+        seen["outcome"] = text(d, "cal-text")
+        seen["mode"] = text(d, "mode")
+        d.execute_script("window.scrollTo(0, 0)")
+        d.save_screenshot(os.path.join(shots, "console-calibration.png"))
+    finally:
+        d.quit()
+    return seen
+
+
 if __name__ == "__main__":
     which = sys.argv[3] if len(sys.argv) > 3 else "loop"
-    run = camera_session if which == "camera" else loop_session
+    run = {"camera": camera_session, "calibrate": calibrate_session}.get(which, loop_session)
     print(json.dumps(run(sys.argv[1], sys.argv[2])))

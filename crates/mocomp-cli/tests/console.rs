@@ -627,3 +627,45 @@ fn the_demo_with_a_console_runs_in_real_time_shows_each_controller_and_records_t
         "the paced run's record differs from the unpaced one"
     );
 }
+
+#[test]
+fn the_calibration_collection_is_started_and_followed_in_a_real_browser() {
+    let dir = TempDir::new("mocomp-console-calibrate-browser");
+    let path = write_example(&dir, "run-sim.toml", "127.0.0.90");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("poses = 15", "poses = 6")
+        .replace("settle_s = 0.3", "settle_s = 0.1")
+        .replace("samples_per_pose = 10", "samples_per_pose = 4");
+    std::fs::write(&path, text).unwrap();
+    let out = dir.path("calibration.toml");
+    let s = Session::spawn(&[
+        "calibrate",
+        "collect",
+        "--config",
+        &path,
+        "--out",
+        &out,
+        "--quiet",
+        "--dashboard",
+        "127.0.0.1:0",
+    ]);
+    let shots = dir.path("shots");
+    let seen = browse(&s, &shots, "calibrate");
+    assert!(
+        seen["waiting"]
+            .as_str()
+            .is_some_and(|w| w.contains("press Start")),
+        "{seen}"
+    );
+    assert_eq!(seen["mode"], "done", "{seen}");
+    assert!(
+        seen["outcome"]
+            .as_str()
+            .is_some_and(|o| o.starts_with("6 of 6 poses")),
+        "{seen}"
+    );
+    let (ok, printed) = s.finish();
+    assert!(ok, "{printed}");
+    assert!(Path::new(&out).exists());
+}

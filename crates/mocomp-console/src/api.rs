@@ -386,11 +386,17 @@ async fn ws(State(api): State<Api>, headers: HeaderMap, upgrade: WebSocketUpgrad
 /// Sends each status as it is published, until the client leaves or the loop has ended.
 async fn stream_status(mut socket: WebSocket, api: Api) {
     let mut rx = api.shared.subscribe();
+    let sent = api.shared.register_stream();
     loop {
-        let text = rx.borrow_and_update().clone();
-        if socket.send(Message::text(text.as_ref())).await.is_err() {
+        let published = rx.borrow_and_update().clone();
+        if socket
+            .send(Message::text(published.text.as_ref()))
+            .await
+            .is_err()
+        {
             return;
         }
+        sent.store(published.version, std::sync::atomic::Ordering::Release);
         tokio::select! {
             changed = rx.changed() => if changed.is_err() { return },
             incoming = socket.recv() => match incoming {

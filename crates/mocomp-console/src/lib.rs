@@ -253,8 +253,13 @@ impl Console {
     }
 }
 
+/// How long a console that closes waits for its pages to get the last status.
+const LINGER: std::time::Duration = std::time::Duration::from_secs(1);
+
 impl Drop for Console {
     fn drop(&mut self) {
+        // The last status (stopped, calibrated, failed) reaches the open pages first.
+        self.shared.linger(LINGER);
         if let Some(s) = self.shutdown.take() {
             s.send(()).ok();
         }

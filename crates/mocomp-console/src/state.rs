@@ -11,6 +11,7 @@ use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
 use serde::Serialize;
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::sync::watch;
@@ -268,7 +269,19 @@ pub struct Shared {
     /// The fixed scene (replaced when an experiment's run places its own).
     scene: Mutex<SceneJson>,
     store: Mutex<Store>,
-    status_tx: watch::Sender<Arc<str>>,
+    status_tx: watch::Sender<Published>,
+    /// Each open stream's newest status sent (a version of [`Published`]); a stream gone is
+    /// dropped here the next time it is looked at.
+    streams: Mutex<Vec<std::sync::Weak<AtomicU64>>>,
+}
+
+/// A status as JSON text, with its version (counting every publish).
+#[derive(Debug, Clone)]
+pub struct Published {
+    /// Counts the publishes.
+    pub version: u64,
+    /// The status.
+    pub text: Arc<str>,
 }
 
 impl Shared {
@@ -277,7 +290,7 @@ impl Shared {
         let file = &setup.file;
         let status = StatusJson::starting();
         let text: Arc<str> = serde_json::to_string(&status).unwrap_or_default().into();
-        let (status_tx, _) = watch::channel(text);
+        let (status_tx, _) = watch::channel(Published { version: 0, text });
         let radii = file.head.radii_m;
         Arc::new(Self {
             controls,
@@ -299,6 +312,7 @@ impl Shared {
                 config: file.clone(),
             }),
             status_tx,
+            streams: Mutex::new(Vec::new()),
         })
     }
 
@@ -371,8 +385,39 @@ impl Shared {
     }
 
     /// A receiver of each status as JSON text.
-    pub fn subscribe(&self) -> watch::Receiver<Arc<str>> {
+    pub fn subscribe(&self) -> watch::Receiver<Published> {
         self.status_tx.subscribe()
+    }
+
+    /// Registers a stream; it stores the version of each status it has sent.
+    pub fn register_stream(&self) -> Arc<AtomicU64> {
+        let sent = Arc::new(AtomicU64::new(0));
+        self.streams
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .push(Arc::downgrade(&sent));
+        sent
+    }
+
+    /// Waits, up to `max`, until every open stream has sent the newest status (the session's
+    /// last word: stopped, calibrated), so the pages show it before the process ends.
+    pub fn linger(&self, max: std::time::Duration) {
+        let newest = self.status_tx.borrow().version;
+        let until = std::time::Instant::now() + max;
+        loop {
+            let behind = {
+                let mut streams = self.streams.lock().unwrap_or_else(PoisonError::into_inner);
+                streams.retain(|w| w.strong_count() > 0);
+                streams
+                    .iter()
+                    .filter_map(std::sync::Weak::upgrade)
+                    .any(|s| s.load(Ordering::Acquire) < newest)
+            };
+            if !behind || std::time::Instant::now() >= until {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
     }
 
     fn publish(
@@ -395,7 +440,10 @@ impl Shared {
             }
             s.status = status;
         }
-        self.status_tx.send_replace(text);
+        self.status_tx.send_modify(|p| {
+            p.version += 1;
+            p.text = text;
+        });
     }
 
     /// Publishes a calibration collection's progress as the status, with an event when `event`
