@@ -248,6 +248,10 @@ def calibrate_session(url, shots):
         wait("the first pose", lambda: int(d.find_element(By.ID, "cal-progress").get_attribute("value")) >= 1, 60)
         seen["collecting"] = text(d, "mode")
         wait("the outcome", lambda: "saved" in text(d, "cal-text"), 120)
+        rows = d.execute_script(
+            "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
+        assert any("measured" in r for r in rows), rows
+        seen["events_shown"] = len(rows)
         seen["outcome"] = text(d, "cal-text")
         seen["mode"] = text(d, "mode")
         d.execute_script("window.scrollTo(0, 0)")

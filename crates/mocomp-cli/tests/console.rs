@@ -662,7 +662,7 @@ fn the_calibration_collection_is_started_and_followed_in_a_real_browser() {
     assert!(
         seen["outcome"]
             .as_str()
-            .is_some_and(|o| o.starts_with("6 of 6 poses")),
+            .is_some_and(|o| o.starts_with("6 of 6 poses measured")),
         "{seen}"
     );
     let (ok, printed) = s.finish();

@@ -399,7 +399,8 @@ function showCalibration(c) {
   $("cal-progress").value = c.done;
   let text = c.done + " of " + c.planned + " poses";
   if (c.missed.length) text += "; marker not seen at " + c.missed.join(", ");
-  if (c.message) text += " · " + c.message;
+  // The outcome says it all.
+  if (c.message) text = c.message;
   $("cal-text").textContent = text;
 }
 

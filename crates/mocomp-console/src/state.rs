@@ -270,6 +270,8 @@ pub struct Shared {
     scene: Mutex<SceneJson>,
     store: Mutex<Store>,
     status_tx: watch::Sender<Published>,
+    /// When the console started (the calibration's events are timed from it).
+    started: std::time::Instant,
     /// Each open stream's newest status sent (a version of [`Published`]); a stream gone is
     /// dropped here the next time it is looked at.
     streams: Mutex<Vec<std::sync::Weak<AtomicU64>>>,
@@ -312,6 +314,7 @@ impl Shared {
                 config: file.clone(),
             }),
             status_tx,
+            started: std::time::Instant::now(),
             streams: Mutex::new(Vec::new()),
         })
     }
@@ -470,11 +473,11 @@ impl Shared {
         status.running = matches!(c.state, "waiting" | "collecting");
         status.calibration = Some(c);
         if let Some(text) = event {
-            let t = self.status().t;
+            // No loop clock here: seconds since the console started.
             self.push_event(EventJson {
-                t,
+                t: self.started.elapsed().as_secs_f64(),
                 kind: "calibration",
-                reason: None,
+                reason: Some(text.clone()),
                 text,
             });
         }
