@@ -499,11 +499,10 @@ fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
     });
 }
 
-#[test]
-fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_saves() {
-    let dir = TempDir::new("mocomp-console-calibrate");
-    let path = write_example(&dir, "run-sim.toml", "127.0.0.93");
-    // Fewer, quicker poses than the example's.
+/// Starts `calibrate collect --dashboard` on the example with its simulated robot on `host`,
+/// with fewer, quicker poses than the example's (6); the session and where it saves.
+fn start_collection(dir: &TempDir, host: &str) -> (Session, String) {
+    let path = write_example(dir, "run-sim.toml", host);
     let text = std::fs::read_to_string(&path)
         .unwrap()
         .replace("poses = 15", "poses = 6")
@@ -522,6 +521,13 @@ fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_sav
         "--dashboard",
         "127.0.0.1:0",
     ]);
+    (s, out)
+}
+
+#[test]
+fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_saves() {
+    let dir = TempDir::new("mocomp-console-calibrate");
+    let (s, out) = start_collection(&dir, "127.0.0.93");
     let waiting = s.wait_status("the collection waiting for the go", |v| {
         v["calibration"]["state"] == "waiting"
     });
@@ -631,25 +637,7 @@ fn the_demo_with_a_console_runs_in_real_time_shows_each_controller_and_records_t
 #[test]
 fn the_calibration_collection_is_started_and_followed_in_a_real_browser() {
     let dir = TempDir::new("mocomp-console-calibrate-browser");
-    let path = write_example(&dir, "run-sim.toml", "127.0.0.90");
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace("poses = 15", "poses = 6")
-        .replace("settle_s = 0.3", "settle_s = 0.1")
-        .replace("samples_per_pose = 10", "samples_per_pose = 4");
-    std::fs::write(&path, text).unwrap();
-    let out = dir.path("calibration.toml");
-    let s = Session::spawn(&[
-        "calibrate",
-        "collect",
-        "--config",
-        &path,
-        "--out",
-        &out,
-        "--quiet",
-        "--dashboard",
-        "127.0.0.1:0",
-    ]);
+    let (s, out) = start_collection(&dir, "127.0.0.90");
     let shots = dir.path("shots");
     let seen = browse(&s, &shots, "calibrate");
     assert!(
