@@ -46,6 +46,7 @@ def receive(req):
         "actual_q": list(r.getActualQ()),
         "target_q": list(r.getTargetQ()),
         "tcp": list(r.getActualTCPPose()),
+        "tcp_force": list(r.getActualTCPForce()),
         "robot_mode": r.getRobotMode(),
         "safety_mode": r.getSafetyMode(),
         "runtime_state": r.getRuntimeState(),

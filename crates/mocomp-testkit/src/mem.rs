@@ -45,6 +45,7 @@ impl MemRobot {
                 move_done_seq: 0,
                 program_ours: true,
                 connected: true,
+                tcp_force: [0.0; 6],
             },
             period_s,
             seq: 0,

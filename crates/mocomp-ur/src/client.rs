@@ -32,7 +32,7 @@ pub const SCRIPT_PORT: u16 = 30003;
 pub const MAX_JOINT_SPEED: f64 = 3.14;
 
 /// The output variables of the state recipe, in order.
-pub const STATE_NAMES: [&str; 16] = [
+pub const STATE_NAMES: [&str; 17] = [
     "timestamp",
     "actual_q",
     "actual_qd",
@@ -49,6 +49,9 @@ pub const STATE_NAMES: [&str; 16] = [
     OUTPUT_REGISTER_NAMES[2],
     OUTPUT_REGISTER_NAMES[3],
     "input_int_register_25",
+    // The wrench on the tool (CB3: estimated from the joint currents; e-Series: from the tool
+    // flange's force/torque sensor), base frame.
+    "actual_TCP_force",
 ];
 
 /// How to reach and run the robot.
@@ -94,7 +97,7 @@ impl UrConfig {
     }
 }
 
-const WORDS: usize = 37;
+const WORDS: usize = 43;
 
 struct Shared {
     cell: SeqLock<WORDS>,
@@ -150,6 +153,7 @@ fn encode_state(s: &RobotState) -> [f64; WORDS] {
     w[34] = f64::from(s.move_done_seq);
     w[35] = f64::from(u8::from(s.program_ours));
     w[36] = f64::from(u8::from(s.connected));
+    w[37..43].copy_from_slice(&s.tcp_force);
     w
 }
 
@@ -178,6 +182,7 @@ fn decode_state(w: &[f64; WORDS]) -> RobotState {
         move_done_seq: w[34] as i32,
         program_ours: w[35] != 0.0,
         connected: w[36] != 0.0,
+        tcp_force: six(&w[37..43]),
     }
 }
 
@@ -204,6 +209,7 @@ fn state_from_values(v: &[Value], received_s: f64) -> Option<RobotState> {
         program_ours: f(13)? as i32 == PROTOCOL_ID,
         move_done_seq: f(14)? as i32,
         connected: true,
+        tcp_force: v6(16)?,
     })
 }
 

@@ -161,6 +161,32 @@ impl std::fmt::Display for RobotFault {
     }
 }
 
+/// Where a controller's `actual_TCP_force` comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ForceSource {
+    /// CB3: estimated from the joint currents and the arm's model (no sensor; coarse, biased by
+    /// payload and friction errors).
+    JointCurrentEstimate,
+    /// e-Series (and UR20/UR30): the 6-axis force/torque sensor in the tool flange (zeroed with
+    /// `zero_ftsensor()`).
+    FlangeSensor,
+}
+
+impl ForceSource {
+    /// The source of a series' wrench.
+    pub fn of(series: mocomp_kin::Series) -> Self {
+        match series {
+            mocomp_kin::Series::Cb3 => Self::JointCurrentEstimate,
+            mocomp_kin::Series::ESeries => Self::FlangeSensor,
+        }
+    }
+
+    /// Whether it is a measurement (a sensor), not an estimate.
+    pub fn is_sensor(self) -> bool {
+        self == Self::FlangeSensor
+    }
+}
+
 /// The robot's state at one controller cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RobotState {
@@ -198,9 +224,23 @@ pub struct RobotState {
     pub program_ours: bool,
     /// Whether the connection is up.
     pub connected: bool,
+    /// The wrench on the tool, `actual_TCP_force`: force (N) and torque (N·m) in the base
+    /// frame. A CB3 estimates it from the joint currents; an e-Series measures it with the
+    /// force/torque sensor in its tool flange ([`crate::types`]' model table says which).
+    pub tcp_force: [f64; 6],
 }
 
 impl RobotState {
+    /// The wrench on the tool in the TCP's frame (force N, torque N·m): what presses along the
+    /// tool's axis is its z component.
+    pub fn tcp_force_in_tool(&self) -> [f64; 6] {
+        let tcp_from_base = self.base_from_tcp.rotation.inverse();
+        let [fx, fy, fz, tx, ty, tz] = self.tcp_force;
+        let f = tcp_from_base * mocomp_geom::nalgebra::Vector3::new(fx, fy, fz);
+        let t = tcp_from_base * mocomp_geom::nalgebra::Vector3::new(tx, ty, tz);
+        [f.x, f.y, f.z, t.x, t.y, t.z]
+    }
+
     /// What forbids commanding the robot now, if anything (in order of severity).
     pub fn fault(&self) -> Option<RobotFault> {
         if !self.connected {
@@ -313,4 +353,27 @@ pub trait Robot {
     fn stop(&mut self, decel: f64) -> Result<i32, UrError>;
     /// Repeats the last command (keeps the watchdog fed while nothing new is commanded).
     fn keep_alive(&mut self) -> Result<(), UrError>;
+}
+
+#[cfg(test)]
+mod force_tests {
+    use super::*;
+    use mocomp_kin::{MODELS, Series};
+
+    #[test]
+    fn e_series_arms_measure_the_wrench_and_cb3_arms_estimate_it() {
+        for spec in MODELS {
+            let source = ForceSource::of(spec.series);
+            assert_eq!(
+                source.is_sensor(),
+                spec.series == Series::ESeries,
+                "{:?}",
+                spec.model
+            );
+        }
+        assert_eq!(
+            ForceSource::of(Series::Cb3),
+            ForceSource::JointCurrentEstimate
+        );
+    }
 }

@@ -61,7 +61,7 @@ const UR_RTDE_DEFAULT: [&str; 37] = [
 fn codec(c: &mut Criterion) {
     let sim_ctrl = mocomp_ursim::Controller::new(ControllerConfig::new(Model::Ur5e));
     for (name, names) in [
-        ("ours_16", &STATE_NAMES[..]),
+        ("ours", &STATE_NAMES[..]),
         ("ur_rtde_default_37", &UR_RTDE_DEFAULT[..]),
     ] {
         let recipe = Recipe::from_table(1, names, Direction::Output).unwrap();

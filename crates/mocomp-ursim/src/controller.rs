@@ -138,6 +138,9 @@ pub struct Controller {
     events: VecDeque<SimEvent>,
     events_total: u64,
     protective_stops: u64,
+    /// The wrench on the tool the force sensor reads (`actual_TCP_force`: N and N·m, base
+    /// frame), as the world around the controller applies it (a contact; zero in free space).
+    tcp_force: [f64; 6],
 }
 
 impl Controller {
@@ -172,8 +175,20 @@ impl Controller {
             events: VecDeque::new(),
             events_total: 0,
             protective_stops: 0,
+            tcp_force: [0.0; 6],
             config,
         }
+    }
+
+    /// Sets the wrench on the tool (N, N·m; base frame, as `actual_TCP_force` reports it): what
+    /// the world around the controller applies (a contact model), from the next state sent.
+    pub fn set_tcp_force(&mut self, wrench: [f64; 6]) {
+        self.tcp_force = wrench;
+    }
+
+    /// The wrench on the tool (`actual_TCP_force`).
+    pub fn tcp_force(&self) -> [f64; 6] {
+        self.tcp_force
     }
 
     /// The configuration.

@@ -54,6 +54,41 @@ fn state_matches_the_controller_and_the_kinematic_model() {
 }
 
 #[test]
+fn the_wrench_on_the_tool_reaches_the_client_in_the_base_and_the_tool_frame() {
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut robot = connect(&sim);
+    // Free space: no wrench.
+    wait_until("a state", || {
+        robot.keep_alive().unwrap();
+        robot.state().is_some()
+    });
+    assert_eq!(robot.state().unwrap().tcp_force, [0.0; 6]);
+    // A contact pushes the tool up (+z of the base) by 12.5 N, with a torque about x.
+    let w = [0.0, 0.0, 12.5, 0.3, 0.0, 0.0];
+    sim.with(|c| c.set_tcp_force(w));
+    wait_until("the wrench in the state", || {
+        robot.keep_alive().unwrap();
+        robot.state().is_some_and(|s| s.tcp_force == w)
+    });
+    // In the tool's frame: the working pose's tool z points down, so the push is along -z
+    // of the tool, whatever its rotation about z.
+    let s = robot.state().unwrap();
+    let tool = s.tcp_force_in_tool();
+    let expected =
+        s.base_from_tcp.rotation.inverse() * mocomp_geom::nalgebra::Vector3::new(0.0, 0.0, 12.5);
+    for i in 0..3 {
+        assert!(
+            (tool[i] - expected[i]).abs() < 1e-12,
+            "{tool:?} vs {expected:?}"
+        );
+    }
+    let norm = (tool[0].powi(2) + tool[1].powi(2) + tool[2].powi(2)).sqrt();
+    assert!((norm - 12.5).abs() < 1e-12);
+    let torque = (tool[3].powi(2) + tool[4].powi(2) + tool[5].powi(2)).sqrt();
+    assert!((torque - 0.3).abs() < 1e-12);
+}
+
+#[test]
 fn servo_streaming_tracks_a_trajectory_on_a_stepped_clock_deterministically() {
     fn run() -> (f64, Vec<[f64; 6]>) {
         let sim = sim(Model::Ur3e, SimClock::Stepped);

@@ -32,6 +32,9 @@ fn vec6(v: &Value) -> [f64; 6] {
 
 fn check_receive(model: Model, host: &str, rate: f64) {
     let sim = sim_at(model, host);
+    // A wrench on the tool (a contact): ur_rtde's getActualTCPForce reads what our client reads.
+    let wrench = [1.5, -2.25, 18.0, 0.125, -0.5, 0.0625];
+    sim.with(|c| c.set_tcp_force(wrench));
     let mut p = peer();
     let r = p.request(&json!({"op": "receive", "host": host, "seconds": 1.0}));
     let distinct = r["distinct"].as_f64().unwrap();
@@ -63,6 +66,22 @@ fn check_receive(model: Model, host: &str, rate: f64) {
     for i in 0..6 {
         assert!((tcp[i] - fk[i]).abs() < 1e-12, "TCP pose {i}");
     }
+    assert_eq!(
+        vec6(&r["tcp_force"]),
+        wrench,
+        "actual_TCP_force as ur_rtde reads it"
+    );
+    let mut ours = mocomp_ur::UrRobot::connect(
+        sim.ur_config(),
+        std::sync::Arc::new(mocomp_geom::MonotonicClock::new()),
+    )
+    .unwrap();
+    mocomp_testkit::wait_until("our client's state", || {
+        mocomp_ur::Robot::keep_alive(&mut ours).unwrap();
+        mocomp_ur::Robot::state(&ours).is_some()
+    });
+    let s = mocomp_ur::Robot::state(&ours).unwrap();
+    assert_eq!(s.tcp_force, wrench, "the same wrench through our client");
     assert_eq!(r["robot_mode"], 7);
     assert_eq!(r["safety_mode"], 1);
     assert_eq!(r["joint_mode"][0], 253);

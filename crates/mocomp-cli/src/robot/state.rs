@@ -17,6 +17,8 @@ struct StateJson {
     safety_mode: String,
     runtime_state: String,
     fault: Option<String>,
+    /// `actual_TCP_force`: N and N·m, base frame.
+    tcp_force: [f64; 6],
 }
 
 /// Connect, start the control program and print the state.
@@ -57,19 +59,21 @@ fn print(out: &mut dyn Write, host: IpAddr, json: bool) -> Result<()> {
         safety_mode: s.safety_mode.to_string(),
         runtime_state: s.runtime_state.to_string(),
         fault: s.fault().map(|f| f.to_string()),
+        tcp_force: s.tcp_force,
     };
     if json {
         writeln!(out, "{}", serde_json::to_string(&j)?)?;
     } else {
         writeln!(
             out,
-            "controller {} at {host}: {} / {} / {}; q = {:?} rad; TCP = {:?}; fault: {}",
+            "controller {} at {host}: {} / {} / {}; q = {:?} rad; TCP = {:?}; TCP force = {:?} N, N·m (base frame); fault: {}",
             robot.controller_version(),
             j.robot_mode,
             j.safety_mode,
             j.runtime_state,
             j.actual_q,
             j.tcp_pose,
+            j.tcp_force,
             j.fault.as_deref().unwrap_or("none")
         )?;
     }

@@ -65,6 +65,8 @@ pub enum OutputVar {
     TcpPose,
     /// `actual_TCP_speed` / `target_TCP_speed`.
     TcpSpeed,
+    /// `actual_TCP_force`: the wrench on the tool, base frame.
+    TcpForce,
     /// `robot_mode`.
     RobotMode,
     /// `joint_mode`.
@@ -121,6 +123,7 @@ impl OutputVar {
             "target_qdd" => OutputVar::Qdd,
             "actual_TCP_pose" | "target_TCP_pose" => OutputVar::TcpPose,
             "actual_TCP_speed" | "target_TCP_speed" => OutputVar::TcpSpeed,
+            "actual_TCP_force" => OutputVar::TcpForce,
             "robot_mode" => OutputVar::RobotMode,
             "joint_mode" => OutputVar::JointMode,
             "safety_mode" | "safety_status" => OutputVar::SafetyMode,
@@ -246,6 +249,7 @@ impl Controller {
             OutputVar::Qd => Value::Vector6d(self.qd),
             OutputVar::Qdd => Value::Vector6d(self.qdd),
             OutputVar::TcpPose => Value::Vector6d(ur_pose_from_iso(&self.arm.fk(&self.q))),
+            OutputVar::TcpForce => Value::Vector6d(self.tcp_force),
             OutputVar::TcpSpeed => {
                 let s = self.arm.jacobian(&self.q) * Vector6::from_column_slice(&self.qd);
                 Value::Vector6d(std::array::from_fn(|i| s[i]))
