@@ -7,6 +7,7 @@
 //!
 //! The paper's two-robot experiment that runs on it is `mocomp_app::experiment`.
 
+pub mod contact;
 pub mod motion;
 pub mod trace;
 pub mod tracker;

@@ -22,13 +22,15 @@
 //! and any joint reaching its position limit stop the arm at `stop_decel` and stop the program,
 //! with `safety_mode` 3 and `safety_status_bits` bit 2, until the dashboard unlocks it.
 
-use mocomp_geom::{nalgebra::Vector6, ur_pose_from_iso};
+use mocomp_geom::nalgebra::{Isometry3, Vector6};
+use mocomp_geom::ur_pose_from_iso;
 use mocomp_kin::{Arm, Model, ModelSpec};
 use mocomp_ur::codec::ControllerVersion;
 use mocomp_ur::program::{self as mp, cmd as mcmd, mode as mmode};
 use mocomp_ur::robot::{RobotMode, RuntimeState, SafetyMode};
 use mocomp_ur::types::{DataType, REGISTERS, Value, input_type, output_type};
 use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
 
 mod dashboard;
 mod dynamics;
@@ -40,6 +42,31 @@ use programs::{Program, Watchdog};
 pub use programs::{ProgramKind, classify_program};
 pub use variables::{InputSlot, OutputVar};
 use variables::{NREG, Registers};
+
+/// The world around the controller pressing on its tool: the wrench (N, N·m, base frame) at a
+/// controller time (s) for the tool's pose `base_from_tcp`, called once per cycle (a contact
+/// model, which may keep state: a damper, a sensor's noise).
+pub type ToolLoadFn = dyn FnMut(f64, &Isometry3<f64>) -> [f64; 6] + Send;
+
+/// A shared [`ToolLoadFn`].
+#[derive(Clone)]
+pub struct ToolLoad(pub Arc<Mutex<ToolLoadFn>>);
+
+impl std::fmt::Debug for ToolLoad {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ToolLoad(..)")
+    }
+}
+
+impl ToolLoad {
+    /// A load from a function.
+    pub fn new(f: impl FnMut(f64, &Isometry3<f64>) -> [f64; 6] + Send + 'static) -> Self {
+        Self(Arc::new(Mutex::new(f)))
+    }
+}
+
+/// UR's factory TCP force limit (the safety configuration's "Force", normal mode), N.
+pub const DEFAULT_TCP_FORCE_LIMIT_N: f64 = 150.0;
 
 /// Simulator settings.
 #[derive(Debug, Clone)]
@@ -63,6 +90,10 @@ pub struct ControllerConfig {
     pub powered: bool,
     /// Initial joints, rad.
     pub initial_q: [f64; 6],
+    /// What presses on the tool (`None`: free space, or what [`Controller::set_tcp_force`] sets).
+    pub tool_load: Option<ToolLoad>,
+    /// The safety system's TCP force limit: above it the controller protective-stops, N.
+    pub tcp_force_limit_n: f64,
 }
 
 impl ControllerConfig {
@@ -78,6 +109,8 @@ impl ControllerConfig {
             unlock_delay_s: 0.0,
             powered: true,
             initial_q: [0.0, -1.3, 1.6, -1.87, -1.57, 0.0],
+            tool_load: None,
+            tcp_force_limit_n: DEFAULT_TCP_FORCE_LIMIT_N,
         }
     }
 
@@ -336,7 +369,28 @@ impl Controller {
         self.run_program();
         self.integrate();
         self.check_limits();
+        self.load_tool();
         self.finish_program_waits();
+    }
+
+    /// The wrench on the tool from the world's load, and the safety system's force limit on it.
+    fn load_tool(&mut self) {
+        if let Some(load) = &self.config.tool_load {
+            let base_from_tcp = self.arm.fk(&self.q);
+            let mut f = load
+                .0
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            self.tcp_force = f(self.time_s, &base_from_tcp);
+        }
+        let [fx, fy, fz, ..] = self.tcp_force;
+        let force = (fx * fx + fy * fy + fz * fz).sqrt();
+        if force > self.config.tcp_force_limit_n && self.safety_mode == SafetyMode::Normal {
+            self.protective_stop(format!(
+                "TCP force {force:.0} N over the safety limit {:.0} N",
+                self.config.tcp_force_limit_n
+            ));
+        }
     }
 }
 
@@ -584,5 +638,32 @@ mod tests {
         };
         let expect = ur_pose_from_iso(&Arm::new(Model::Ur10).fk(&c.q()));
         assert_eq!(p, expect);
+    }
+
+    #[test]
+    fn the_tools_load_is_read_each_cycle_and_a_force_over_the_limit_protective_stops() {
+        let mut cfg = ControllerConfig::new(Model::Ur5e);
+        // A contact that presses harder every cycle: 1 N per controller millisecond.
+        cfg.tool_load = Some(ToolLoad::new(|t, base_from_tcp| {
+            let up = base_from_tcp.rotation * -mocomp_geom::nalgebra::Vector3::z();
+            let f = up * (t * 1000.0);
+            [f.x, f.y, f.z, 0.0, 0.0, 0.0]
+        }));
+        let mut c = Controller::new(cfg);
+        for _ in 0..25 {
+            c.step();
+        }
+        // 25 cycles of 2 ms: 50 N, served as actual_TCP_force, no stop yet.
+        let f = c.tcp_force();
+        let n = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+        assert!((n - 50.0).abs() < 1e-9, "{f:?}");
+        assert_eq!(c.safety_mode(), SafetyMode::Normal);
+        assert_eq!(c.output(OutputVar::TcpForce), Value::Vector6d(f));
+        // Past 150 N (75 cycles): the safety system stops the arm, once.
+        for _ in 0..60 {
+            c.step();
+        }
+        assert_eq!(c.safety_mode(), SafetyMode::ProtectiveStop);
+        assert_eq!(c.protective_stops(), 1);
     }
 }

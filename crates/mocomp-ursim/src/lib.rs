@@ -19,5 +19,7 @@
 pub mod controller;
 mod server;
 
-pub use controller::{Controller, ControllerConfig, SimEvent};
+pub use controller::{
+    Controller, ControllerConfig, DEFAULT_TCP_FORCE_LIMIT_N, SimEvent, ToolLoad, ToolLoadFn,
+};
 pub use server::{Ports, Sim, SimAddrs, SimClock, SimConfig, SimError, SimStats};
