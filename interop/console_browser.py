@@ -47,6 +47,21 @@ def wait(what, f, timeout=30.0):
     raise AssertionError(f"timed out waiting for {what} (last: {last!r})")
 
 
+def set_field(d, field_id, value, apply_id):
+    """Types `value` into a form field and presses the form's Apply."""
+    field = d.find_element(By.ID, field_id)
+    field.clear()
+    field.send_keys(value)
+    d.find_element(By.ID, apply_id).click()
+
+
+def settle(d, statuses=15):
+    """Waits until the page has shown this many more statuses (for a screenshot that shows
+    the loop running, not a fixed sleep)."""
+    n = d.execute_script("return window.mocomp.latencies.length")
+    wait("more statuses", lambda: d.execute_script("return window.mocomp.latencies.length") >= n + statuses)
+
+
 def text(d, element_id):
     # The DOM's text, not as styled (the mode badge is upper-cased by CSS).
     return d.find_element(By.ID, element_id).get_attribute("textContent").strip()
@@ -89,14 +104,11 @@ def loop_session(url, shots):
         seen["deviation_mm_shown"] = float(dev)
         seen["rate_hz_shown"] = float(text(d, "rate_hz"))
         wait("the plot's history", lambda: d.execute_script("return window.mocomp.history.length") > 25)
-        time.sleep(1.0)
+        settle(d)
         d.execute_script("window.scrollTo(0, 0)")
         d.save_screenshot(os.path.join(shots, "console-tracking.png"))
         # A tuning change takes and shows.
-        field = d.find_element(By.ID, "param-speed_fraction")
-        field.clear()
-        field.send_keys("0.45")
-        d.find_element(By.ID, "apply-params").click()
+        set_field(d, "param-speed_fraction", "0.45", "apply-params")
         wait("the change applied", lambda: "applied: loop.speed_fraction" in text(d, "params-result"))
         wait("the form to show the new value",
              lambda: d.find_element(By.ID, "param-speed_fraction").get_attribute("value") == "0.45")
@@ -106,11 +118,8 @@ def loop_session(url, shots):
         assert abs(cfg - 0.45) < 1e-12, cfg
         seen["speed_fraction_after"] = cfg
         # A bad value shows its error beside the field, and changes nothing.
-        bad = d.find_element(By.ID, "param-max_tcp_speed_m_s")
-        before = bad.get_attribute("value")
-        bad.clear()
-        bad.send_keys("-1")
-        d.find_element(By.ID, "apply-params").click()
+        before = d.find_element(By.ID, "param-max_tcp_speed_m_s").get_attribute("value")
+        set_field(d, "param-max_tcp_speed_m_s", "-1", "apply-params")
         err = wait("the error beside the field", lambda: text(d, "error-max_tcp_speed_m_s"))
         assert "must be" in err, err
         assert "invalid" in d.find_element(By.ID, "param-max_tcp_speed_m_s").get_attribute("class")
@@ -124,7 +133,7 @@ def loop_session(url, shots):
         wait("holding", lambda: text(d, "mode") == "holding" and "Operator" in text(d, "reason"))
         seen["held_reason"] = text(d, "reason")
         assert not d.find_element(By.ID, "resume").get_attribute("disabled")
-        time.sleep(0.5)
+        settle(d)
         d.execute_script("window.scrollTo(0, 0)")
         d.save_screenshot(os.path.join(shots, "console-holding.png"))
         # Teaching the goal while the head nods: refused, and the page says why.
@@ -184,21 +193,20 @@ def camera_session(url, shots):
         wait("an IR frame drawn", lambda: frame_brightness(d) > 10)
         wait("the marker found", lambda: "FRE" in text(d, "camera-meta"))
         seen["camera_meta"] = text(d, "camera-meta")
-        time.sleep(0.6)
+        settle(d)
         d.execute_script("document.getElementById('camera-panel').scrollIntoView()")
         d.save_screenshot(os.path.join(shots, "console-ir-whole.png"))
         # A new threshold takes effect in the pipeline.
-        field = d.find_element(By.ID, "cam-ir_threshold")
-        field.clear()
-        field.send_keys("25000")
-        d.find_element(By.ID, "apply-camera").click()
+        set_field(d, "cam-ir_threshold", "25000", "apply-camera")
         wait("the threshold applied",
              lambda: "applied: tracker.camera.params.ir_threshold" in text(d, "camera-result"))
         assert camera_config(d)["ir_threshold"] == 25000
         # A scan area drawn with the mouse around the middle of the frame.
         canvas = d.find_element(By.ID, "ir-canvas")
         d.execute_script("arguments[0].scrollIntoView({block: 'center'})", canvas)
-        time.sleep(0.2)
+        wait("the frame in view", lambda: d.execute_script(
+            "const r = arguments[0].getBoundingClientRect();"
+            "return r.top >= 0 && r.bottom <= window.innerHeight;", canvas))
         w, h = canvas.size["width"], canvas.size["height"]
         ActionChains(d).move_to_element_with_offset(canvas, int(-0.2 * w), int(-0.2 * h)) \
             .click_and_hold().move_by_offset(int(0.2 * w), int(0.2 * h)) \
@@ -210,10 +218,7 @@ def camera_session(url, shots):
              lambda: d.execute_script("return window.mocomp.status.camera.blobs") == 4)
         wait("the form to show it", lambda: d.find_element(By.ID, "cam-scan_area").get_attribute("value") != "")
         # A bad depth range shows its error beside the field, and changes nothing.
-        bad = d.find_element(By.ID, "cam-depth_min_mm")
-        bad.clear()
-        bad.send_keys("3000")
-        d.find_element(By.ID, "apply-camera").click()
+        set_field(d, "cam-depth_min_mm", "3000", "apply-camera")
         err = wait("the error beside the field", lambda: text(d, "cam-error-depth_min_mm"))
         assert "depth_max_mm" in err, err
         assert camera_config(d)["depth_min_mm"] == 400
@@ -221,7 +226,7 @@ def camera_session(url, shots):
         # Tracking on, with the new scan area.
         wait("found in the scan area", lambda: "FRE" in text(d, "camera-meta"))
         assert text(d, "mode") in ("tracking", "approaching"), text(d, "mode")
-        time.sleep(0.6)
+        settle(d)
         d.execute_script("document.getElementById('camera-panel').scrollIntoView()")
         d.save_screenshot(os.path.join(shots, "console-ir-scan-area.png"))
         seen["mode"] = text(d, "mode")

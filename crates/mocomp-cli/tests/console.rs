@@ -227,8 +227,12 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     assert_eq!(code, 403);
     let (code, _) = s.post("/api/stop", &[], &json!({}));
     assert_eq!(code, 401);
-    std::thread::sleep(Duration::from_millis(200));
-    let (_, now) = s.get("/api/status");
+    // A status published after the refusals (0.1 s of loop time later) shows the loop as it was.
+    let (_, before) = s.get("/api/status");
+    let after = before["t"].as_f64().unwrap() + 0.1;
+    let now = s.wait_status("a status after the refused requests", |v| {
+        v["t"].as_f64().is_some_and(|t| t > after)
+    });
     assert_eq!(now["operator_hold"], false, "{now}");
     assert_ne!(now["mode"], "holding", "{now}");
     assert_eq!(now["running"], true, "{now}");
@@ -453,18 +457,28 @@ fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
     let (code, v) = s.post_auth("/api/teach", &json!({}));
     assert_eq!(code, 409, "{v}");
     assert!(v["error"].as_str().unwrap().contains("hold"), "{v}");
-    // Without the token: refused, nothing written.
     s.post_auth("/api/hold", &json!({}));
     s.wait_status("held", |v| v["mode"] == "holding");
-    // The arm decelerates and stands; the window must see it still.
-    std::thread::sleep(Duration::from_millis(800));
+    // Without the token: refused, nothing written.
     let (code, _) = s.post("/api/teach", &[], &json!({}));
     assert_eq!(code, 401);
     assert_eq!(std::fs::read_to_string(&path).unwrap(), text);
-    // Taught: the coil sat on its goal, so the new goal is the old one within the tracking
-    // error, and the file has it.
-    let (code, v) = s.post_auth("/api/teach", &json!({}));
-    assert_eq!(code, 200, "{v}");
+    // Taught once the arm has decelerated and stood still over the teaching window (until then
+    // the only refusal allowed is that the robot moved): the coil sat on its goal, so the new
+    // goal is the old one within the tracking error, and the file has it.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let v = loop {
+        let (code, v) = s.post_auth("/api/teach", &json!({}));
+        if code == 200 {
+            break v;
+        }
+        let why = v["error"].as_str().unwrap_or_default();
+        assert!(
+            code == 409 && why.contains("the robot moved") && Instant::now() < deadline,
+            "{code} {v}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
     let taught: Vec<f64> = serde_json::from_value(v["head_from_coil"].clone()).unwrap();
     let old = [0.0, 0.0, 0.113, std::f64::consts::PI, 0.0, 0.0];
     for k in 0..3 {
@@ -533,10 +547,14 @@ fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_sav
     });
     assert_eq!(waiting["calibration"]["planned"], 6, "{waiting}");
     assert_eq!(waiting["mode"], "waiting");
-    // Nothing moves without the go; the loop's buttons have no loop here.
-    std::thread::sleep(Duration::from_millis(500));
-    let (_, still) = s.get("/api/status");
-    assert_eq!(still["calibration"]["state"], "waiting", "{still}");
+    // Nothing moves without the go: the collection stays waiting (watched for half a second).
+    let watched = Instant::now();
+    while watched.elapsed() < Duration::from_millis(500) {
+        let (_, still) = s.get("/api/status");
+        assert_eq!(still["calibration"]["state"], "waiting", "{still}");
+        assert_eq!(still["calibration"]["done"], 0, "{still}");
+    }
+    // The loop's buttons have no loop here.
     let (code, _) = s.post_auth("/api/hold", &json!({}));
     assert_eq!(code, 409);
     let (code, _) = s.post("/api/calibrate", &[], &json!({}));
