@@ -7,6 +7,7 @@
 //! [`CycleRecord`] (`Copy`) to queue for a logger.
 
 use crate::config::{LoopConfig, LoopParams};
+use crate::force::{ForceMonitor, admittance_step, force_rules, is_force_reason};
 use crate::goal::{GoalError, check_goal};
 use crate::planner::{PlanError, ShellPath};
 use crate::predict::PosePredictor;
@@ -122,6 +123,12 @@ pub struct CycleRecord {
     /// The head marker now (`tracker_from_head` estimated for the cycle's time), when known:
     /// what teaching the goal while the loop runs averages.
     pub head_now: Option<Isometry3<f64>>,
+    /// The filtered contact force's magnitude, N (NaN without `force_sensing`).
+    pub contact_force_n: f64,
+    /// The filtered force pushing the coil out along its axis, N (NaN without `force_sensing`).
+    pub contact_axial_n: f64,
+    /// How far contact mode presses the coil in from its goal along the axis, m.
+    pub press_m: f64,
     /// Compute time of the cycle, ns (filled by the caller that owns a clock for it).
     pub compute_ns: u64,
 }
@@ -149,6 +156,9 @@ impl CycleRecord {
             coasting: false,
             deviation: (f64::NAN, f64::NAN),
             head_now: None,
+            contact_force_n: f64::NAN,
+            contact_axial_n: f64::NAN,
+            press_m: 0.0,
             compute_ns: 0,
         }
     }
@@ -165,6 +175,9 @@ const MAX_PATH_JOINT_STEP: f64 = 0.35;
 const CLEARANCE_EXACT_BELOW_M: f64 = 0.05;
 /// Deceleration of a standoff shrinking back to the goal, m/s².
 const STANDOFF_LANDING_M_S2: f64 = 1.0;
+/// An axial force above this means the coil touches the scalp, N (well above a sensor's noise
+/// after the filter).
+const TOUCH_N: f64 = 0.5;
 /// Corrections of one command by the safety filter (each re-solves IK and the limits).
 const FILTER_PASSES: usize = 2;
 
@@ -221,6 +234,16 @@ pub struct Compensator {
     operator_hold: bool,
     /// When a held coil last had to give way to the head, s (loop time).
     gave_way_at: f64,
+    /// The wrench's filter and timers.
+    force: ForceMonitor,
+    /// The force sensor's range, N (`None`: an estimate without one).
+    force_range: Option<f64>,
+    /// The newest filtered axial force, N.
+    axial_n: f64,
+    /// Contact mode's press from the goal along the approach axis, m.
+    press: f64,
+    /// Coming back from a force retreat: the standoff shrinks at the admittance's pace.
+    force_landing: bool,
 }
 
 impl Compensator {
@@ -229,6 +252,7 @@ impl Compensator {
         let coil_from_flange = cfg.flange_from_coil.inverse();
         let cfg_goal = cfg.head_from_coil_goal;
         let predictor = PosePredictor::new(cfg.predictor);
+        let force_range = mocomp_ur::ForceSource::range_n(arm.model());
         let goal_check = check_goal(
             &cfg.head,
             &cfg.coil,
@@ -270,6 +294,11 @@ impl Compensator {
             giving_way: false,
             operator_hold: false,
             gave_way_at: f64::NEG_INFINITY,
+            force: ForceMonitor::new(),
+            force_range,
+            axial_n: 0.0,
+            press: 0.0,
+            force_landing: false,
         }
     }
 
@@ -401,7 +430,15 @@ impl Compensator {
     /// The flange target for the head at `base_from_head`: the anchor (usually the goal),
     /// backed off by the current standoff.
     fn standoff_target(&self, base_from_head: &Isometry3<f64>) -> Isometry3<f64> {
-        base_from_head * backed_off(&self.anchor, self.standoff) * self.coil_from_flange
+        base_from_head
+            * backed_off(&self.anchor, self.standoff - self.press)
+            * self.coil_from_flange
+    }
+
+    /// Whether contact mode holds the coil on the scalp now (following the goal).
+    fn in_contact_mode(&self) -> bool {
+        let p = &self.cfg.params;
+        p.contact_mode && p.force_sensing && self.mode == Mode::Tracking
     }
 
     /// The coil at joints `q` seen from the head at `base_from_head`.
@@ -421,7 +458,7 @@ impl Compensator {
         nominal: &[f64; 6],
         speed_fraction: f64,
     ) -> Option<[f64; 6]> {
-        let s = (self.standoff + extra).min(self.cfg.params.max_standoff_m);
+        let s = (self.standoff - self.press + extra).min(self.cfg.params.max_standoff_m);
         let target = base_from_head * backed_off(&self.anchor, s) * self.coil_from_flange;
         let c = self
             .arm
@@ -588,8 +625,12 @@ impl Compensator {
         let coil_now = now_from_base * flange * self.cfg.flange_from_coil;
         let coil_prev_now = now_from_base * prev_flange * self.cfg.flange_from_coil;
         let coil_prev_prev = prev_from_base * prev_flange * self.cfg.flange_from_coil;
-        let deepest =
-            self.cfg.params.coil_min_distance_m - self.cfg.params.coil_contact_tolerance_m;
+        let p = &self.cfg.params;
+        let deepest = if self.in_contact_mode() {
+            -p.contact_max_press_m - p.coil_contact_tolerance_m
+        } else {
+            p.coil_min_distance_m - p.coil_contact_tolerance_m
+        };
         let nearest = self
             .cfg
             .coil
@@ -697,6 +738,11 @@ impl Compensator {
             0.0
         };
         self.sigma_dot = want.clamp(self.sigma_dot - a * dt, self.sigma_dot + a * dt);
+        let p = &self.cfg.params;
+        if p.force_sensing && self.axial_n > p.contact_force_n {
+            // Touching before the path's end: stop where it touches, at once.
+            self.sigma_dot = 0.0;
+        }
         self.sigma = (self.sigma + self.sigma_dot * dt).min(path.length());
         base_from_head * path.pose_at(self.sigma) * self.coil_from_flange
     }
@@ -868,6 +914,23 @@ impl Compensator {
             TrackerVerdict::Fresh | TrackerVerdict::Coasting(_) => None,
         };
 
+        // The force rules, on the wrench of this state.
+        let mut force_reason = None;
+        if self.cfg.params.force_sensing {
+            let axis = (self.arm.fk_flange(&state.actual_q) * self.cfg.flange_from_coil).rotation
+                * Vector3::z();
+            let f = self.force.update(
+                state.controller_s,
+                &state.tcp_force,
+                &axis,
+                &self.cfg.params,
+            );
+            rec.contact_force_n = f.force_n;
+            rec.contact_axial_n = f.axial_n;
+            self.axial_n = f.axial_n;
+            force_reason = force_rules(&f, &self.cfg.params, self.force_range);
+        }
+
         // The head where it will be when this cycle's command acts, and the clearance the coil
         // must keep from it then. Known while tracking, coasting, and retreating from a head too
         // fast to follow.
@@ -898,6 +961,16 @@ impl Compensator {
                 required = required_clearance(&self.cfg.params, sigma.0, sigma.1, self.coil_lever);
             }
         }
+        if base_from_head.is_none() && force_reason.is_some() {
+            // Backing off needs a head to back off from: the last one known, where the coil
+            // was pressing.
+            base_from_head = self.last_head;
+        }
+        if self.in_contact_mode() {
+            // On the scalp by design: the force rules guard the contact, the filter only how
+            // deep the coil may go.
+            required = -self.cfg.params.contact_max_press_m;
+        }
         rec.required_m = required;
         if head_known && let Some(tracker_from_head) = self.predictor.predict(now) {
             rec.head_now = Some(tracker_from_head);
@@ -915,7 +988,27 @@ impl Compensator {
         if self.operator_hold && reason.is_none() {
             reason = Some(Reason::Operator);
         }
+        if force_reason.is_some() {
+            // A coil that may press on the scalp outranks everything but a fault.
+            reason = force_reason;
+            self.force_landing = true;
+        }
         let mut react = reason.map_or(Reaction::Track, |r| reaction(&r));
+
+        // Contact mode's press along the axis: the admittance while following the goal.
+        if self.in_contact_mode() && react == Reaction::Track {
+            let max_press = self.goal_check.unwrap_or(0.0) + self.cfg.params.contact_max_press_m;
+            self.press = admittance_step(
+                self.press,
+                self.axial_n,
+                self.dt,
+                &self.cfg.params,
+                max_press,
+            );
+        } else {
+            self.press = 0.0;
+        }
+        rec.press_m = self.press;
 
         // The standoff the goal needs: the filter's, and the retreat's while retreating. It
         // grows at once and shrinks at `standoff_return_m_s`.
@@ -940,10 +1033,37 @@ impl Compensator {
             }
             // Coming back in, the coil lands softly: its speed falls with the standoff left, so
             // it stops on the goal instead of overshooting into the scalp.
-            let back = p
+            let mut back = p
                 .standoff_return_m_s
                 .min((2.0 * STANDOFF_LANDING_M_S2 * self.standoff).sqrt());
-            self.standoff = need.max(self.standoff - back * self.dt);
+            let mut relief = 0.0;
+            if p.force_sensing {
+                // A coil that meets the scalp before its goal (the head model or the calibration
+                // is off by more than the goal's standoff) stops coming in where it touches
+                // lightly, and one pressing harder backs off to that light touch at the
+                // admittance's pace (contact mode presses by its own admittance instead); back
+                // from a force retreat it comes in at that pace too.
+                if self.axial_n > p.contact_force_n {
+                    back = 0.0;
+                    if !self.in_contact_mode() {
+                        relief = ((self.axial_n - p.contact_force_n) / p.contact_damping_n_s_m)
+                            .min(p.retreat_tcp_speed_m_s);
+                        self.force_landing = true;
+                    }
+                } else if self.force_landing {
+                    // Clear of the scalp at the admittance's top speed, touching by its law.
+                    let touching = self.axial_n > TOUCH_N;
+                    back = back.min(if touching {
+                        (p.contact_force_n - self.axial_n) / p.contact_damping_n_s_m
+                    } else {
+                        p.contact_speed_m_s
+                    });
+                }
+            }
+            self.standoff = need.max(self.standoff - back * self.dt + relief * self.dt);
+            if self.standoff <= need {
+                self.force_landing = false;
+            }
             rec.standoff_m = self.standoff;
             rec.goal = Some(bh * self.cfg.head_from_coil_goal * self.coil_from_flange);
         }
@@ -986,6 +1106,7 @@ impl Compensator {
                 let p = &self.cfg.params;
                 let waiting = match self.mode {
                     Mode::Holding(_) | Mode::Faulted(_) => now - since < p.resume_after_s,
+                    Mode::Retreating(r) if is_force_reason(&r) => now - since < p.contact_resume_s,
                     Mode::Retreating(_) => now - since < p.retreat_resume_s,
                     Mode::Tracking | Mode::Approaching => false,
                 };

@@ -115,6 +115,36 @@ pub struct LoopParams {
     pub approach_tolerance_m: f64,
     /// Thickness of the zone around the head where the approach rule applies, m. [0.03]
     pub approach_zone_m: f64,
+    /// Read the wrench the robot reports (an e-Series' flange sensor, a CB3's estimate) and
+    /// apply the force rules (see [`crate::force`]). [false]
+    pub force_sensing: bool,
+    /// Time constant of the low-pass filter on the wrench, s (0: none). [0.01]
+    pub force_filter_s: f64,
+    /// A reading that has not changed for this long (controller time) is stale: a live sensor's
+    /// noise changes it every sample, s. [0.05]
+    pub force_stale_s: f64,
+    /// Above this force the coil retreats at once, N. [30] (InVesalius' safety threshold; the
+    /// Lübeck FTA layer stops under 30 N in the TMS speed range)
+    pub max_contact_force_n: f64,
+    /// Above this force for longer than `contact_warning_s` the coil retreats, N. [15]
+    pub contact_warning_force_n: f64,
+    /// How long the force may stay above `contact_warning_force_n`, s. [0.5] (InVesalius: 0.5 s)
+    pub contact_warning_s: f64,
+    /// A retreat for a force rule ends when the rule has been clear this long, s. [1]
+    pub contact_resume_s: f64,
+    /// Hold a light contact along the coil's axis (admittance on the axial force) instead of the
+    /// goal's fixed standoff; needs `force_sensing`. [false]
+    pub contact_mode: bool,
+    /// The contact force contact mode holds, N. [3]
+    pub contact_force_n: f64,
+    /// The admittance's virtual damping: a force error of 1 N moves the coil 1/this m/s, N·s/m.
+    /// [500] (stable on scalp up to about 20 N/mm with the servo's lag; see [`crate::force`])
+    pub contact_damping_n_s_m: f64,
+    /// The admittance's largest speed along the axis, m/s. [0.01]
+    pub contact_speed_m_s: f64,
+    /// The deepest contact mode may press the coil below the head model's surface, m (the
+    /// model's error and the scalp's give). [0.01]
+    pub contact_max_press_m: f64,
 }
 
 impl Default for LoopParams {
@@ -155,6 +185,18 @@ impl Default for LoopParams {
             link_radius_m: 0.045,
             approach_tolerance_m: 0.01,
             approach_zone_m: 0.03,
+            force_sensing: false,
+            force_filter_s: 0.01,
+            force_stale_s: 0.05,
+            max_contact_force_n: 30.0,
+            contact_warning_force_n: 15.0,
+            contact_warning_s: 0.5,
+            contact_resume_s: 1.0,
+            contact_mode: false,
+            contact_force_n: 3.0,
+            contact_damping_n_s_m: 500.0,
+            contact_speed_m_s: 0.01,
+            contact_max_press_m: 0.01,
         }
     }
 }
@@ -395,6 +437,49 @@ impl LoopParams {
                 "outlier_speed_rad_s",
                 self.outlier_speed_rad_s,
                 "must be above max_head_speed_rad_s",
+            );
+        }
+        if !(self.force_filter_s.is_finite() && self.force_filter_s >= 0.0) {
+            return err(
+                "force_filter_s",
+                self.force_filter_s,
+                "must be finite and ≥ 0",
+            );
+        }
+        for (key, value) in [
+            ("force_stale_s", self.force_stale_s),
+            ("max_contact_force_n", self.max_contact_force_n),
+            ("contact_warning_force_n", self.contact_warning_force_n),
+            ("contact_warning_s", self.contact_warning_s),
+            ("contact_resume_s", self.contact_resume_s),
+            ("contact_force_n", self.contact_force_n),
+            ("contact_damping_n_s_m", self.contact_damping_n_s_m),
+            ("contact_speed_m_s", self.contact_speed_m_s),
+            ("contact_max_press_m", self.contact_max_press_m),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return err(key, value, "must be finite and > 0");
+            }
+        }
+        if self.contact_warning_force_n >= self.max_contact_force_n {
+            return err(
+                "contact_warning_force_n",
+                self.contact_warning_force_n,
+                "must be below max_contact_force_n",
+            );
+        }
+        if self.contact_force_n >= self.contact_warning_force_n {
+            return err(
+                "contact_force_n",
+                self.contact_force_n,
+                "must be below contact_warning_force_n (a set force the rules retreat from cannot be held)",
+            );
+        }
+        if self.contact_mode && !self.force_sensing {
+            return err(
+                "contact_mode",
+                1.0,
+                "needs force_sensing = true (contact is held on the measured force)",
             );
         }
         if self.shell_distance_m <= self.approach_zone_m {

@@ -10,6 +10,7 @@
 pub mod compensator;
 pub mod config;
 pub mod controller;
+pub mod force;
 pub mod geometry;
 pub mod goal;
 pub mod planner;
@@ -20,6 +21,7 @@ pub mod supervisor;
 pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
 pub use config::{LoopConfig, LoopParams, ParamError};
 pub use controller::Controller;
+pub use force::{ForceInputs, ForceMonitor, force_rules};
 pub use geometry::{CoilModel, HeadModel};
 pub use goal::{GoalError, check_goal};
 pub use planner::{PlanError, ShellPath};

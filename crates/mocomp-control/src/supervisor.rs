@@ -21,6 +21,13 @@
 //! | `OffApproachAxis` | plan | near the head the coil comes in only along its axis: go round by the shell |
 //! | `NoPath` | hold | no safe path to the goal |
 //! | `Operator` | hold | the operator asked (the console's hold); every other rule outranks it |
+//! | `ContactForce` (above `max_contact_force_n`) | retreat | the coil presses too hard: off the scalp now |
+//! | `ContactForceSustained` (above `contact_warning_force_n` for `contact_warning_s`) | retreat | a lighter press held too long |
+//! | `ForceSensorStale` | retreat | the force is unknown: a coil that may be pressing moves off rather than stand against a moving head |
+//! | `ForceSaturated` | retreat | the sensor says only "at least its range" |
+//!
+//! The force rules ([`crate::force`]) outrank every other rule but a fault, and their retreats
+//! end only when they have been clear for `contact_resume_s`.
 //!
 //! A hold with the head in view still gives way: a held coil the head comes closer to than the
 //! safety filter requires backs off along its axis (shown as a retreat for `CoilCollision`),
@@ -74,6 +81,15 @@ pub enum Reason {
     /// The operator holds the loop (the console's or a front end's hold); the other rules
     /// outrank it.
     Operator,
+    /// The contact force is above `max_contact_force_n` (N).
+    ContactForce(f64),
+    /// The contact force has been above `contact_warning_force_n` for longer than
+    /// `contact_warning_s` (N now).
+    ContactForceSustained(f64),
+    /// The force reading has not changed for longer than `force_stale_s` (s).
+    ForceSensorStale(f64),
+    /// A force component at the end of the sensor's range (N).
+    ForceSaturated(f64),
 }
 
 impl From<GoalError> for Reason {
@@ -124,6 +140,10 @@ pub fn reaction(reason: &Reason) -> Reaction {
         Reason::OffApproachAxis(_) => Plan,
         Reason::NoPath(_) => Hold,
         Reason::Operator => Hold,
+        Reason::ContactForce(_) => Retreat,
+        Reason::ContactForceSustained(_) => Retreat,
+        Reason::ForceSensorStale(_) => Retreat,
+        Reason::ForceSaturated(_) => Retreat,
     }
 }
 

@@ -11,7 +11,7 @@ use mocomp_geom::{Clock, PoseSample, PoseSource, SteppedClock};
 use mocomp_kin::{Arm, Model};
 use mocomp_testkit::{SplitMix64, spin_until};
 use mocomp_ur::{Robot, UrRobot};
-use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig, ToolLoad};
 use std::sync::Arc;
 
 /// Runs `f`, counting the allocations it makes on this thread (`allocation-counter` replaces
@@ -80,18 +80,26 @@ fn the_cycle_allocates_nothing() {
     let q0 = common::mem::coil_on_head_joints(&arm);
     let mut ctrl = ControllerConfig::new(Model::Ur3e);
     ctrl.initial_q = q0;
+    // A live force sensor's noise (a few tenths of a newton), so the force rules run.
+    let mut k = 0u64;
+    ctrl.tool_load = Some(ToolLoad::new(move |_, _| {
+        k += 1;
+        let n = |m: u64| ((k * m) % 17) as f64 * 0.02 - 0.16;
+        [n(7919), n(104_729), n(1_299_709), 0.0, 0.0, 0.0]
+    }));
     let sim = Sim::start(SimConfig::stepped_local(ctrl)).unwrap();
     let clock = Arc::new(SteppedClock::new(0.0));
     let ucfg = sim.ur_config();
     let mut robot = sim
         .stepping_in_real_time(|| UrRobot::connect(ucfg, clock.clone()))
         .unwrap();
-    let cfg = LoopConfig::new(
+    let mut cfg = LoopConfig::new(
         base_from_tracker(),
         flange_from_coil,
         head_from_coil_goal(),
         PERIOD,
     );
+    cfg.params.force_sensing = true;
     let mut comp = Compensator::new(cfg, arm, PERIOD);
     let mut tracker = NoddingTracker {
         clock: Arc::clone(&clock),
@@ -103,7 +111,7 @@ fn the_cycle_allocates_nothing() {
     sim.step();
     spin_until("first state", || robot.state_count() > n);
     let (mut allocations, mut tracking, mut holding, mut events) = (0, 0, 0, 0);
-    let mut approaching = 0;
+    let (mut approaching, mut forces) = (0, 0);
     for _ in 0..1500 {
         let inputs = sim.stats().inputs;
         let now = clock.now_s();
@@ -116,6 +124,7 @@ fn the_cycle_allocates_nothing() {
             _ => {}
         }
         events += usize::from(rec.event.is_some());
+        forces += usize::from(rec.contact_force_n.is_finite());
         spin_until("command", || sim.stats().inputs > inputs);
         let states = robot.state_count();
         clock.advance(PERIOD);
@@ -128,6 +137,7 @@ fn the_cycle_allocates_nothing() {
     assert!(approaching > 100, "{approaching} approaching");
     assert!(holding > 100, "{holding}");
     assert!(events >= 4, "{events}");
+    assert!(forces > 1000, "the force rules ran in {forces} cycles");
     assert_eq!(allocations, 0, "allocations in 1500 cycles");
     // The counter works.
     let (_, c) = counted(|| vec![1u8; 10]);

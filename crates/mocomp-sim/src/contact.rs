@@ -1,15 +1,21 @@
 //! Contact between the coil and the head: what the simulated force sensor reads when the coil
 //! presses on the scalp.
 //!
-//! The scalp over the skull is a stiff spring with damping along the coil's approach axis: the
-//! coil model's deepest point below the head model's surface (`depth`, m) gives a force
-//! `k · depth + c · d(depth)/dt` pushing the coil back along its axis (never pulling it in). The
-//! default stiffness is ISO/TS 15066 Annex A's effective spring constant for the skull and
-//! forehead, 150 N/mm (the stiffest body region; the scalp's soft tissue is softer at first, so
-//! this overstates the force of a light touch and is the safe side for limits). The damping
-//! defaults to 1,000 N·s/m (about 0.8 of critical for a 1 kg coil on that spring), an assumption:
-//! no published figure for the scalp was found. The sensor adds a constant bias and white noise
-//! (defaults 0: an ideal sensor), as a real one does before zeroing.
+//! The head model's surface is the scalp's. Below it are two springs in series along the coil's
+//! approach axis, with a damper: the coil model's deepest point below the surface (`depth`, m)
+//! first compresses the scalp (`scalp_stiffness_n_m` over `scalp_thickness_m`), then the skull
+//! takes over (`skull_stiffness_n_m`), and the damper adds `c · d(depth)/dt` while pressing. The
+//! force pushes the coil back out along its axis and never pulls it in.
+//!
+//! Defaults, and where they come from:
+//! - skull: ISO/TS 15066 Annex A's effective spring constant for the skull and forehead,
+//!   150 N/mm (the stiffest body region);
+//! - scalp: 5 N/mm over 5 mm, an estimate: a flat punch of the coil's radius a = 40 mm on soft
+//!   tissue of Young's modulus E ≈ 50 kPa (ν = 0.5) gives k = 2·E·a/(1 − ν²) ≈ 5.3 N/mm; an adult
+//!   scalp is about 5 mm thick. No measured figure for a TMS coil on the scalp was found;
+//! - damping: 50 N·s/m, an assumption (no published figure for the scalp was found);
+//! - the sensor: no bias and no noise (an ideal sensor) unless set; a simulated world that feeds
+//!   the loop's staleness rule sets noise, as a real sensor always has.
 
 use mocomp_control::{CoilModel, HeadModel};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
@@ -20,8 +26,12 @@ use rand_distr::{Distribution, Normal};
 /// The contact law's parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactParams {
-    /// Stiffness, N/m (ISO/TS 15066 skull/forehead: 150 N/mm).
-    pub stiffness_n_m: f64,
+    /// The scalp's stiffness, N/m (5 N/mm, an estimate; see the module).
+    pub scalp_stiffness_n_m: f64,
+    /// The scalp's thickness: depth at which the skull takes over, m.
+    pub scalp_thickness_m: f64,
+    /// The skull's stiffness, N/m (ISO/TS 15066 skull/forehead: 150 N/mm).
+    pub skull_stiffness_n_m: f64,
     /// Damping, N·s/m.
     pub damping_n_s_m: f64,
     /// The sensor's constant bias along each force axis, N.
@@ -33,8 +43,10 @@ pub struct ContactParams {
 impl Default for ContactParams {
     fn default() -> Self {
         Self {
-            stiffness_n_m: 150_000.0,
-            damping_n_s_m: 1_000.0,
+            scalp_stiffness_n_m: 5_000.0,
+            scalp_thickness_m: 0.005,
+            skull_stiffness_n_m: 150_000.0,
+            damping_n_s_m: 50.0,
             bias_n: [0.0; 3],
             noise_n: 0.0,
         }
@@ -68,6 +80,20 @@ impl Contact {
         (-self.coil.distance(&self.head, head_from_coil)).max(0.0)
     }
 
+    /// The springs' force at `depth` (m), N: scalp, then skull.
+    pub fn spring_n(&self, depth: f64) -> f64 {
+        let p = &self.params;
+        let scalp = depth.clamp(0.0, p.scalp_thickness_m);
+        let bone = (depth - p.scalp_thickness_m).max(0.0);
+        p.scalp_stiffness_n_m * scalp + p.skull_stiffness_n_m * bone
+    }
+
+    /// The force the coil at `head_from_coil` presses on the scalp with, without the damper
+    /// and the sensor (the truth a test compares the loop's reading with), N.
+    pub fn force_n(&self, head_from_coil: &Isometry3<f64>) -> f64 {
+        self.spring_n(self.depth(head_from_coil))
+    }
+
     /// The wrench on the coil at time `t_s` (s) with the coil at `base_from_coil` and the head
     /// at `base_from_head`: force (N) and torque (N·m) in the base frame, about the coil's
     /// origin (the contact is taken on its axis, so no torque), with the sensor's bias and noise.
@@ -86,7 +112,7 @@ impl Contact {
         let p = &self.params;
         // Pushes only: a coil leaving the scalp is not held back by it.
         let push = if depth > 0.0 {
-            (p.stiffness_n_m * depth + p.damping_n_s_m * rate).max(0.0)
+            (self.spring_n(depth) + p.damping_n_s_m * rate).max(0.0)
         } else {
             0.0
         };
@@ -139,15 +165,35 @@ mod tests {
         let mut c = Contact::new(ContactParams::default(), head(), coil(), 1);
         let base_from_head = Isometry3::identity();
         assert_eq!(c.wrench(0.0, &on_top(0.003), &base_from_head), [0.0; 6]);
-        // 0.2 mm in, held still: 150 N/mm times the depth the head model gives (its distance is
-        // a lower bound, scaled by the smallest semi-axis: about 0.14 mm here), upwards.
+        // 0.2 mm in, held still: the scalp's 5 N/mm times the depth the head model gives (its
+        // distance is a lower bound, scaled by the smallest semi-axis: about 0.14 mm here),
+        // upwards.
         let mut c = Contact::new(ContactParams::default(), head(), coil(), 1);
         c.wrench(0.0, &on_top(-0.0002), &base_from_head);
         let w = c.wrench(0.001, &on_top(-0.0002), &base_from_head);
         let depth = c.depth(&on_top(-0.0002));
         assert!(depth > 0.0001 && depth <= 0.0002, "{depth}");
-        assert!((w[2] - 150_000.0 * depth).abs() < 1e-9, "{w:?}");
+        assert!((w[2] - 5_000.0 * depth).abs() < 1e-9, "{w:?}");
         assert!(w[0].abs() < 1e-9 && w[1].abs() < 1e-9);
+    }
+
+    #[test]
+    fn past_the_scalp_the_skull_takes_over() {
+        let c = Contact::new(ContactParams::default(), head(), coil(), 1);
+        let p = ContactParams::default();
+        assert_eq!(c.spring_n(0.0), 0.0);
+        assert!((c.spring_n(0.002) - 10.0).abs() < 1e-9);
+        // The whole scalp: 25 N; a millimetre of bone beyond it: 150 N more.
+        let full = p.scalp_stiffness_n_m * p.scalp_thickness_m;
+        assert!((c.spring_n(p.scalp_thickness_m) - full).abs() < 1e-9);
+        assert!((c.spring_n(p.scalp_thickness_m + 0.001) - full - 150.0).abs() < 1e-9);
+        // Monotonic: deeper never pushes less.
+        let mut last = 0.0;
+        for k in 0..100 {
+            let f = c.spring_n(k as f64 * 1e-4);
+            assert!(f >= last);
+            last = f;
+        }
     }
 
     #[test]
@@ -159,7 +205,7 @@ mod tests {
         // Pressing in: the damper adds c times the depth's rate.
         let w_in = c.wrench(0.001, &on_top(-0.0002), &h);
         let (d0, d1) = (c.depth(&on_top(-0.0001)), c.depth(&on_top(-0.0002)));
-        let expected = p.stiffness_n_m * d1 + p.damping_n_s_m * (d1 - d0) / 0.001;
+        let expected = p.scalp_stiffness_n_m * d1 + p.damping_n_s_m * (d1 - d0) / 0.001;
         assert!(
             d1 > d0 && (w_in[2] - expected).abs() < 1e-6,
             "{w_in:?} vs {expected}"

@@ -25,5 +25,7 @@ pub mod types;
 pub use client::{UrConfig, UrRobot};
 pub use codec::{ControllerVersion, Recipe};
 pub use error::{RtdeError, UrError};
-pub use robot::{Robot, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams};
+pub use robot::{
+    ForceSource, Robot, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams,
+};
 pub use types::{DataType, Value};

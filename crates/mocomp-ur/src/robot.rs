@@ -185,6 +185,21 @@ impl ForceSource {
     pub fn is_sensor(self) -> bool {
         self == Self::FlangeSensor
     }
+
+    /// The force range of a model's flange sensor, N (per axis; UR's e-Series data sheets:
+    /// UR3e 30, UR5e 50, UR10e 100, UR16e 160): a reading at its end is saturated and says only
+    /// "at least this". `None` for a CB3's estimate, which has no range, and for the UR20/UR30,
+    /// whose figure this project has not checked.
+    pub fn range_n(model: mocomp_kin::Model) -> Option<f64> {
+        use mocomp_kin::Model;
+        match model {
+            Model::Ur3e => Some(30.0),
+            Model::Ur5e => Some(50.0),
+            Model::Ur10e => Some(100.0),
+            Model::Ur16e => Some(160.0),
+            Model::Ur3 | Model::Ur5 | Model::Ur10 | Model::Ur20 | Model::Ur30 => None,
+        }
+    }
 }
 
 /// The robot's state at one controller cycle.
@@ -375,5 +390,18 @@ mod force_tests {
             ForceSource::of(Series::Cb3),
             ForceSource::JointCurrentEstimate
         );
+    }
+
+    #[test]
+    fn only_a_sensor_has_a_range_and_a_bigger_arm_a_bigger_one() {
+        for spec in MODELS {
+            let range = ForceSource::range_n(spec.model);
+            if spec.series == Series::Cb3 {
+                assert_eq!(range, None, "{:?}", spec.model);
+            }
+        }
+        let r = |m| ForceSource::range_n(m).unwrap();
+        use mocomp_kin::Model;
+        assert!(r(Model::Ur3e) < r(Model::Ur5e) && r(Model::Ur5e) < r(Model::Ur10e));
     }
 }
