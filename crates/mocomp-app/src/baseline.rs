@@ -2,7 +2,7 @@
 //! newest valid sample, computes `Z = Y · S_T_H · H_T_C,g · X⁻¹` and its IK solution of least
 //! angle sum, and `compute_delay_s` later sends a movej there (no prediction, no checks).
 
-use mocomp_control::{Controller, CycleRecord, LoopConfig, Mode};
+use mocomp_control::{Controller, CycleRecord, Event, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, BranchPolicy, Metric, Selection};
@@ -50,6 +50,8 @@ pub struct PaperPipeline {
     /// A move computed and not yet sent: when it is due, its joints, its sample's time.
     pending: Option<(f64, [f64; 6], f64)>,
     last_horizon_s: f64,
+    /// Whether the robot was stopped at the previous cycle (for the event when it stops).
+    was_faulted: bool,
 }
 
 impl PaperPipeline {
@@ -62,6 +64,7 @@ impl PaperPipeline {
             head_from_coil_goal: loop_cfg.head_from_coil_goal,
             coil_from_flange: loop_cfg.flange_from_coil.inverse(),
             start_s: None,
+            was_faulted: false,
             next_loop_s: 0.0,
             newest: None,
             pending: None,
@@ -108,12 +111,18 @@ impl Controller for PaperPipeline {
             }
         }
         let mut sent_q = q_now.unwrap_or([f64::NAN; 6]);
+        // The pipeline knows nothing of the robot's safety: a stopped robot refuses its moves,
+        // and it goes on sending (its keep-alive reaches the controller; the record shows the
+        // stop).
+        let fault = robot.state().and_then(|s| s.fault());
         match self.pending {
             Some((due, q, acquired)) if now + 1e-9 >= due => {
-                // Errors surface as the command that never arrives: the driver waits for it.
-                robot
+                if robot
                     .move_joints(&q, self.cfg.joint_speed_rad_s, self.cfg.joint_accel_rad_s2)
-                    .ok();
+                    .is_err()
+                {
+                    robot.keep_alive().ok();
+                }
                 self.last_horizon_s = now - acquired;
                 self.pending = None;
                 sent_q = q;
@@ -122,7 +131,14 @@ impl Controller for PaperPipeline {
                 robot.keep_alive().ok();
             }
         }
-        let mut rec = CycleRecord::new(now, Mode::Tracking, sent_q);
+        let mode = fault.map_or(Mode::Tracking, |f| Mode::Faulted(Reason::Robot(f)));
+        let mut rec = CycleRecord::new(now, mode, sent_q);
+        if let Some(f) = fault
+            && !self.was_faulted
+        {
+            rec.event = Some(Event::Hold(Reason::Robot(f)));
+        }
+        self.was_faulted = fault.is_some();
         rec.sample_age_s = self.newest.map_or(f64::NAN, |s| now - s.acquired_s);
         rec.horizon_s = self.last_horizon_s;
         rec

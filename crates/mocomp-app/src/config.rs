@@ -473,6 +473,10 @@ pub struct ExperimentSection {
     pub goal_e2_from_e1_mm: [[f64; 4]; 4],
     /// The `paper` controller.
     pub paper: PaperController,
+    /// On the scalp: both controllers' goal is moved along the coil's axis until it touches;
+    /// `mocomp` holds `loop.contact_force_n` there by its admittance (`force_sensing` and
+    /// `contact_mode` on), the `paper` controller holds the pose.
+    pub contact: bool,
 }
 
 impl Default for ExperimentSection {
@@ -484,6 +488,7 @@ impl Default for ExperimentSection {
             head_host: IpAddr::from([127, 0, 0, 3]),
             goal_e2_from_e1_mm: PAPER_GOAL_E2_FROM_E1_MM,
             paper: PaperController::default(),
+            contact: false,
         }
     }
 }

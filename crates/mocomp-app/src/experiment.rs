@@ -46,12 +46,13 @@ use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use mocomp_kin::{Arm, Model, Selection};
 use mocomp_sim::HeadMotion;
+use mocomp_sim::contact::{Contact, ContactParams};
 use mocomp_sim::{TrackerModel, TrackerSim};
 use mocomp_ur::{Robot, ServoParams, UrRobot};
-use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig, ToolLoad};
 use std::net::IpAddr;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// Sender timestamps are the stepped clock plus this (a timestamp of 0 means "unset").
@@ -168,7 +169,17 @@ pub struct ExperimentConfig {
     pub head: mocomp_control::HeadModel,
     /// The controllers' coil model.
     pub coil: mocomp_control::CoilModel,
+    /// The contact between the coil and the phantom's scalp (the controllers' head model), and
+    /// the coil robot's force sensor, as the coil robot's simulated controller reads them.
+    pub contact: ContactParams,
+    /// On the scalp: the goal moved along the coil's axis until it touches; `mocomp` holds
+    /// its contact force there (`force_sensing`, `contact_mode`), `paper` holds the pose.
+    pub on_scalp: bool,
 }
+
+/// The simulated force sensor's noise in the experiment, N (1σ per axis): a live sensor's
+/// reading is never constant, which the loop's staleness rule relies on.
+pub const SENSOR_NOISE_N: f64 = 0.3;
 
 /// The paper's goal as a rigid transform (metres).
 pub fn paper_goal() -> Result<Isometry3<f64>, ExperimentError> {
@@ -220,7 +231,16 @@ impl ExperimentConfig {
             servo: (cfg.servo.lookahead_s, cfg.servo.gain),
             head: cfg.head_model(),
             coil: cfg.coil_model(),
+            contact: ContactParams {
+                noise_n: SENSOR_NOISE_N,
+                ..ContactParams::default()
+            },
+            on_scalp: x.contact,
         };
+        if e.on_scalp {
+            e.loop_params.force_sensing = true;
+            e.loop_params.contact_mode = true;
+        }
         if let Some(seed) = x.seed {
             e.set_seed(seed);
         }
@@ -351,6 +371,25 @@ fn head_from_coil_design() -> Isometry3<f64> {
         Translation3::new(0.0, 0.0, 0.113),
         UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
     )
+}
+
+/// The paper's goal moved along the coil's axis until the coil touches the scalp (the head
+/// model's surface, where the contact law starts to push).
+fn touching_goal(cfg: &ExperimentConfig, scene: &Scene) -> Isometry3<f64> {
+    let along = |s: f64| {
+        cfg.goal_e2_from_e1
+            * scene.e1_from_coil
+            * Translation3::new(0.0, 0.0, s)
+            * scene.e1_from_coil.inverse()
+    };
+    let head_from_coil =
+        |goal: &Isometry3<f64>| scene.e2_from_head.inverse() * goal * scene.e1_from_coil;
+    // The distance is exact along the normal and a lower bound elsewhere: a few steps close it.
+    let mut s = 0.0;
+    for _ in 0..8 {
+        s += cfg.coil.distance(&cfg.head, &head_from_coil(&along(s)));
+    }
+    along(s)
 }
 
 /// An upright frame at `p` turned by `yaw` about the vertical.
@@ -558,6 +597,8 @@ pub struct Record {
     pub event: Option<Event>,
     /// The true coil's signed distance to the head model, m (negative: inside the head).
     pub coil_clearance_m: f64,
+    /// The force the true coil presses on the scalp with (the contact law's springs), N.
+    pub contact_force_n: f64,
 }
 
 /// Summary statistics of a series.
@@ -610,6 +651,8 @@ pub struct Run {
     pub min_clearance_m: f64,
     /// Time the true coil spent inside the head model, s.
     pub inside_head_s: f64,
+    /// The contact force, N.
+    pub contact_force_n: Stats,
 }
 
 impl Run {
@@ -626,6 +669,7 @@ impl Run {
             d: Stats::of(&col(&|r| r.d)),
             translation_mm: Stats::of(&col(&|r| r.translation_m * 1e3)),
             rotation_deg: Stats::of(&col(&|r| r.rotation_rad.to_degrees())),
+            contact_force_n: Stats::of(&col(&|r| r.contact_force_n)),
             records,
         }
     }
@@ -749,12 +793,28 @@ struct Rig {
     q_prev: ([f64; 6], [f64; 6]),
     q_now: ([f64; 6], [f64; 6]),
     t_prev: f64,
+    /// The phantom's head in the coil robot's base frame, for its simulated controller's
+    /// contact (set before it steps, from the head robot's joints at the same tick).
+    base1_from_head: Arc<Mutex<Isometry3<f64>>>,
+    /// The contact law, for the true force each tick.
+    contact: Contact,
 }
 
 impl Rig {
     fn start(cfg: &ExperimentConfig, scene: Scene) -> Result<Self, ExperimentError> {
         let mut c1 = ControllerConfig::new(cfg.coil_robot);
         c1.initial_q = scene.q1_start;
+        let base1_from_head = Arc::new(Mutex::new(
+            scene.world_from_base1.inverse() * scene.world_from_head_rest,
+        ));
+        let mut law = Contact::new(cfg.contact, cfg.head, cfg.coil, cfg.tracker.seed);
+        let (head, tcp_from_coil) = (Arc::clone(&base1_from_head), scene.e1_from_coil);
+        c1.tool_load = Some(ToolLoad::new(move |t, base_from_tcp| {
+            let base_from_head = *head
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            law.wrench(t, &(base_from_tcp * tcp_from_coil), &base_from_head)
+        }));
         let mut c2 = ControllerConfig::new(cfg.head_robot);
         c2.initial_q = scene.q2_start;
         let mut s1 = SimConfig::new(c1, cfg.coil_host);
@@ -852,6 +912,8 @@ impl Rig {
             q_prev: q,
             q_now: q,
             t_prev: 0.0,
+            base1_from_head,
+            contact: Contact::new(cfg.contact, cfg.head, cfg.coil, 0),
         };
         // One step so the states carry the stepped clock's time.
         w.advance()?;
@@ -935,8 +997,17 @@ impl Rig {
         let n = (self.robot1.state_count(), self.robot2.state_count());
         self.t_prev = self.clock.now_s();
         self.clock.advance(self.period);
-        self.sim1.step();
+        // The head robot first: the coil robot's contact needs where the head is at this tick.
         self.sim2.step();
+        let q2 = self.sim2.with(|c| c.q());
+        let base1_from_head = self.scene.world_from_base1.inverse()
+            * self.arm2.fk_flange(&q2)
+            * self.scene.e2_from_head;
+        *self
+            .base1_from_head
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = base1_from_head;
+        self.sim1.step();
         let (r1, r2) = (&self.robot1, &self.robot2);
         spin(Duration::from_secs(5), "the robots' states", || {
             r1.state_count() > n.0 && r2.state_count() > n.1
@@ -1054,6 +1125,12 @@ impl Rig {
             robot: name,
             detail,
         };
+        if !coil {
+            // The phantom turns and shifts around its start: the coil must not be in its way
+            // (it was, unseen, until the coil's contact with the scalp was simulated).
+            self.coil_clear_of_head()
+                .map_err(|e| calib_err(format!("moving the coil robot clear: {e}")))?;
+        }
         // Around the start, backed off along the flange axis (the coil away from the head).
         let center = arm.fk_flange(&q0) * Isometry3::translation(0.0, 0.0, -0.1);
         let current = arm
@@ -1179,6 +1256,8 @@ impl Rig {
     /// controller meets the same trajectory and the same noise.
     fn reset(&mut self, cfg: &ExperimentConfig) -> Result<(), ExperimentError> {
         let (q1, q2) = (self.scene.q1_start, self.scene.q2_start);
+        // The coil out of the way while the head goes back, then in along its axis.
+        self.coil_clear_of_head()?;
         self.move_to(false, &q2)?;
         self.move_to(true, &q1)?;
         self.idle(0.1)?;
@@ -1186,6 +1265,19 @@ impl Rig {
         self.t_base = self.clock.now_s();
         while self.head_source.latest().is_some() {}
         Ok(())
+    }
+
+    /// Moves the coil robot 10 cm back along its flange axis from its start (away from the
+    /// head), where the head robot's moves cannot reach it.
+    fn coil_clear_of_head(&mut self) -> Result<(), ExperimentError> {
+        let q1 = self.scene.q1_start;
+        let clear = self.arm1.fk_flange(&q1) * Isometry3::translation(0.0, 0.0, -0.1);
+        let q = self
+            .arm1
+            .ik_closest(&clear, &q1, &Selection::tracking(0.1))
+            .map_err(|e| io("moving the coil robot clear of the head", e.to_string()))?
+            .joints;
+        self.move_to(true, &q)
     }
 
     /// The simulators' recent events, for an error message.
@@ -1376,6 +1468,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             mode: rec.mode,
             event: rec.event,
             coil_clearance_m: self.coil.distance(&self.head, &head_from_coil),
+            contact_force_n: w.contact.force_n(&head_from_coil),
         });
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);
@@ -1427,6 +1520,17 @@ pub fn run_experiment_watched(
 ) -> Result<Outcome, ExperimentError> {
     cfg.validate()?;
     let scene = build_scene(cfg)?;
+    // On the scalp, the goal (for the controllers and for d) touches it; the scene stays as
+    // placed for the paper's goal.
+    let touching;
+    let cfg = if cfg.on_scalp {
+        let mut c = cfg.clone();
+        c.goal_e2_from_e1 = touching_goal(cfg, &scene);
+        touching = c;
+        &touching
+    } else {
+        cfg
+    };
     progress(Phase::Connecting, 0.0);
     let mut world = Rig::start(cfg, scene)?;
     progress(Phase::Connecting, 1.0);

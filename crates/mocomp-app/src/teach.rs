@@ -147,7 +147,7 @@ fn goal_from(setup: &Setup, heads: &[Isometry3<f64>], q: &[f64; 6]) -> Result<Ta
         &file.head_model(),
         &file.coil_model(),
         &head_from_coil,
-        file.params.coil_min_distance_m,
+        file.params.goal_min_distance_m(),
     ) {
         Ok(d) => d,
         Err(e @ GoalError::InsideHead { .. }) => refuse!(

@@ -110,6 +110,10 @@ pub struct DemoCmd {
     /// The `paper` controller's delay from sample to command, ms [80].
     #[arg(long, value_name = "MS")]
     pub paper_delay_ms: Option<f64>,
+    /// On the scalp: the goal moved along the coil's axis until it touches; mocomp holds
+    /// `loop.contact_force_n` (3 N) by its admittance, the paper's controller holds the pose.
+    #[arg(long)]
+    pub contact: bool,
 }
 
 impl DemoCmd {
@@ -148,6 +152,9 @@ impl DemoCmd {
         }
         if let Some(v) = self.paper_delay_ms {
             x.paper.compute_delay_s = v * 1e-3;
+        }
+        if self.contact {
+            x.contact = true;
         }
         if let Some(m) = self.coil_robot {
             cfg.robot.model = m;

@@ -56,7 +56,7 @@ fn the_demo_writes_its_report_and_mocomp_wins() {
     // 10 s at 125 Hz, two controllers, and a header.
     assert_eq!(csv.lines().count(), 2 * 1250 + 1);
     // The figures: each a 1100×700 PNG and an SVG.
-    for name in ["d", "errors", "head_speed", "latency", "events"] {
+    for name in ["d", "errors", "head_speed", "latency", "contact", "events"] {
         let png = image::open(format!("{out_dir}/{name}.png"))
             .unwrap()
             .to_rgb8();
@@ -92,6 +92,45 @@ fn the_demo_writes_its_report_and_mocomp_wins() {
         md.contains("| mocomp |") && md.contains("| paper |"),
         "{md}"
     );
+}
+
+#[test]
+fn the_demo_on_the_scalp_holds_a_light_contact_which_the_papers_pipeline_cannot() {
+    let dir = TempDir::new("mocomp-demo-contact");
+    let out_dir = dir.path("out");
+    let out = demo_json(
+        &out_dir,
+        "8",
+        ("127.0.0.63", "127.0.0.64"),
+        &["--contact", "--motion", "nods"],
+    );
+    assert_success(&out);
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = j["controllers"].as_array().unwrap();
+    let f = |row: usize, key: &str| rows[row][key].as_f64().unwrap();
+    // mocomp holds loop.contact_force_n (3 N) by its admittance: RMS near it, never near the
+    // limit, no force rule fired.
+    assert!(
+        (f(1, "contact_force_n_rms") - 3.0).abs() < 0.5,
+        "mocomp: {}",
+        rows[1]
+    );
+    assert!(f(1, "contact_force_n_max") < 15.0, "mocomp: {}", rows[1]);
+    assert_eq!(f(1, "retreats"), 0.0, "{}", rows[1]);
+    // The paper's pipeline, on the same touching goal, lags the nods and loses the scalp.
+    assert!(f(0, "contact_force_n_rms") < 1.5, "paper: {}", rows[0]);
+    // demo.csv has the force of every tick.
+    let csv = std::fs::read_to_string(format!("{out_dir}/demo.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "contact_force_n").unwrap();
+    let mocomp_forces: Vec<f64> = csv
+        .lines()
+        .filter(|l| l.starts_with("mocomp,"))
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(mocomp_forces.len(), 1000);
+    let max = mocomp_forces.iter().copied().fold(0.0, f64::max);
+    assert!((max - f(1, "contact_force_n_max")).abs() < 1e-3, "{max}");
 }
 
 fn stdout(out: &std::process::Output) -> String {

@@ -257,7 +257,7 @@ impl Compensator {
             &cfg.head,
             &cfg.coil,
             &cfg.head_from_coil_goal,
-            cfg.params.coil_min_distance_m,
+            cfg.params.goal_min_distance_m(),
         );
         Self {
             command_delay: period_s,
@@ -324,7 +324,7 @@ impl Compensator {
             &self.cfg.head,
             &self.cfg.coil,
             head_from_coil,
-            self.cfg.params.coil_min_distance_m,
+            self.cfg.params.goal_min_distance_m(),
         )?;
         if self.anchor == self.cfg.head_from_coil_goal {
             self.anchor = *head_from_coil;
@@ -347,7 +347,7 @@ impl Compensator {
             &self.cfg.head,
             &self.cfg.coil,
             &self.cfg.head_from_coil_goal,
-            params.coil_min_distance_m,
+            params.goal_min_distance_m(),
         );
     }
 

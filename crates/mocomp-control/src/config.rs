@@ -202,6 +202,17 @@ impl Default for LoopParams {
 }
 
 impl LoopParams {
+    /// The closest a goal may put the coil to the head model, m: `coil_min_distance_m`, or in
+    /// contact mode, where a taught goal touches the scalp, down to the scalp's give
+    /// (`-coil_contact_tolerance_m`).
+    pub fn goal_min_distance_m(&self) -> f64 {
+        if self.contact_mode {
+            self.coil_min_distance_m.min(-self.coil_contact_tolerance_m)
+        } else {
+            self.coil_min_distance_m
+        }
+    }
+
     /// Checks every value's range; the error names the first key out of range.
     pub fn validate(&self) -> Result<(), ParamError> {
         let err = |key, value, problem| {

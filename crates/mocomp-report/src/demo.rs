@@ -42,6 +42,10 @@ pub struct Row {
     pub min_clearance_mm: f64,
     /// Time the true coil spent inside the head model, s.
     pub inside_head_s: f64,
+    /// The force of the true coil on the scalp (the simulated contact), N: largest.
+    pub contact_force_n_max: f64,
+    /// The same: RMS over the run.
+    pub contact_force_n_rms: f64,
 }
 
 /// The experiment's summary (`mocomp demo --json`).
@@ -103,6 +107,8 @@ pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
                 outliers_rejected: n.outliers,
                 min_clearance_mm: m_to_mm(r.min_clearance_m),
                 inside_head_s: r.inside_head_s,
+                contact_force_n_max: r.contact_force_n.max,
+                contact_force_n_rms: r.contact_force_n.rms,
             }
         })
         .collect();
@@ -161,10 +167,10 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
         s.tracker_dropouts_per_s,
         s.seed,
     ));
-    t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | retreats | dropouts coasted | outliers rejected | least coil clearance (mm) | coil in the head (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | retreats | dropouts coasted | outliers rejected | least coil clearance (mm) | coil in the head (s) | contact force max (N) | RMS (N) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in &s.controllers {
         t.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} | {:.2} | {:.2} |\n",
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |\n",
             r.controller,
             r.d_rms,
             r.d_p95,
@@ -181,6 +187,8 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
             r.outliers_rejected,
             r.min_clearance_mm,
             r.inside_head_s,
+            r.contact_force_n_max,
+            r.contact_force_n_rms,
         ));
     }
     t.push_str(&format!(
@@ -218,6 +226,7 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
         "sample_age_ms",
         "horizon_ms",
         "coil_clearance_mm",
+        "contact_force_n",
         "mode",
         "event",
     ])?;
@@ -234,6 +243,7 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
                 format!("{:.3}", x.sample_age_s * 1e3),
                 format!("{:.3}", x.horizon_s * 1e3),
                 format!("{:.3}", m_to_mm(x.coil_clearance_m)),
+                format!("{:.3}", x.contact_force_n),
                 format!("{:?}", x.mode),
                 x.event.map(|e| format!("{e:?}")).unwrap_or_default(),
             ])?;

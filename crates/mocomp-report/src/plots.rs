@@ -173,6 +173,26 @@ pub fn write_all(runs: &[Run], duration_s: f64, dir: &Path) -> Result<Vec<PathBu
         },
         dir,
     )?);
+    files.extend(write(
+        &Panels {
+            name: "contact",
+            runs,
+            t: t.clone(),
+            panels: [
+                (
+                    "force of the coil on the scalp (simulated contact: scalp over skull)",
+                    "N",
+                    |r| r.contact_force_n,
+                ),
+                (
+                    "the coil's clearance from the head model (negative: pressing in)",
+                    "mm",
+                    |r| m_to_mm(r.coil_clearance_m),
+                ),
+            ],
+        },
+        dir,
+    )?);
     files.extend(write(&Events { runs, t }, dir)?);
     Ok(files)
 }
