@@ -3,7 +3,8 @@ mocomp-ursim). One JSON request per line, one JSON answer per line (see jsonline
 
 Ops: version; receive (RTDEReceiveInterface: rate and values); control_connect (RTDEControlInterface
 plus a receiver); moveJ; servo_stream (servoJ at the controller rate with initPeriod/waitPeriod);
-speedJ; speedStop; servoStop; stopJ; stopScript; disconnect.
+speedJ; speedStop; servoStop; stopJ; zeroFtSensor (with the TCP force before and after);
+stopScript; disconnect.
 """
 
 import importlib.metadata
@@ -140,6 +141,17 @@ def handle(req):
         c.stopScript()
         time.sleep(0.05)
         return {"runtime_state": r.getRuntimeState()}
+    if op == "zeroFtSensor":
+        # Wait (with a deadline) for a reading, zero, then wait for the zero to arrive: how long
+        # a package takes here depends on how busy the machine is.
+        deadline = time.monotonic() + 5.0
+        while not any(r.getActualTCPForce()) and time.monotonic() < deadline:
+            time.sleep(0.001)
+        before = list(r.getActualTCPForce())
+        ok = c.zeroFtSensor()
+        while any(r.getActualTCPForce()) and time.monotonic() < deadline:
+            time.sleep(0.001)
+        return {"ok": ok, "before": before, "after": list(r.getActualTCPForce())}
     if op == "disconnect":
         c.disconnect()
         r.disconnect()

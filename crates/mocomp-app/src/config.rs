@@ -119,6 +119,9 @@ pub struct RobotSection {
     /// The simulated robot's joints at start (default: the coil 15 cm out on the goal's axis).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub initial_joints_rad: Option<[f64; 6]>,
+    /// Zero the force/torque sensor (`zero_ftsensor()`) before the loop starts: e-Series only,
+    /// and nothing may touch the coil then (a contact present would read as zero afterwards).
+    pub zero_force_sensor: bool,
 }
 
 impl Default for RobotSection {
@@ -129,6 +132,7 @@ impl Default for RobotSection {
             host: "127.0.0.2".into(),
             simulate: true,
             initial_joints_rad: None,
+            zero_force_sensor: false,
         }
     }
 }

@@ -44,6 +44,8 @@ struct Summary {
     delay_ms: Vec<f64>,
     deviation_mm: Vec<f64>,
     deviation_deg: Vec<f64>,
+    /// The contact force read each cycle (with `force_sensing`), N.
+    contact_force_n: Vec<f64>,
     by_mode: [u64; 5],
     events: Vec<(f64, Event)>,
     /// Why the CSV log stopped being written, if it did.
@@ -298,6 +300,9 @@ fn logger(
             "q4",
             "q5",
             "q6",
+            "contact_force_n",
+            "contact_axial_n",
+            "press_mm",
         ];
         if let Err(e) = w.write_record(header) {
             log_error = Some(e);
@@ -330,6 +335,9 @@ fn logger(
             s.deviation_deg.push(dev_deg);
             window_max = window_max.max(dev_mm);
         }
+        if r.contact_force_n.is_finite() {
+            s.contact_force_n.push(r.contact_force_n);
+        }
         if let Some(e) = r.event {
             s.events.push((r.t, e));
             observer.event(r.t, &e);
@@ -356,6 +364,11 @@ fn logger(
                     .chain(r.q_actual.iter())
                     .map(|q| format!("{q:.6}")),
             );
+            row.extend([
+                format!("{:.3}", r.contact_force_n),
+                format!("{:.3}", r.contact_axial_n),
+                format!("{:.4}", r.press_m * 1e3),
+            ]);
             if let Err(e) = w.write_record(&row) {
                 log_error = Some(e);
             }
@@ -489,6 +502,13 @@ pub struct RunReport {
     pub robot_stale_holds: usize,
     /// Holds for the controller's protective stop.
     pub protective_stops: usize,
+    /// The contact force read (`loop.force_sensing`), RMS, N (NaN without it).
+    pub contact_force_n_rms: f64,
+    /// The same, largest.
+    pub contact_force_n_max: f64,
+    /// Retreats for a force rule (over the limit, over the warning level too long, a stale or
+    /// saturated sensor).
+    pub force_retreats: usize,
     /// Events.
     pub events: usize,
     /// Each event: loop time (s) and what happened.
@@ -551,6 +571,21 @@ impl RunReport {
             protective_stops: holds(|r| {
                 matches!(r, Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop))
             }),
+            contact_force_n_rms: if s.contact_force_n.is_empty() {
+                f64::NAN
+            } else {
+                (s.contact_force_n.iter().map(|f| f * f).sum::<f64>()
+                    / s.contact_force_n.len() as f64)
+                    .sqrt()
+            },
+            contact_force_n_max: percentile(&mut s.contact_force_n, 1.0),
+            force_retreats: s
+                .events
+                .iter()
+                .filter(|(_, e)| {
+                    matches!(e, Event::Retreat(r) if mocomp_control::force::is_force_reason(r))
+                })
+                .count(),
             events: s.events.len(),
             event_log: s
                 .events
@@ -719,7 +754,13 @@ pub fn run(
     }
     let client = world.client(setup, &file.tracker.device);
     // The simulators (the rest of `world`) stay up until the end of this function.
-    let robot = world.robot;
+    let mut robot = world.robot;
+    if file.robot.zero_force_sensor {
+        robot
+            .zero_force_sensor()
+            .what(|| "robot.zero_force_sensor")?;
+        writeln!(progress, "force/torque sensor zeroed").what(|| "writing the progress")?;
+    }
     let source = client.pose_source();
     progress.flush().what(|| "writing the progress")?;
 

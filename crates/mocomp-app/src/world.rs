@@ -7,13 +7,16 @@
 use crate::camera::{CameraServer, VisionLink};
 use crate::config::{Setup, Timestamps, TrackerSource};
 use crate::{AppError, Context};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, MonotonicClock};
 use mocomp_igtl::client::{Client, ClientConfig, TimestampMode};
+use mocomp_sim::contact::{Contact, ContactParams};
 use mocomp_sim::{TrackedMarker, TrackerServer};
 use mocomp_ur::{UrConfig, UrRobot};
-use mocomp_ursim::{ControllerConfig, Sim, SimConfig};
+use mocomp_ursim::{ControllerConfig, Sim, SimConfig, ToolLoad};
 use std::io::Write;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
+use std::time::Instant;
 
 /// The robot and tracker, connected. Dropping it stops the simulators.
 pub struct World {
@@ -77,9 +80,14 @@ impl World {
         let say = |out: &mut dyn Write, line: String| {
             writeln!(out, "{line}").what(|| "writing the progress")
         };
+        // The simulated head's time 0 (the simulated tracker's), once it has started.
+        let head_t0: Arc<OnceLock<Instant>> = Arc::new(OnceLock::new());
         let (sim, ucfg) = if file.robot.simulate {
             let mut ctrl = ControllerConfig::new(setup.model);
             ctrl.initial_q = initial_q;
+            if file.tracker.source == TrackerSource::Simulated {
+                ctrl.tool_load = Some(scalp_contact(setup, Arc::clone(&head_t0))?);
+            }
             let sim = Sim::start(SimConfig::new(ctrl, host))
                 .what(|| format!("simulated robot on {host}"))?;
             let u = sim.ur_config();
@@ -89,7 +97,9 @@ impl World {
             (None, UrConfig::new(host))
         };
         let tracker = if file.tracker.source == TrackerSource::Simulated {
-            Some(start_tracker(setup, sim.clone())?)
+            let t = start_tracker(setup, sim.clone())?;
+            head_t0.set(t.started()).ok();
+            Some(t)
         } else {
             None
         };
@@ -160,6 +170,35 @@ impl World {
     pub fn simulated_robot(&self) -> bool {
         self.sim.is_some()
     }
+}
+
+/// The simulated robot's tool meets the simulated head's scalp ([`mocomp_sim::contact`], the
+/// configured head and coil models, a sensor with [`crate::experiment::SENSOR_NOISE_N`] of
+/// noise): the head where the simulated tracker's truth puts it, at the same instant.
+fn scalp_contact(setup: &Setup, head_t0: Arc<OnceLock<Instant>>) -> Result<ToolLoad, AppError> {
+    let file = &setup.file;
+    let s = &file.tracker.simulated;
+    let rest = s.base_from_head.iso();
+    let trajectory = s.motion.trajectory();
+    let tcp_from_coil = file.flange_from_coil()?;
+    let mut law = Contact::new(
+        ContactParams {
+            noise_n: crate::experiment::SENSOR_NOISE_N,
+            ..ContactParams::default()
+        },
+        file.head_model(),
+        file.coil_model(),
+        s.model.seed,
+    );
+    Ok(ToolLoad::new(move |t, base_from_tcp| {
+        let Some(t0) = head_t0.get() else {
+            // No head yet: free space, the sensor's noise only.
+            let far = Isometry3::translation(100.0, 0.0, 0.0);
+            return law.wrench(t, &far, &Isometry3::identity());
+        };
+        let base_from_head = rest * trajectory.rest_from_head(t0.elapsed().as_secs_f64());
+        law.wrench(t, &(base_from_tcp * tcp_from_coil), &base_from_head)
+    }))
 }
 
 /// The simulated tracker: the head marker (moving as configured) and, when the robot is

@@ -70,6 +70,77 @@ fn the_example_config_compensates_on_the_simulated_robot() {
 }
 
 #[test]
+fn contact_mode_on_the_simulated_scalp_holds_its_force_and_logs_it() {
+    let dir = TempDir::new("mocomp-run-contact");
+    // The example's e-Series arm and nodding head, pressing on the simulated scalp with a 3 N
+    // set force after zeroing the sensor.
+    let path = dir.path("run.toml");
+    let cfg = example()
+        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.65\"")
+        .replace("zero_force_sensor = false", "zero_force_sensor = true")
+        .replace("force_sensing = false", "force_sensing = true")
+        .replace("contact_mode = false", "contact_mode = true");
+    std::fs::write(&path, cfg).unwrap();
+    let csv = dir.path("run.csv");
+    let out = mocomp(&[
+        "run",
+        "--config",
+        &path,
+        "--seconds",
+        "8",
+        "--log-csv",
+        &csv,
+        "--json",
+    ]);
+    assert_success(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("force/torque sensor zeroed"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["force_retreats"], 0, "{v}");
+    assert_eq!(v["protective_stops"], 0, "{v}");
+    let max = v["contact_force_n_max"].as_f64().unwrap();
+    assert!(max > 2.0 && max < 15.0, "{v}");
+    // On the scalp while tracking in the last 4 s: the force read stays near the set 3 N (the
+    // sensor's noise and the nods' tracking error around it).
+    let mut reader = csv::Reader::from_path(&csv).unwrap();
+    let header = reader.headers().unwrap().clone();
+    let col = header.iter().position(|h| h == "contact_force_n").unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let t_end: f64 = rows.last().unwrap()[0].parse().unwrap();
+    let mut late: Vec<f64> = rows
+        .iter()
+        .filter(|r| &r[1] == "tracking" && r[0].parse::<f64>().unwrap() > t_end - 4.0)
+        .map(|r| r[col].parse().unwrap())
+        .collect();
+    assert!(late.len() > 1000, "{} cycles tracking", late.len());
+    let mean = late.iter().sum::<f64>() / late.len() as f64;
+    late.sort_by(f64::total_cmp);
+    let p99 = late[late.len() * 99 / 100];
+    assert!(
+        (mean - 3.0).abs() < 0.5 && p99 < 8.0,
+        "mean {mean} N, p99 {p99} N"
+    );
+}
+
+#[test]
+fn a_cb3_has_no_force_sensor_to_zero() {
+    let dir = TempDir::new("mocomp-run-cb3-zero");
+    let path = dir.path("run.toml");
+    let cfg = example()
+        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.66\"")
+        .replace("model = \"ur3e\"", "model = \"ur3\"")
+        .replace("zero_force_sensor = false", "zero_force_sensor = true");
+    std::fs::write(&path, cfg).unwrap();
+    let out = mocomp(&["run", "--config", &path, "--seconds", "1", "--quiet"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("robot.zero_force_sensor") && err.contains("CB3 has none"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_log_that_cannot_be_written_fails_the_run_after_the_robot_is_stopped() {
     let dir = TempDir::new("mocomp-run-full");
     let path = example_at(&dir, "127.0.0.46");

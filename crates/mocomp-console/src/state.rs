@@ -135,7 +135,7 @@ pub struct StatusJson {
     pub clearance_mm: f64,
     /// The standoff the goal is backed off by, mm.
     pub standoff_mm: f64,
-    /// Contact force, N (none until the force sensor is read).
+    /// Contact force, N (none without `loop.force_sensing`).
     pub force_n: Option<f64>,
     /// Whether the operator holds the loop.
     pub operator_hold: bool,
@@ -606,7 +606,7 @@ impl ConsoleObserver {
             head_speed_deg_s: r.head_speed.1.to_degrees(),
             clearance_mm: r.clearance_m * 1e3,
             standoff_mm: r.standoff_m * 1e3,
-            force_n: None,
+            force_n: r.contact_force_n.is_finite().then_some(r.contact_force_n),
             operator_hold: self.shared.controls.hold(),
             running: true,
             cycle_unix_ms: now_ms - age_s.max(0.0) * 1e3,

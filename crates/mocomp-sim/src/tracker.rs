@@ -325,6 +325,7 @@ pub enum TrackerError {
 #[derive(Debug)]
 pub struct TrackerServer {
     addr: SocketAddr,
+    started: Instant,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
 }
@@ -346,12 +347,14 @@ impl TrackerServer {
         let addr = server.local_addr();
         let stop = Arc::new(AtomicBool::new(false));
         let stop2 = Arc::clone(&stop);
+        let started = Instant::now();
         let thread = std::thread::Builder::new()
             .name("sim-tracker".into())
-            .spawn(move || serve(server, model, markers, &stop2))
+            .spawn(move || serve(server, model, markers, started, &stop2))
             .map_err(TrackerError::Thread)?;
         Ok(Self {
             addr,
+            started,
             stop,
             thread: Some(thread),
         })
@@ -361,10 +364,20 @@ impl TrackerServer {
     pub fn addr(&self) -> SocketAddr {
         self.addr
     }
+
+    /// The instant of the markers' time 0: a marker's truth is asked for `t` seconds after it.
+    pub fn started(&self) -> Instant {
+        self.started
+    }
 }
 
-fn serve(server: Server, model: TrackerModel, mut markers: Vec<TrackedMarker>, stop: &AtomicBool) {
-    let start = Instant::now();
+fn serve(
+    server: Server,
+    model: TrackerModel,
+    mut markers: Vec<TrackedMarker>,
+    start: Instant,
+    stop: &AtomicBool,
+) {
     let wall0 = Timestamp::now().to_secs_f64();
     let mut sim = TrackerSim::new(model, markers.len());
     let devices: Vec<String> = markers.iter().map(|m| m.device.clone()).collect();

@@ -355,13 +355,28 @@ impl UrRobot {
         self.command(cmd::EXIT, [0.0; 6], [4.0, 0.0, 0.0]).map(drop)
     }
 
+    /// Zeroes the force/torque sensor (`zero_ftsensor()` in the control program): its present
+    /// reading becomes zero. Call it with the tool touching nothing: a contact present now would
+    /// read as no force afterwards. A CB3 has no sensor (its TCP force is an estimate), so it is
+    /// refused there. Returns the command's sequence number.
+    pub fn zero_force_sensor(&mut self) -> Result<i32, UrError> {
+        if self.version.major < 5 {
+            return Err(UrError::Refused {
+                what: "zeroing the force sensor: a CB3 has none (its TCP force is an estimate \
+                       from the joint currents)"
+                    .into(),
+            });
+        }
+        self.command(cmd::ZERO_FT, [0.0; 6], [0.0; 3])
+    }
+
     fn upload_and_wait(&mut self) -> Result<(), UrError> {
         // Clear the command registers first: they keep their values, and a new program must not
         // resume the last servo target or speed (ur_rtde sends a clear command for the same
         // reason).
         self.command(cmd::NONE, [0.0; 6], [0.0; 3])?;
         let addr = SocketAddr::new(self.config.host, self.config.script_port);
-        let text = program::script(self.config.watchdog_hz);
+        let text = program::script(self.config.watchdog_hz, self.version.major >= 5);
         let mut s = TcpStream::connect_timeout(&addr, self.config.timeout)
             .map_err(|e| UrError::io(format!("connecting to the script port {addr}"), e))?;
         s.write_all(text.as_bytes())

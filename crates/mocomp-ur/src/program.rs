@@ -11,7 +11,7 @@
 //!
 //! | register | meaning |
 //! |---|---|
-//! | `input_int_register_24` | command: 0 none, 1 SERVOJ, 2 MOVEJ, 3 SPEEDJ, 4 STOPJ, 5 EXIT |
+//! | `input_int_register_24` | command: 0 none, 1 SERVOJ, 2 MOVEJ, 3 SPEEDJ, 4 STOPJ, 5 EXIT, 6 ZERO_FT |
 //! | `input_int_register_25` | sequence number; the client increments it with every new command. The RTDE watchdog watches this register. |
 //! | `input_double_register_24..29` | joint positions q (SERVOJ, MOVEJ) or velocities qd (SPEEDJ), rad, rad/s |
 //! | `input_double_register_30` | SERVOJ `t` (s); MOVEJ speed (rad/s); SPEEDJ and STOPJ acceleration (rad/s²) |
@@ -28,7 +28,8 @@
 //! | `output_int_register_27` | sequence number of the newest MOVEJ completed |
 //!
 //! Semantics: SERVOJ and SPEEDJ are *level* commands: every cycle the program servoes to (or
-//! runs at) the newest target in the registers. MOVEJ, STOPJ and EXIT are *edge* commands: they
+//! runs at) the newest target in the registers. MOVEJ, STOPJ, EXIT and ZERO_FT (`zero_ftsensor()`,
+//! e-Series only: a CB3 program logs that it has no sensor) are *edge* commands: they
 //! run once, when their sequence number is new. A client may therefore resend its last package
 //! at any time (a keep-alive) without repeating a move. The program sets an RTDE watchdog on
 //! `input_int_register_25` with action `stop`: when no package arrives for `1 / watchdog_hz`
@@ -59,6 +60,8 @@ pub mod cmd {
     pub const STOPJ: i32 = 4;
     /// End the program after stopping (edge).
     pub const EXIT: i32 = 5;
+    /// Zero the force/torque sensor, `zero_ftsensor()` (edge; e-Series).
+    pub const ZERO_FT: i32 = 6;
 }
 
 /// Program modes (`output_int_register_24`).
@@ -103,13 +106,20 @@ pub const OUTPUT_REGISTER_NAMES: [&str; 4] = [
     "output_int_register_27",
 ];
 
-/// The program text, with the watchdog's minimum frequency (Hz).
+/// The program text, with the watchdog's minimum frequency (Hz); `ft_sensor`: the arm has a
+/// force/torque sensor (an e-Series), so ZERO_FT calls `zero_ftsensor()` (a CB3's URScript has
+/// no such function, and a program that names it would not compile there).
 ///
 /// Written against the URScript manual (`servoj`, `speedj`, `movej`, `stopj`,
 /// `rtde_set_watchdog`, `read_input_integer_register`, `read_input_float_register`,
 /// `write_output_integer_register`, threads). It has run against the simulator's native
 /// emulation only: no physical controller was available to this project yet.
-pub fn script(watchdog_hz: f64) -> String {
+pub fn script(watchdog_hz: f64, ft_sensor: bool) -> String {
+    let zero_ft = if ft_sensor {
+        "zero_ftsensor()"
+    } else {
+        "textmsg(\"mocomp: this arm has no force/torque sensor to zero\")"
+    };
     format!(
         r#"{PROGRAM_HEADER}
   {PROTOCOL_MARKER}
@@ -191,6 +201,8 @@ pub fn script(watchdog_hz: f64) -> String {
         prog_mode = 1
       elif cmd == 5:
         break
+      elif cmd == 6:
+        {zero_ft}
       end
     end
     last_seq = seq
@@ -223,8 +235,16 @@ mod tests {
     use super::*;
 
     #[test]
+    fn only_an_e_series_program_names_zero_ftsensor() {
+        assert!(script(25.0, true).contains("\n        zero_ftsensor()\n"));
+        let cb3 = script(25.0, false);
+        assert!(!cb3.contains("zero_ftsensor"), "{cb3}");
+        assert!(cb3.contains("no force/torque sensor"));
+    }
+
+    #[test]
     fn program_has_urscript_shape_and_its_parameters() {
-        let s = script(25.0);
+        let s = script(25.0, true);
         let lines: Vec<&str> = s.lines().collect();
         assert_eq!(lines[0], PROGRAM_HEADER);
         assert_eq!(lines.last().copied(), Some("end"));

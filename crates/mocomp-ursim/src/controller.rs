@@ -171,9 +171,12 @@ pub struct Controller {
     events: VecDeque<SimEvent>,
     events_total: u64,
     protective_stops: u64,
-    /// The wrench on the tool the force sensor reads (`actual_TCP_force`: N and N·m, base
-    /// frame), as the world around the controller applies it (a contact; zero in free space).
+    /// The wrench on the tool (N and N·m, base frame) as the world around the controller
+    /// applies it (a contact; zero in free space).
     tcp_force: [f64; 6],
+    /// What `zero_ftsensor()` took as the sensor's zero (e-Series): subtracted from what it
+    /// reads.
+    ft_offset: [f64; 6],
 }
 
 impl Controller {
@@ -209,6 +212,7 @@ impl Controller {
             events_total: 0,
             protective_stops: 0,
             tcp_force: [0.0; 6],
+            ft_offset: [0.0; 6],
             config,
         }
     }
@@ -219,9 +223,24 @@ impl Controller {
         self.tcp_force = wrench;
     }
 
-    /// The wrench on the tool (`actual_TCP_force`).
+    /// The wrench on the tool as the force sensor reports it (`actual_TCP_force`): the applied
+    /// wrench less the zero `zero_ftsensor()` took.
     pub fn tcp_force(&self) -> [f64; 6] {
-        self.tcp_force
+        std::array::from_fn(|i| self.tcp_force[i] - self.ft_offset[i])
+    }
+
+    /// `zero_ftsensor()`: an e-Series takes the sensor's present reading as its zero (what the
+    /// tool's own weight or a bias reads is no force). A CB3 has no sensor: recorded, no effect.
+    pub fn zero_ftsensor(&mut self) {
+        if self.spec.series == mocomp_kin::Series::ESeries {
+            self.ft_offset = self.tcp_force;
+            self.record_event("zero_ftsensor: force/torque sensor zeroed".into());
+        } else {
+            self.record_event(
+                "zero_ftsensor on a CB3: no force/torque sensor to zero (its TCP force is an estimate)"
+                    .into(),
+            );
+        }
     }
 
     /// The configuration.
@@ -420,7 +439,7 @@ mod tests {
 
     fn running(model: Model) -> Controller {
         let mut c = Controller::new(ControllerConfig::new(model));
-        c.load_program(&mp::script(20.0));
+        c.load_program(&mp::script(20.0, true));
         assert_eq!(c.runtime_state(), RuntimeState::Playing);
         c
     }
@@ -543,7 +562,7 @@ mod tests {
         let mut cfg = ControllerConfig::new(Model::Ur5e);
         cfg.initial_q[1] = -std::f64::consts::TAU + 0.01; // shoulder 10 mrad from its limit
         let mut c = Controller::new(cfg);
-        c.load_program(&mp::script(20.0));
+        c.load_program(&mp::script(20.0, true));
         c.apply_input(InputSlot::Int(24), Value::Int32(mcmd::SPEEDJ));
         c.apply_input(InputSlot::Int(25), Value::Int32(1));
         c.apply_input(InputSlot::Double(25), Value::Double(-0.5));
@@ -576,7 +595,7 @@ mod tests {
         cfg.powered = false;
         let mut c = Controller::new(cfg);
         assert_eq!(c.dashboard("robotmode"), "Robotmode: POWER_OFF");
-        c.load_program(&mp::script(20.0));
+        c.load_program(&mp::script(20.0, true));
         assert_eq!(
             c.runtime_state(),
             RuntimeState::Stopped,
@@ -613,7 +632,7 @@ mod tests {
     #[test]
     fn programs_are_recognised() {
         assert_eq!(
-            classify_program(&mp::script(12.5)),
+            classify_program(&mp::script(12.5, true)),
             ProgramKind::Mocomp { watchdog_hz: 12.5 }
         );
         let rtde = "def rtde_control():\n    global reg_offset_float = 24\n    global reg_offset_int = 24\n    textmsg(\"RTDE Control Script Loaded\")\nend\n";

@@ -89,6 +89,45 @@ fn the_wrench_on_the_tool_reaches_the_client_in_the_base_and_the_tool_frame() {
 }
 
 #[test]
+fn zeroing_the_force_sensor_takes_its_present_reading_as_zero_and_a_cb3_has_none() {
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut robot = connect(&sim);
+    // The sensor reads a bias (the coil's weight, a drift) with nothing touching the tool.
+    let bias = [1.25, -0.5, -7.75, 0.05, 0.0, -0.02];
+    sim.with(|c| c.set_tcp_force(bias));
+    wait_until("the bias in the state", || {
+        robot.keep_alive().unwrap();
+        robot.state().is_some_and(|s| s.tcp_force == bias)
+    });
+    robot.zero_force_sensor().unwrap();
+    wait_until("a zero reading", || {
+        robot.keep_alive().unwrap();
+        robot.state().is_some_and(|s| s.tcp_force == [0.0; 6])
+    });
+    // A contact from now on reads as itself.
+    let push = [0.0, 0.0, 4.0, 0.0, 0.0, 0.0];
+    sim.with(|c| c.set_tcp_force(std::array::from_fn(|i| bias[i] + push[i])));
+    wait_until("the contact alone", || {
+        robot.keep_alive().unwrap();
+        robot
+            .state()
+            .is_some_and(|s| (0..6).all(|i| (s.tcp_force[i] - push[i]).abs() < 1e-12))
+    });
+    assert!(
+        sim.with(|c| c
+            .events()
+            .0
+            .iter()
+            .any(|e| e.text.contains("sensor zeroed"))),
+        "the controller logged the zeroing"
+    );
+    let cb3 = self::sim(Model::Ur5, SimClock::RealTime);
+    let mut old = connect(&cb3);
+    let e = old.zero_force_sensor().unwrap_err();
+    assert!(e.to_string().contains("CB3 has none"), "{e}");
+}
+
+#[test]
 fn servo_streaming_tracks_a_trajectory_on_a_stepped_clock_deterministically() {
     fn run() -> (f64, Vec<[f64; 6]>) {
         let sim = sim(Model::Ur3e, SimClock::Stepped);

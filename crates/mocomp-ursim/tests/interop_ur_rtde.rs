@@ -111,6 +111,14 @@ fn control_interface_moves_the_simulated_joints() {
     );
     let q0 = vec6(&c["q"]);
 
+    // zeroFtSensor: the sensor's present reading (a bias) becomes its zero.
+    let bias = [0.75, -1.5, 6.25, 0.0, 0.125, 0.0];
+    sim.with(|c| c.set_tcp_force(bias));
+    let z = p.request(&json!({"op": "zeroFtSensor"}));
+    assert_eq!(z["ok"], true, "{z}");
+    assert_eq!(vec6(&z["before"]), bias, "{z}");
+    assert_eq!(vec6(&z["after"]), [0.0; 6], "{z}");
+
     // moveJ (blocking): returns when done, at the goal.
     let mut goal = q0;
     goal[0] += 0.3;

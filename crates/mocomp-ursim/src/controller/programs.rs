@@ -205,6 +205,7 @@ impl Controller {
                     p.mode = mmode::STOPPING;
                     p.blocked_stop = true;
                 }
+                mcmd::ZERO_FT => self.zero_ftsensor(),
                 mcmd::EXIT => {
                     self.regs.out_int[b] = mmode::NOT_RUNNING;
                     self.regs.out_int[b + 2] = 0;
@@ -295,6 +296,8 @@ impl Controller {
                 }
             }
             26 => self.regs.out_double[od] = self.period,
+            // zeroFtSensor
+            8 => self.zero_ftsensor(),
             255 => {
                 self.record_event("ur_rtde: Received stop script!".into());
                 self.stop_program("ur_rtde STOP_SCRIPT".into());

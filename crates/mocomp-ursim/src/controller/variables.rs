@@ -249,7 +249,7 @@ impl Controller {
             OutputVar::Qd => Value::Vector6d(self.qd),
             OutputVar::Qdd => Value::Vector6d(self.qdd),
             OutputVar::TcpPose => Value::Vector6d(ur_pose_from_iso(&self.arm.fk(&self.q))),
-            OutputVar::TcpForce => Value::Vector6d(self.tcp_force),
+            OutputVar::TcpForce => Value::Vector6d(self.tcp_force()),
             OutputVar::TcpSpeed => {
                 let s = self.arm.jacobian(&self.q) * Vector6::from_column_slice(&self.qd);
                 Value::Vector6d(std::array::from_fn(|i| s[i]))
