@@ -1256,6 +1256,22 @@ impl Rig {
     /// controller meets the same trajectory and the same noise.
     fn reset(&mut self, cfg: &ExperimentConfig) -> Result<(), ExperimentError> {
         let (q1, q2) = (self.scene.q1_start, self.scene.q2_start);
+        // A robot its own safety system stopped in the last run (the paper's pipeline pressed
+        // the coil into the head past the force limit) is unlocked and its program restarted,
+        // as an operator would before the next run.
+        for (sim, robot) in [
+            (&self.sim1, &mut self.robot1),
+            (&self.sim2, &mut self.robot2),
+        ] {
+            if sim.with(|c| c.safety_mode()) == mocomp_ur::SafetyMode::ProtectiveStop {
+                let reply = sim.with(|c| c.dashboard("unlock protective stop"));
+                if !reply.starts_with("Protective stop releasing") {
+                    return Err(io("unlocking a protective stop", reply));
+                }
+                sim.stepping_in_real_time(|| robot.restart_program())
+                    .map_err(|e| io("restarting the control program after a protective stop", e))?;
+            }
+        }
         // The coil out of the way while the head goes back, then in along its axis.
         self.coil_clear_of_head()?;
         self.move_to(false, &q2)?;
@@ -1267,15 +1283,25 @@ impl Rig {
         Ok(())
     }
 
-    /// Moves the coil robot 10 cm back along its flange axis from its start (away from the
-    /// head), where the head robot's moves cannot reach it.
+    /// Moves the coil robot back along its flange axis from its start (away from the head), as
+    /// far as it reaches up to 20 cm, where the head robot's moves cannot reach it (10 cm was not
+    /// enough for a UR10's calibration poses).
     fn coil_clear_of_head(&mut self) -> Result<(), ExperimentError> {
         let q1 = self.scene.q1_start;
-        let clear = self.arm1.fk_flange(&q1) * Isometry3::translation(0.0, 0.0, -0.1);
-        let q = self
-            .arm1
-            .ik_closest(&clear, &q1, &Selection::tracking(0.1))
-            .map_err(|e| io("moving the coil robot clear of the head", e.to_string()))?
+        let q = [0.2, 0.15, 0.1]
+            .into_iter()
+            .find_map(|back| {
+                let clear = self.arm1.fk_flange(&q1) * Isometry3::translation(0.0, 0.0, -back);
+                self.arm1
+                    .ik_closest(&clear, &q1, &Selection::tracking(0.1))
+                    .ok()
+            })
+            .ok_or_else(|| {
+                io(
+                    "moving the coil robot clear of the head",
+                    "no pose 10 to 20 cm back along the flange axis within reach",
+                )
+            })?
             .joints;
         self.move_to(true, &q)
     }
