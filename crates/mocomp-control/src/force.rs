@@ -303,18 +303,18 @@ mod tests {
         assert!((last.axial_n - 5.0).abs() < 0.02, "{last:?}");
         assert!((last.force_n - 5.0).abs() < 0.02);
         assert_eq!(last.warned_s, 0.0);
-        // A step to 20 N: the filter follows within a few time constants.
+        // A step to 20 N (a little noise: a live sensor): the filter follows within a few time
+        // constants.
         let mut t = 1.0;
         let mut k = 0;
-        let reached = loop {
+        let mut at_20 = |m: &mut ForceMonitor, t: &mut f64| {
             k += 1;
-            t += 0.002;
-            let r = m.update(
-                t,
-                &[0.0, 0.0, 20.0 + 1e-3 * f64::from(k % 2), 0.0, 0.0, 0.0],
-                &down(),
-                &p,
-            );
+            *t += 0.002;
+            let w = [0.0, 0.0, 20.0 + 1e-3 * f64::from(k % 2), 0.0, 0.0, 0.0];
+            (m.update(*t, &w, &down(), &p), k)
+        };
+        let reached = loop {
+            let (r, k) = at_20(&mut m, &mut t);
             if r.axial_n > 19.0 {
                 break t - 1.0;
             }
@@ -324,14 +324,7 @@ mod tests {
         // Above the warning level the time counts; it fires after contact_warning_s.
         let mut fired = None;
         for _ in 0..400 {
-            k += 1;
-            t += 0.002;
-            let r = m.update(
-                t,
-                &[0.0, 0.0, 20.0 + 1e-3 * f64::from(k % 2), 0.0, 0.0, 0.0],
-                &down(),
-                &p,
-            );
+            let (r, _) = at_20(&mut m, &mut t);
             if let Some(reason) = force_rules(&r, &p, Some(50.0)) {
                 fired = Some((r.warned_s, reason));
                 break;

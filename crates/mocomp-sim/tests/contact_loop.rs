@@ -18,13 +18,13 @@ use mocomp_kin::{Arm, Model, Selection};
 use mocomp_sim::contact::{Contact, ContactParams};
 use mocomp_testkit::mem::ScriptedPoses;
 use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
+use mocomp_testkit::spin_until;
 use mocomp_ur::{Robot, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig, ToolLoad};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
 
 const PERIOD: f64 = 0.002;
 /// The simulated sensor's noise (1σ per axis), N: a live sensor's reading is never constant.
@@ -135,17 +135,6 @@ fn no_protective_stop(o: &Outcome) {
     );
 }
 
-fn spin(limit: Duration, mut f: impl FnMut() -> bool) -> bool {
-    let end = Instant::now() + limit;
-    while !f() {
-        if Instant::now() > end {
-            return false;
-        }
-        std::thread::yield_now();
-    }
-    true
-}
-
 fn loop_config() -> LoopConfig {
     let mut cfg = LoopConfig::new(
         base_from_tracker(),
@@ -253,7 +242,7 @@ fn run(sc: Scenario) -> Outcome {
     let n = robot.state_count();
     robot.keep_alive().unwrap();
     sim.step();
-    assert!(spin(Duration::from_secs(5), || robot.state_count() > n));
+    spin_until("the first state", || robot.state_count() > n);
     let cycles = (sc.seconds / PERIOD).round() as usize;
     let mut records = Vec::with_capacity(cycles);
     let mut truth = Vec::with_capacity(cycles);
@@ -270,13 +259,13 @@ fn run(sc: Scenario) -> Outcome {
         if matches!(rec.mode, Mode::Faulted(_)) {
             robot.keep_alive().ok();
         }
-        assert!(spin(Duration::from_secs(5), || sim.stats().inputs > inputs));
+        spin_until("the command", || sim.stats().inputs > inputs);
         let states = robot.state_count();
         clock.advance(PERIOD);
         let t = clock.now_s();
         *head_now.lock().unwrap() = motion(t);
         sim.step();
-        assert!(spin(Duration::from_secs(5), || robot.state_count() > states));
+        spin_until("the next state", || robot.state_count() > states);
         let s = robot.state().unwrap();
         let head_from_coil = motion(t).inverse() * arm.fk_flange(&s.actual_q) * flange_from_coil();
         truth.push((
