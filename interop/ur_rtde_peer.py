@@ -4,7 +4,8 @@ mocomp-ursim). One JSON request per line, one JSON answer per line (see jsonline
 Ops: version; receive (RTDEReceiveInterface: rate and values); control_connect (RTDEControlInterface
 plus a receiver); moveJ; servo_stream (servoJ at the controller rate with initPeriod/waitPeriod);
 speedJ; speedStop; servoStop; stopJ; zeroFtSensor (with the TCP force before and after);
-stopScript; disconnect.
+stopScript; disconnect; io (RTDEIOInterface: digital outputs set and read back, inputs read);
+moveL (asynchronous, the TCP's path sampled); teachMode (not emulated: refused).
 """
 
 import importlib.metadata
@@ -15,6 +16,7 @@ import time
 from jsonlines import serve
 
 import rtde_control
+import rtde_io
 import rtde_receive
 
 state = {}
@@ -59,6 +61,35 @@ def receive(req):
     return out
 
 
+def wait_for(f, seconds=5.0):
+    # How long a package takes here depends on how busy the machine is: wait with a deadline.
+    deadline = time.monotonic() + seconds
+    while not f() and time.monotonic() < deadline:
+        time.sleep(0.001)
+    return f()
+
+
+def io(req):
+    # ur_rtde's io_example.py: digital output 7 high, read back through the receive interface;
+    # then an input the controller's world drives, and an analog output.
+    host = req["host"]
+    i = rtde_io.RTDEIOInterface(host)
+    r = rtde_receive.RTDEReceiveInterface(host)
+    out = {}
+    out["set_high"] = i.setStandardDigitalOut(7, True)
+    out["out7_high"] = wait_for(lambda: r.getDigitalOutState(7))
+    out["configurable"] = i.setConfigurableDigitalOut(2, True)
+    out["conf2_high"] = wait_for(lambda: r.getActualDigitalOutputBits() & (1 << 10) != 0)
+    out["set_low"] = i.setStandardDigitalOut(7, False)
+    out["out7_low"] = wait_for(lambda: not r.getDigitalOutState(7))
+    out["bits"] = r.getActualDigitalOutputBits()
+    out["in_bits"] = r.getActualDigitalInputBits()
+    out["in3"] = r.getDigitalInState(3)
+    i.disconnect()
+    r.disconnect()
+    return out
+
+
 def control_connect(req):
     host = req["host"]
     t0 = time.monotonic()
@@ -82,6 +113,8 @@ def handle(req):
         return receive(req)
     if op == "control_connect":
         return control_connect(req)
+    if op == "io":
+        return io(req)
     c, r = state.get("c"), state.get("r")
     if c is None:
         raise RuntimeError("control_connect first")
@@ -141,6 +174,29 @@ def handle(req):
         c.stopScript()
         time.sleep(0.05)
         return {"runtime_state": r.getRuntimeState()}
+    if op == "moveL":
+        # Asynchronous, so the TCP's path can be sampled on the way; then wait until it stops.
+        start = list(r.getActualTCPPose())
+        target = [start[i] + req["offset"][i] for i in range(6)]
+        ok = c.moveL(target, req.get("speed", 0.1), req.get("acc", 0.5), True)
+        path = []
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline:
+            p = list(r.getActualTCPPose())
+            path.append(p[:3])
+            if max(abs(p[i] - target[i]) for i in range(3)) < 1e-6:
+                break
+            time.sleep(0.005)
+        time.sleep(0.05)
+        return {"ok": ok, "start": start, "target": target, "path": path,
+                "final": list(r.getActualTCPPose())}
+    if op == "teachMode":
+        # Not emulated by our simulator: it must refuse, not pretend.
+        try:
+            ok, raised = c.teachMode(), ""
+        except Exception as e:  # ur_rtde may raise when its control script has stopped
+            ok, raised = False, str(e)
+        return {"ok": ok, "raised": raised}
     if op == "zeroFtSensor":
         # Wait (with a deadline) for a reading, zero, then wait for the zero to arrive: how long
         # a package takes here depends on how busy the machine is.

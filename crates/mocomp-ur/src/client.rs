@@ -370,6 +370,16 @@ impl UrRobot {
         self.command(cmd::ZERO_FT, [0.0; 6], [0.0; 3])
     }
 
+    /// Free-drive (`freedrive_mode()`): the arm yields to a hand that moves it, for as long as
+    /// this command is sent. Send it each cycle (or [`Robot::keep_alive`], which repeats it):
+    /// when the client falls silent the control program's watchdog stops the program and
+    /// free-drive with it, so the client's keep-alive is free-drive's dead-man switch. Any other
+    /// command ends it. Refused while the robot reports a fault. Returns the sequence number.
+    pub fn freedrive(&mut self) -> Result<i32, UrError> {
+        self.check_motion_allowed()?;
+        self.command(cmd::FREEDRIVE, [0.0; 6], [0.0; 3])
+    }
+
     fn upload_and_wait(&mut self) -> Result<(), UrError> {
         // Clear the command registers first: they keep their values, and a new program must not
         // resume the last servo target or speed (ur_rtde sends a clear command for the same

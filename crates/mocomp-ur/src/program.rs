@@ -11,7 +11,7 @@
 //!
 //! | register | meaning |
 //! |---|---|
-//! | `input_int_register_24` | command: 0 none, 1 SERVOJ, 2 MOVEJ, 3 SPEEDJ, 4 STOPJ, 5 EXIT, 6 ZERO_FT |
+//! | `input_int_register_24` | command: 0 none, 1 SERVOJ, 2 MOVEJ, 3 SPEEDJ, 4 STOPJ, 5 EXIT, 6 ZERO_FT, 7 FREEDRIVE |
 //! | `input_int_register_25` | sequence number; the client increments it with every new command. The RTDE watchdog watches this register. |
 //! | `input_double_register_24..29` | joint positions q (SERVOJ, MOVEJ) or velocities qd (SPEEDJ), rad, rad/s |
 //! | `input_double_register_30` | SERVOJ `t` (s); MOVEJ speed (rad/s); SPEEDJ and STOPJ acceleration (rad/s²) |
@@ -22,13 +22,16 @@
 //!
 //! | register | meaning |
 //! |---|---|
-//! | `output_int_register_24` | program mode: 0 not running, 1 idle, 2 servoing, 3 moving (MOVEJ), 4 speed control, 5 stopping |
+//! | `output_int_register_24` | program mode: 0 not running, 1 idle, 2 servoing, 3 moving (MOVEJ), 4 speed control, 5 stopping, 6 free-drive |
 //! | `output_int_register_25` | sequence number of the newest command taken |
 //! | `output_int_register_26` | protocol id [`PROTOCOL_ID`] while the program runs (tells our program from others) |
 //! | `output_int_register_27` | sequence number of the newest MOVEJ completed |
 //!
-//! Semantics: SERVOJ and SPEEDJ are *level* commands: every cycle the program servoes to (or
-//! runs at) the newest target in the registers. MOVEJ, STOPJ, EXIT and ZERO_FT (`zero_ftsensor()`,
+//! Semantics: SERVOJ, SPEEDJ and FREEDRIVE are *level* commands: every cycle the program servoes
+//! to (or runs at) the newest target in the registers, or keeps the arm in free-drive
+//! (`freedrive_mode()`: a hand moves it); any other command ends free-drive
+//! (`end_freedrive_mode()`), and so does the watchdog when the client falls silent, which makes
+//! the client's keep-alive free-drive's dead-man switch. MOVEJ, STOPJ, EXIT and ZERO_FT (`zero_ftsensor()`,
 //! e-Series only: a CB3 program logs that it has no sensor) are *edge* commands: they
 //! run once, when their sequence number is new. A client may therefore resend its last package
 //! at any time (a keep-alive) without repeating a move. The program sets an RTDE watchdog on
@@ -62,6 +65,8 @@ pub mod cmd {
     pub const EXIT: i32 = 5;
     /// Zero the force/torque sensor, `zero_ftsensor()` (edge; e-Series).
     pub const ZERO_FT: i32 = 6;
+    /// Free-drive, `freedrive_mode()`, while it is sent (level).
+    pub const FREEDRIVE: i32 = 7;
 }
 
 /// Program modes (`output_int_register_24`).
@@ -78,6 +83,8 @@ pub mod mode {
     pub const SPEED: i32 = 4;
     /// Decelerating after STOPJ.
     pub const STOPPING: i32 = 5;
+    /// In free-drive.
+    pub const FREEDRIVE: i32 = 6;
 }
 
 /// The first register of the protocol (external-client range).
@@ -167,6 +174,10 @@ pub fn script(watchdog_hz: f64, ft_sensor: bool) -> String {
   while True:
     cmd = read_input_integer_register(24)
     seq = read_input_integer_register(25)
+    if prog_mode == 6 and cmd != 7:
+      end_freedrive_mode()
+      prog_mode = 1
+    end
     if cmd == 1:
       servo_q = read_vector()
       servo_t = read_input_float_register(30)
@@ -184,6 +195,12 @@ pub fn script(watchdog_hz: f64, ft_sensor: bool) -> String {
         stop_motion()
         thrd = run speed_thread()
         prog_mode = 4
+      end
+    elif cmd == 7:
+      if prog_mode != 6:
+        stop_motion()
+        freedrive_mode()
+        prog_mode = 6
       end
     elif seq != last_seq:
       if cmd == 2:

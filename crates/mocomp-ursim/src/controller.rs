@@ -34,10 +34,12 @@ use std::sync::{Arc, Mutex};
 
 mod dashboard;
 mod dynamics;
+mod io;
 mod programs;
 mod variables;
 
 use dynamics::Motion;
+pub use io::{Bank, Io};
 use programs::{Program, Watchdog};
 pub use programs::{ProgramKind, classify_program};
 pub use variables::{InputSlot, OutputVar};
@@ -177,6 +179,8 @@ pub struct Controller {
     /// What `zero_ftsensor()` took as the sensor's zero (e-Series): subtracted from what it
     /// reads.
     ft_offset: [f64; 6],
+    /// Digital and analog I/O.
+    io: Io,
 }
 
 impl Controller {
@@ -213,6 +217,7 @@ impl Controller {
             protective_stops: 0,
             tcp_force: [0.0; 6],
             ft_offset: [0.0; 6],
+            io: Io::default(),
             config,
         }
     }
@@ -227,6 +232,16 @@ impl Controller {
     /// wrench less the zero `zero_ftsensor()` took.
     pub fn tcp_force(&self) -> [f64; 6] {
         std::array::from_fn(|i| self.tcp_force[i] - self.ft_offset[i])
+    }
+
+    /// The I/O: outputs clients set, inputs the world drives.
+    pub fn io(&self) -> &Io {
+        &self.io
+    }
+
+    /// Drives digital input `bit` (0–7 standard, 8–15 configurable, 16–17 tool).
+    pub fn set_digital_input(&mut self, bit: u32, on: bool) {
+        self.io.set_digital_input(bit, on);
     }
 
     /// `zero_ftsensor()`: an e-Series takes the sensor's present reading as its zero (what the
@@ -442,6 +457,88 @@ mod tests {
         c.load_program(&mp::script(20.0, true));
         assert_eq!(c.runtime_state(), RuntimeState::Playing);
         c
+    }
+
+    #[test]
+    fn free_drive_yields_to_a_push_and_ends_when_the_client_falls_silent() {
+        let mut c = running(Model::Ur5e);
+        let arm = Arm::new(Model::Ur5e);
+        let p0 = arm.fk(&c.q()).translation.vector;
+        c.apply_input(InputSlot::Int(24), Value::Int32(mcmd::FREEDRIVE));
+        c.apply_input(InputSlot::Int(25), Value::Int32(1));
+        step_fed(&mut c, 10);
+        assert_eq!(c.output_int(24), mmode::FREEDRIVE);
+        // No push: the arm stays.
+        assert!((arm.fk(&c.q()).translation.vector - p0).norm() < 1e-12);
+        // A hand pushes the tool along +x with 20 N for 1 s: it follows at about 0.1 m/s.
+        c.set_tcp_force([20.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        step_fed(&mut c, 500);
+        let moved = arm.fk(&c.q()).translation.vector - p0;
+        assert!(moved.x > 0.09 && moved.x < 0.101, "{moved:?}");
+        assert!(moved.y.abs() < 1e-3 && moved.z.abs() < 1e-3, "{moved:?}");
+        // The client falls silent (no package): the watchdog stops the program, free-drive ends
+        // and the arm stops although the hand still pushes.
+        for _ in 0..500 {
+            c.step();
+        }
+        assert_eq!(c.runtime_state(), RuntimeState::Stopped);
+        let q = c.q();
+        c.step();
+        assert_eq!(c.q(), q, "still moving after the watchdog");
+        assert!(
+            c.events().0.iter().any(|e| e.text.contains("watchdog")),
+            "{:?}",
+            c.events().0
+        );
+    }
+
+    #[test]
+    fn leaving_free_drive_for_a_command_ends_it() {
+        let mut c = running(Model::Ur5e);
+        c.apply_input(InputSlot::Int(24), Value::Int32(mcmd::FREEDRIVE));
+        c.apply_input(InputSlot::Int(25), Value::Int32(1));
+        step_fed(&mut c, 5);
+        let q = c.q();
+        servo_inputs(&mut c, q, 2);
+        step_fed(&mut c, 5);
+        assert_eq!(c.output_int(24), mmode::SERVO);
+        assert!(c.events().0.iter().any(|e| e.text == "free-drive ended"));
+    }
+
+    #[test]
+    fn movel_keeps_the_tool_on_the_straight_line_and_stops_on_the_target() {
+        let mut c = Controller::new(ControllerConfig::new(Model::Ur5e));
+        let arm = Arm::new(Model::Ur5e);
+        let start = arm.fk(&c.q());
+        let goal = Isometry3::translation(0.06, -0.02, 0.03) * start;
+        assert!(c.start_linear(goal, 0.1, 0.5));
+        let line = goal.translation.vector - start.translation.vector;
+        let mut steps = 0;
+        while !matches!(c.motion, Motion::Idle) {
+            c.step();
+            steps += 1;
+            assert!(steps < 5_000, "movel did not end");
+            let p = arm.fk(&c.q()).translation.vector - start.translation.vector;
+            let off = (p - line * (p.dot(&line) / line.norm_squared())).norm();
+            assert!(off < 1e-9, "{off} m off the line at step {steps}");
+            // Never faster than asked (the tool speed along the line).
+            let v = arm.jacobian(&c.q()) * Vector6::from_column_slice(&c.qd);
+            let speed = v.fixed_rows::<3>(0).norm();
+            assert!(speed < 0.1 + 1e-3, "{speed} m/s");
+        }
+        let end = arm.fk(&c.q());
+        assert!((end.translation.vector - goal.translation.vector).norm() < 1e-9);
+        // At 0.1 m/s with 0.5 m/s² ramps: distance / v + v / a.
+        let t = steps as f64 * c.period_s();
+        let dist = line.norm();
+        assert!(
+            (t - (dist / 0.1 + 0.1 / 0.5)).abs() < 0.01,
+            "{t} s for {dist} m"
+        );
+        // Out of reach: refused, nothing moves.
+        let q = c.q();
+        assert!(!c.start_linear(Isometry3::translation(5.0, 0.0, 0.0), 0.1, 0.5));
+        assert_eq!(c.q(), q);
     }
 
     #[test]

@@ -20,6 +20,7 @@ pub mod controller;
 mod server;
 
 pub use controller::{
-    Controller, ControllerConfig, DEFAULT_TCP_FORCE_LIMIT_N, SimEvent, ToolLoad, ToolLoadFn,
+    Bank, Controller, ControllerConfig, DEFAULT_TCP_FORCE_LIMIT_N, Io, SimEvent, ToolLoad,
+    ToolLoadFn,
 };
 pub use server::{Ports, Sim, SimAddrs, SimClock, SimConfig, SimError, SimStats};

@@ -702,6 +702,7 @@ fn handle_request(req: Request<'_>, sess: &mut RtdeSession, shared: &Shared) {
                     for (slot, v) in slots.iter().zip(&values) {
                         ctrl.apply_input(*slot, *v);
                     }
+                    ctrl.finish_inputs();
                     drop(ctrl);
                     shared.counters.inputs.fetch_add(1, Ordering::Relaxed);
                 }

@@ -128,6 +128,52 @@ fn zeroing_the_force_sensor_takes_its_present_reading_as_zero_and_a_cb3_has_none
 }
 
 #[test]
+fn free_drive_follows_a_hand_while_the_client_talks_and_ends_when_it_falls_silent() {
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut robot = connect(&sim);
+    wait_until("a state", || {
+        robot.keep_alive().unwrap();
+        robot.state().is_some()
+    });
+    let arm = Arm::new(Model::Ur5e);
+    let p0 = arm.fk(&robot.state().unwrap().actual_q).translation.vector;
+    robot.freedrive().unwrap();
+    wait_until("free-drive", || {
+        robot.keep_alive().unwrap();
+        robot
+            .state()
+            .is_some_and(|s| s.program_mode == mocomp_ur::program::mode::FREEDRIVE)
+    });
+    // A hand pushes the coil down (−z) with 20 N: the arm yields while the client keeps talking.
+    sim.with(|c| c.set_tcp_force([0.0, 0.0, -20.0, 0.0, 0.0, 0.0]));
+    wait_until("the arm to yield 2 cm", || {
+        robot.keep_alive().unwrap();
+        robot
+            .state()
+            .is_some_and(|s| p0.z - arm.fk(&s.actual_q).translation.vector.z > 0.02)
+    });
+    // The client falls silent: the watchdog ends the program and free-drive with it.
+    wait_until("the watchdog", || {
+        sim.with(|c| c.runtime_state()) == RuntimeState::Stopped
+    });
+    let events = sim.with(|c| {
+        c.events()
+            .0
+            .iter()
+            .map(|e| e.text.clone())
+            .collect::<Vec<_>>()
+    });
+    assert!(
+        events.iter().any(|e| e.contains("free-drive started")),
+        "{events:?}"
+    );
+    assert!(events.iter().any(|e| e.contains("watchdog")), "{events:?}");
+    wait_until("standstill", || {
+        sim.with(|c| c.qd().iter().all(|v| *v == 0.0))
+    });
+}
+
+#[test]
 fn servo_streaming_tracks_a_trajectory_on_a_stepped_clock_deterministically() {
     fn run() -> (f64, Vec<[f64; 6]>) {
         let sim = sim(Model::Ur3e, SimClock::Stepped);

@@ -100,8 +100,62 @@ fn receive_interface_gets_cb3_data_at_125_hz() {
 }
 
 #[test]
+fn io_interface_sets_digital_outputs_that_read_back_and_reads_the_inputs() {
+    let host = "127.0.77.9";
+    let sim = sim_at(Model::Ur5e, host);
+    // The world drives standard input 3 (a stimulator's trigger line).
+    sim.with(|c| c.set_digital_input(3, true));
+    let mut p = peer();
+    let r = p.request(&json!({"op": "io", "host": host}));
+    eprintln!("ur_rtde RTDEIOInterface: {r}");
+    // ur_rtde's io_example.py: output 7 high, read back high; then low again.
+    assert_eq!(r["set_high"], true, "{r}");
+    assert_eq!(r["out7_high"], true, "{r}");
+    assert_eq!(
+        r["conf2_high"], true,
+        "configurable output 2 is bit 10: {r}"
+    );
+    assert_eq!(r["out7_low"], true, "{r}");
+    assert_eq!(r["bits"], 1 << 10, "{r}");
+    assert_eq!(r["in_bits"], 1 << 3, "{r}");
+    assert_eq!(r["in3"], true, "{r}");
+    // The controller holds what the client set.
+    assert_eq!(sim.with(|c| c.io().digital_outputs()), 1 << 10);
+}
+
+#[test]
+fn a_command_the_simulator_does_not_emulate_is_refused_not_faked() {
+    let host = "127.0.77.15";
+    let sim = sim_at(Model::Ur5e, host);
+    let mut p = peer();
+    p.request(&json!({"op": "control_connect", "host": host}));
+    let q = sim.with(|c| c.q());
+    let r = p.request(&json!({"op": "teachMode"}));
+    eprintln!("ur_rtde teachMode against the simulator: {r}");
+    assert_eq!(r["ok"], false, "{r}");
+    let events = sim.with(|c| {
+        c.events()
+            .0
+            .iter()
+            .map(|e| e.text.clone())
+            .collect::<Vec<_>>()
+    });
+    assert!(
+        events
+            .iter()
+            .any(|e| e.contains("is not emulated by this simulator")),
+        "{events:?}"
+    );
+    assert_eq!(
+        sim.with(|c| c.runtime_state()),
+        mocomp_ur::RuntimeState::Stopped
+    );
+    assert_eq!(sim.with(|c| c.q()), q, "nothing moved");
+}
+
+#[test]
 fn control_interface_moves_the_simulated_joints() {
-    let host = "127.0.77.4";
+    let host = "127.0.77.14";
     let sim = sim_at(Model::Ur3e, host);
     let mut p = peer();
     let c = p.request(&json!({"op": "control_connect", "host": host}));
@@ -110,6 +164,42 @@ fn control_interface_moves_the_simulated_joints() {
         c["connect_ms"]
     );
     let q0 = vec6(&c["q"]);
+
+    // moveL: the TCP on a straight line to the target (sampled on the way by ur_rtde's receive
+    // interface), and there at the end.
+    let m = p.request(
+        &json!({"op": "moveL", "offset": [0.04, -0.03, 0.02, 0.0, 0.0, 0.0],
+                              "speed": 0.1, "acc": 0.5}),
+    );
+    assert_eq!(m["ok"], true, "{m}");
+    let (start, target) = (vec6(&m["start"]), vec6(&m["target"]));
+    let line = mocomp_geom::nalgebra::Vector3::new(
+        target[0] - start[0],
+        target[1] - start[1],
+        target[2] - start[2],
+    );
+    let path = m["path"].as_array().unwrap();
+    assert!(path.len() > 20, "{} samples", path.len());
+    let off_line = path
+        .iter()
+        .map(|p| {
+            let a = p.as_array().unwrap();
+            let d = mocomp_geom::nalgebra::Vector3::new(
+                a[0].as_f64().unwrap() - start[0],
+                a[1].as_f64().unwrap() - start[1],
+                a[2].as_f64().unwrap() - start[2],
+            );
+            (d - line * (d.dot(&line) / line.norm_squared())).norm()
+        })
+        .fold(0.0f64, f64::max);
+    assert!(off_line < 1e-6, "the TCP left the line by {off_line} m");
+    let fin = vec6(&m["final"]);
+    for i in 0..6 {
+        assert!(
+            (fin[i] - target[i]).abs() < 1e-6,
+            "final {fin:?} vs {target:?}"
+        );
+    }
 
     // zeroFtSensor: the sensor's present reading (a bias) becomes its zero.
     let bias = [0.75, -1.5, 6.25, 0.0, 0.125, 0.0];

@@ -2,6 +2,7 @@
 //! whose breach is a protective stop (see the parent module's doc for the model).
 
 use super::*;
+use mocomp_kin::Selection;
 
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Servo {
@@ -68,9 +69,33 @@ impl MoveProfile {
 pub(super) enum Motion {
     Idle,
     Servo(Servo),
-    Speed { qd: [f64; 6], accel: f64 },
+    Speed {
+        qd: [f64; 6],
+        accel: f64,
+    },
     Move(MoveProfile),
-    Stop { decel: f64 },
+    Linear(LinearMove),
+    /// `freedrive_mode()`: the arm yields to the wrench on its tool (a hand pushing it).
+    Freedrive,
+    Stop {
+        decel: f64,
+    },
+}
+
+/// Free-drive's compliance: a force of 1 N moves the tool this fast (m/s), a torque of 1 N·m
+/// turns it this fast (rad/s). UR does not publish its free-drive law; these make a 20 N push
+/// move the coil at 0.1 m/s, about a hand's pace.
+const FREEDRIVE_M_S_PER_N: f64 = 0.005;
+const FREEDRIVE_RAD_S_PER_NM: f64 = 0.05;
+
+/// `movel`: the tool on a straight line (its rotation slerped) with a trapezoidal profile of the
+/// tool's speed, the joints from IK each cycle on the branch the arm is on.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LinearMove {
+    pub(super) start: Isometry3<f64>,
+    pub(super) goal: Isometry3<f64>,
+    /// The profile along the path: translation in m (or, for a pure rotation, the angle in rad).
+    pub(super) profile: MoveProfile,
 }
 
 pub(super) fn approach(v: f64, target: f64, step: f64) -> f64 {
@@ -184,6 +209,48 @@ impl Controller {
         true
     }
 
+    /// `movel` to `goal` (`base_from_tcp`) at tool speed `v` (m/s) and acceleration `a` (m/s²);
+    /// a pure rotation takes them as rad/s and rad/s², as URScript does. Refused (the program
+    /// stops) when the goal is not finite or has no IK solution within the joint limits.
+    pub(super) fn start_linear(&mut self, goal: Isometry3<f64>, v: f64, a: f64) -> bool {
+        let finite = goal.translation.vector.iter().all(|x| x.is_finite())
+            && goal.rotation.coords.iter().all(|x| x.is_finite());
+        if !finite
+            || self
+                .arm
+                .ik_closest(&goal, &self.q, &Selection::default())
+                .is_err()
+        {
+            self.stop_program("movel: the target pose is not reachable".into());
+            return false;
+        }
+        let start = self.arm.fk(&self.q);
+        let trans = (goal.translation.vector - start.translation.vector).norm();
+        let dist = if trans > 1e-6 {
+            trans
+        } else {
+            start.rotation.angle_to(&goal.rotation)
+        };
+        let v = if v.is_finite() && v > 0.0 {
+            v.min(3.0)
+        } else {
+            0.25
+        };
+        let a = if a.is_finite() && a > 0.0 {
+            a.min(15.0)
+        } else {
+            1.2
+        };
+        let mut end = [0.0; 6];
+        end[0] = dist;
+        self.motion = Motion::Linear(LinearMove {
+            start,
+            goal,
+            profile: MoveProfile::new([0.0; 6], end, v, a),
+        });
+        true
+    }
+
     pub(super) fn integrate(&mut self) {
         let dt = self.period;
         let ds = dt * self.scaling();
@@ -223,6 +290,78 @@ impl Controller {
                 if m.elapsed >= m.t_total {
                     self.qd_int = [0.0; 6];
                     self.motion = Motion::Idle;
+                }
+            }
+            Motion::Linear(m) => {
+                m.profile.elapsed += ds;
+                let f = m.profile.fraction(m.profile.elapsed);
+                let t = m
+                    .start
+                    .translation
+                    .vector
+                    .lerp(&m.goal.translation.vector, f);
+                let r = m.start.rotation.slerp(&m.goal.rotation, f);
+                let pose = Isometry3::from_parts(t.into(), r);
+                let done = m.profile.elapsed >= m.profile.t_total;
+                match self
+                    .arm
+                    .ik_closest(&pose, &self.q, &Selection::tracking(0.0))
+                {
+                    Ok(c) => {
+                        let fast = (0..6).any(|j| {
+                            (c.joints[j] - self.q[j]).abs() / ds.max(1e-12)
+                                > self.spec.max_speed[j] * self.config.setpoint_speed_factor
+                        });
+                        if fast {
+                            // Near a singularity a straight line asks for joint speeds no arm has.
+                            self.qd_int = [0.0; 6];
+                            self.motion = Motion::Idle;
+                            self.protective_stop(
+                                "movel: a joint would exceed its speed limit (near a singularity)"
+                                    .into(),
+                            );
+                        } else {
+                            for j in 0..6 {
+                                self.qd_int[j] = (c.joints[j] - self.q[j]) / ds.max(1e-12);
+                            }
+                            self.q = c.joints;
+                            if done {
+                                self.qd_int = [0.0; 6];
+                                self.motion = Motion::Idle;
+                            }
+                        }
+                    }
+                    Err(_) => {
+                        self.qd_int = [0.0; 6];
+                        self.motion = Motion::Idle;
+                        self.protective_stop("movel: the path leaves the arm's reach".into());
+                    }
+                }
+            }
+            Motion::Freedrive => {
+                let w = self.tcp_force;
+                let twist = Vector6::new(
+                    w[0] * FREEDRIVE_M_S_PER_N,
+                    w[1] * FREEDRIVE_M_S_PER_N,
+                    w[2] * FREEDRIVE_M_S_PER_N,
+                    w[3] * FREEDRIVE_RAD_S_PER_NM,
+                    w[4] * FREEDRIVE_RAD_S_PER_NM,
+                    w[5] * FREEDRIVE_RAD_S_PER_NM,
+                );
+                // Joint speeds for that tool twist (least squares near a singularity), within
+                // each joint's speed and acceleration.
+                let qd = self
+                    .arm
+                    .jacobian(&self.q)
+                    .svd(true, true)
+                    .solve(&twist, 1e-6)
+                    .unwrap_or_else(|_| Vector6::zeros());
+                for j in 0..6 {
+                    let vmax = self.spec.max_speed[j];
+                    let target = qd[j].clamp(-vmax, vmax);
+                    self.qd_int[j] =
+                        approach(self.qd_int[j], target, self.config.max_accel[j] * dt);
+                    self.q[j] += self.qd_int[j] * dt;
                 }
             }
             Motion::Stop { decel } => {

@@ -173,8 +173,22 @@ impl Controller {
         let b = mp::REGISTER_BASE as usize;
         let command = self.regs.in_int[b];
         let seq = self.regs.in_int[b + 1];
+        if p.mode == mmode::FREEDRIVE && command != mcmd::FREEDRIVE {
+            // end_freedrive_mode(): the arm stops where the hand left it.
+            self.motion = Motion::Stop {
+                decel: self.config.stop_decel,
+            };
+            p.mode = mmode::IDLE;
+            self.record_event("free-drive ended".into());
+        }
         let d = |k: usize| self.regs.in_double[b + k];
         match command {
+            mcmd::FREEDRIVE if p.mode != mmode::FREEDRIVE => {
+                self.motion = Motion::Freedrive;
+                p.mode = mmode::FREEDRIVE;
+                self.record_event("free-drive started".into());
+            }
+            mcmd::FREEDRIVE => {}
             mcmd::SERVOJ => {
                 if !self.start_servo(self.read_q(b), d(6), d(7), d(8)) {
                     return;
@@ -264,6 +278,28 @@ impl Controller {
                     p.blocking = true;
                 }
             }
+            // moveL (a pose) and moveL_FK (joints, their pose)
+            3 | 4 => {
+                let target = self.read_q(od);
+                let goal = if command == 3 {
+                    mocomp_geom::iso_from_ur_pose(&target).ok()
+                } else {
+                    target
+                        .iter()
+                        .all(|x| x.is_finite())
+                        .then(|| self.arm.fk(&target))
+                };
+                let Some(goal) = goal else {
+                    self.stop_program("movel: the target is not a pose".into());
+                    return false;
+                };
+                if !self.start_linear(goal, d(6), d(7)) {
+                    return false;
+                }
+                if i1 == 0 {
+                    p.blocking = true;
+                }
+            }
             9 => {
                 if !self.start_speed(self.read_q(od), d(6)) {
                     return false;
@@ -303,9 +339,15 @@ impl Controller {
                 self.stop_program("ur_rtde STOP_SCRIPT".into());
                 return false;
             }
-            other => self.record_event(format!(
-                "ur_rtde command {other} is not emulated; acknowledged without effect"
-            )),
+            other => {
+                // A simulator refuses what it does not do: acknowledging a command without
+                // doing it would let a client believe it was done.
+                self.stop_program(format!(
+                    "ur_rtde command {other} is not emulated by this simulator: the program is \
+                     stopped (a real controller would have run it)"
+                ));
+                return false;
+            }
         }
         true
     }

@@ -22,7 +22,16 @@ pub enum InputSlot {
     SliderMask,
     /// `speed_slider_fraction`.
     SliderFraction,
-    /// An I/O variable the simulator accepts and ignores (digital/analog outputs, wrench).
+    /// `*_digital_output_mask` of a bank.
+    DigitalMask(Bank),
+    /// `*_digital_output` of a bank.
+    Digital(Bank),
+    /// `standard_analog_output_mask`.
+    AnalogMask,
+    /// `standard_analog_output_0` / `_1`.
+    Analog(usize),
+    /// An input the simulator takes and has no use for (`standard_analog_output_type`,
+    /// `external_force_torque`).
     Ignored(u8),
 }
 
@@ -43,6 +52,15 @@ impl InputSlot {
                 "input_bit_registers32_to_63" => InputSlot::BitsHigh,
                 "speed_slider_mask" => InputSlot::SliderMask,
                 "speed_slider_fraction" => InputSlot::SliderFraction,
+                "standard_digital_output_mask" => InputSlot::DigitalMask(Bank::Standard),
+                "standard_digital_output" => InputSlot::Digital(Bank::Standard),
+                "configurable_digital_output_mask" => InputSlot::DigitalMask(Bank::Configurable),
+                "configurable_digital_output" => InputSlot::Digital(Bank::Configurable),
+                "tool_digital_output_mask" => InputSlot::DigitalMask(Bank::Tool),
+                "tool_digital_output" => InputSlot::Digital(Bank::Tool),
+                "standard_analog_output_mask" => InputSlot::AnalogMask,
+                "standard_analog_output_0" => InputSlot::Analog(0),
+                "standard_analog_output_1" => InputSlot::Analog(1),
                 other => InputSlot::Ignored(other.len() as u8),
             }
         };
@@ -107,6 +125,16 @@ pub enum OutputVar {
     OutBits(bool),
     /// `input_bit_registers0_to_31` and `32_to_63`.
     InBits(bool),
+    /// `actual_digital_output_bits`.
+    DigitalOut,
+    /// `actual_digital_input_bits`.
+    DigitalIn,
+    /// `actual_configurable_digital_output_bits`.
+    ConfigurableOut,
+    /// `actual_configurable_digital_input_bits`.
+    ConfigurableIn,
+    /// `standard_analog_output0` / `1`.
+    AnalogOut(usize),
     /// Anything else the controller knows: reported as zero of its type.
     Zero(DataType),
 }
@@ -142,6 +170,12 @@ impl OutputVar {
             "output_bit_registers32_to_63" => OutputVar::OutBits(true),
             "input_bit_registers0_to_31" => OutputVar::InBits(false),
             "input_bit_registers32_to_63" => OutputVar::InBits(true),
+            "actual_digital_output_bits" => OutputVar::DigitalOut,
+            "actual_digital_input_bits" => OutputVar::DigitalIn,
+            "actual_configurable_digital_output_bits" => OutputVar::ConfigurableOut,
+            "actual_configurable_digital_input_bits" => OutputVar::ConfigurableIn,
+            "standard_analog_output0" => OutputVar::AnalogOut(0),
+            "standard_analog_output1" => OutputVar::AnalogOut(1),
             _ => {
                 if let Some(i) = idx("output_int_register_") {
                     OutputVar::OutInt(i)
@@ -216,8 +250,18 @@ impl Controller {
             }
             (InputSlot::SliderMask, Value::Uint32(x)) => self.slider_mask = x,
             (InputSlot::SliderFraction, Value::Double(x)) if x.is_finite() => self.slider = x,
+            (InputSlot::DigitalMask(b), Value::Uint8(m)) => self.io.take_mask(b, m),
+            (InputSlot::Digital(b), Value::Uint8(v)) => self.io.take_value(b, v),
+            (InputSlot::AnalogMask, Value::Uint8(m)) => self.io.take_analog_mask(m),
+            (InputSlot::Analog(ch), Value::Double(x)) => self.io.take_analog(ch, x),
             _ => {}
         }
+    }
+
+    /// Ends a data package: the I/O it set takes effect together (a mask and its values may
+    /// come in either order).
+    pub fn finish_inputs(&mut self) {
+        self.io.finish_package();
     }
 
     pub(super) fn read_q(&self, base: usize) -> [f64; 6] {
@@ -293,6 +337,11 @@ impl Controller {
             OutputVar::InDouble(i) => Value::Double(self.regs.in_double[i.min(NREG - 1)]),
             OutputVar::OutBits(hi) => Value::Uint32(self.regs.out_bits[usize::from(hi)]),
             OutputVar::InBits(hi) => Value::Uint32(self.regs.in_bits[usize::from(hi)]),
+            OutputVar::DigitalOut => Value::Uint64(self.io.digital_outputs()),
+            OutputVar::DigitalIn => Value::Uint64(self.io.digital_inputs()),
+            OutputVar::ConfigurableOut => Value::Uint64((self.io.digital_outputs() >> 8) & 0xff),
+            OutputVar::ConfigurableIn => Value::Uint64((self.io.digital_inputs() >> 8) & 0xff),
+            OutputVar::AnalogOut(ch) => Value::Double(self.io.analog_output(ch)),
             OutputVar::Zero(t) => t.zero(),
         }
     }

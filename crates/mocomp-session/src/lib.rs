@@ -1,0 +1,22 @@
+//! The clinical session around the compensation loop (issue 20): what a TMS session needs besides
+//! keeping the coil on its goal.
+//!
+//! - [`gate`]: the on-target gate. A pulse is allowed only while the measured coil has stayed
+//!   within its tolerance of the target for a dwell time, and never while the coil travels.
+//! - [`grid`]: a grid of targets around one, on the head model's surface, each coil axis along
+//!   the surface normal (motor mapping walks such a grid around the hotspot).
+//! - [`drift`]: whether the tracker and the robot's base are still where the calibration says.
+//! - [`targets`]: the session's named targets and their file.
+//!
+//! Pure logic: no robot, no socket, no clock (the targets file is parsed and printed; the caller
+//! reads and writes it).
+
+pub mod drift;
+pub mod gate;
+pub mod grid;
+pub mod targets;
+
+pub use drift::{Drift, DriftMonitor, DriftParams};
+pub use gate::{Gate, GateEvent, GateInputs, GateParams, GateState, Shut};
+pub use grid::{GridError, GridParams, GridPoint, grid_around};
+pub use targets::{Target, Targets, TargetsError};

@@ -1,0 +1,252 @@
+//! A session's named targets: each a coil pose in the head marker's frame (`head_from_coil`), with
+//! a note and the time it was taught, kept in a TOML file so they survive a restart.
+//!
+//! ```toml
+//! [[target]]
+//! name = "hotspot"
+//! head_from_coil = [0.0, 0.0, 0.113, 3.141592653589793, 0.0, 0.0]  # m; rotation vector, rad
+//! note = "APB hotspot, 62 % RMT"
+//! taught_at = "2026-12-02T09:14:03Z"
+//! ```
+//!
+//! Parsing and printing only: the caller reads and writes the file.
+
+use mocomp_geom::nalgebra::{Isometry3, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// One target.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Target {
+    /// Its name (unique in the session).
+    pub name: String,
+    /// The coil in the head marker's frame: x, y, z (m) and a rotation vector (rad).
+    pub head_from_coil: [f64; 6],
+    /// Free text.
+    #[serde(default)]
+    pub note: String,
+    /// When it was taught (RFC 3339, UTC), as the caller gave it.
+    #[serde(default)]
+    pub taught_at: String,
+}
+
+impl Target {
+    /// A target from a pose.
+    pub fn new(name: &str, head_from_coil: &Isometry3<f64>, note: &str, taught_at: &str) -> Self {
+        let t = head_from_coil.translation.vector;
+        let r = head_from_coil.rotation.scaled_axis();
+        Self {
+            name: name.to_string(),
+            head_from_coil: [t.x, t.y, t.z, r.x, r.y, r.z],
+            note: note.to_string(),
+            taught_at: taught_at.to_string(),
+        }
+    }
+
+    /// Its pose.
+    pub fn pose(&self) -> Isometry3<f64> {
+        let p = &self.head_from_coil;
+        Isometry3::new(
+            Vector3::new(p[0], p[1], p[2]),
+            Vector3::new(p[3], p[4], p[5]),
+        )
+    }
+}
+
+/// What is wrong with a targets file or a change to it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TargetsError {
+    /// Not TOML of the expected shape (the parser's message names the line and key).
+    #[error("{file}: {detail}")]
+    Parse {
+        /// The file.
+        file: String,
+        /// The parser's message.
+        detail: String,
+    },
+    /// A value that is not a number, by target and field.
+    #[error("{file}: target {name:?}: {field} is not finite")]
+    NotFinite {
+        /// The file.
+        file: String,
+        /// The target.
+        name: String,
+        /// The field.
+        field: &'static str,
+    },
+    /// Two targets of one name, or an empty name.
+    #[error("target name {0:?}: names must be unique and not empty")]
+    Name(String),
+    /// No target of this name.
+    #[error("no target {name:?} (the session has: {known})")]
+    Unknown {
+        /// The name asked for.
+        name: String,
+        /// The names there are.
+        known: String,
+    },
+}
+
+/// The session's targets, in the order taught.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Targets {
+    /// The targets.
+    #[serde(default, rename = "target")]
+    pub targets: Vec<Target>,
+}
+
+impl Targets {
+    /// Parses a targets file's text (`file` names it in errors).
+    pub fn parse(file: &str, text: &str) -> Result<Self, TargetsError> {
+        let t: Targets = toml::from_str(text).map_err(|e| TargetsError::Parse {
+            file: file.to_string(),
+            detail: e.to_string(),
+        })?;
+        let mut seen = std::collections::HashSet::new();
+        for target in &t.targets {
+            if target.name.trim().is_empty() || !seen.insert(target.name.as_str()) {
+                return Err(TargetsError::Name(target.name.clone()));
+            }
+            if !target.head_from_coil.iter().all(|x| x.is_finite()) {
+                return Err(TargetsError::NotFinite {
+                    file: file.to_string(),
+                    name: target.name.clone(),
+                    field: "head_from_coil",
+                });
+            }
+        }
+        Ok(t)
+    }
+
+    /// The file's text.
+    pub fn to_toml(&self) -> String {
+        // Plain data: serialising cannot fail.
+        toml::to_string(self).unwrap_or_default()
+    }
+
+    /// Adds a target, or replaces the one of its name (re-teaching).
+    pub fn teach(&mut self, target: Target) -> Result<(), TargetsError> {
+        if target.name.trim().is_empty() {
+            return Err(TargetsError::Name(target.name));
+        }
+        match self.targets.iter_mut().find(|t| t.name == target.name) {
+            Some(t) => *t = target,
+            None => self.targets.push(target),
+        }
+        Ok(())
+    }
+
+    /// The target called `name`.
+    pub fn get(&self, name: &str) -> Result<&Target, TargetsError> {
+        self.targets
+            .iter()
+            .find(|t| t.name == name)
+            .ok_or_else(|| self.unknown(name))
+    }
+
+    /// Deletes the target called `name`.
+    pub fn delete(&mut self, name: &str) -> Result<Target, TargetsError> {
+        let i = self
+            .targets
+            .iter()
+            .position(|t| t.name == name)
+            .ok_or_else(|| self.unknown(name))?;
+        Ok(self.targets.remove(i))
+    }
+
+    fn unknown(&self, name: &str) -> TargetsError {
+        TargetsError::Unknown {
+            name: name.to_string(),
+            known: self
+                .targets
+                .iter()
+                .map(|t| t.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::*;
+
+    fn pose(z: f64) -> Isometry3<f64> {
+        Isometry3::new(Vector3::new(0.01, -0.02, z), Vector3::new(3.0, 0.1, -0.2))
+    }
+
+    #[test]
+    fn targets_survive_a_round_trip_through_their_file() {
+        let mut t = Targets::default();
+        t.teach(Target::new(
+            "hotspot",
+            &pose(0.113),
+            "APB",
+            "2026-12-02T09:14:03Z",
+        ))
+        .unwrap();
+        t.teach(Target::new(
+            "hotspot-r0c0",
+            &pose(0.12),
+            "",
+            "2026-12-02T09:20:00Z",
+        ))
+        .unwrap();
+        let back = Targets::parse("session.toml", &t.to_toml()).unwrap();
+        assert_eq!(back, t);
+        let p = back.get("hotspot").unwrap().pose();
+        assert!((p.translation.vector - pose(0.113).translation.vector).norm() < 1e-15);
+        assert!(p.rotation.angle_to(&pose(0.113).rotation) < 1e-12);
+        // Re-teaching replaces; deleting removes; an unknown name lists the known ones.
+        t.teach(Target::new("hotspot", &pose(0.2), "moved", "later"))
+            .unwrap();
+        assert_eq!(t.targets.len(), 2);
+        assert_eq!(t.get("hotspot").unwrap().note, "moved");
+        t.delete("hotspot-r0c0").unwrap();
+        let e = t.get("hotspot-r0c0").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "no target \"hotspot-r0c0\" (the session has: hotspot)"
+        );
+    }
+
+    #[test]
+    fn a_bad_file_is_refused_naming_what_is_wrong() {
+        let e = Targets::parse(
+            "s.toml",
+            "[[target]]\nname = \"a\"\nhead_from_coil = [1, 2]\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().starts_with("s.toml: ") && e.to_string().contains("head_from_coil"),
+            "{e}"
+        );
+        let e = Targets::parse(
+            "s.toml",
+            "[[target]]\nname = \"a\"\nhead_from_coil = [0, 0, 0, 0, 0, 0]\ncolour = 1\n",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("colour"), "{e}");
+        let two = "[[target]]\nname = \"a\"\nhead_from_coil = [0, 0, 0, 0, 0, 0]\n\
+                   [[target]]\nname = \"a\"\nhead_from_coil = [0, 0, 0, 0, 0, 0]\n";
+        assert_eq!(
+            Targets::parse("s.toml", two).unwrap_err(),
+            TargetsError::Name("a".into())
+        );
+        let nan = "[[target]]\nname = \"a\"\nhead_from_coil = [0, 0, nan, 0, 0, 0]\n";
+        assert!(matches!(
+            Targets::parse("s.toml", nan).unwrap_err(),
+            TargetsError::NotFinite {
+                field: "head_from_coil",
+                ..
+            }
+        ));
+        assert!(
+            Targets::default()
+                .teach(Target::new(" ", &pose(0.1), "", ""))
+                .is_err()
+        );
+    }
+}
