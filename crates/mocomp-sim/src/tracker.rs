@@ -347,10 +347,14 @@ impl TrackerServer {
         let addr = server.local_addr();
         let stop = Arc::new(AtomicBool::new(false));
         let stop2 = Arc::clone(&stop);
+        // Time 0 on both clocks at once: the monotonic one for the truth, the wall clock for the
+        // timestamps (taken apart, the thread's start-up would sit between them and every
+        // timestamp would be late by it).
         let started = Instant::now();
+        let wall0 = Timestamp::now().to_secs_f64();
         let thread = std::thread::Builder::new()
             .name("sim-tracker".into())
-            .spawn(move || serve(server, model, markers, started, &stop2))
+            .spawn(move || serve(server, model, markers, (started, wall0), &stop2))
             .map_err(TrackerError::Thread)?;
         Ok(Self {
             addr,
@@ -375,10 +379,9 @@ fn serve(
     server: Server,
     model: TrackerModel,
     mut markers: Vec<TrackedMarker>,
-    start: Instant,
+    (start, wall0): (Instant, f64),
     stop: &AtomicBool,
 ) {
-    let wall0 = Timestamp::now().to_secs_f64();
     let mut sim = TrackerSim::new(model, markers.len());
     let devices: Vec<String> = markers.iter().map(|m| m.device.clone()).collect();
     while !stop.load(Ordering::Relaxed) {
