@@ -7,16 +7,19 @@
 //!   the surface normal (motor mapping walks such a grid around the hotspot).
 //! - [`drift`]: whether the tracker and the robot's base are still where the calibration says.
 //! - [`targets`]: the session's named targets and their file.
+//! - [`pulses`]: the pulse log, one CSV row per pulse with the coil's error and the gate.
 //!
-//! Pure logic: no robot, no socket, no clock (the targets file is parsed and printed; the caller
-//! reads and writes it).
+//! Pure logic: no robot, no socket, no clock (the targets file is parsed and printed, the pulse
+//! log written to a writer the caller gives).
 
 pub mod drift;
 pub mod gate;
 pub mod grid;
+pub mod pulses;
 pub mod targets;
 
 pub use drift::{Drift, DriftMonitor, DriftParams};
 pub use gate::{Gate, GateEvent, GateInputs, GateParams, GateState, Shut};
 pub use grid::{GridError, GridParams, GridPoint, grid_around};
+pub use pulses::{Pulse, PulseLog};
 pub use targets::{Target, Targets, TargetsError};
