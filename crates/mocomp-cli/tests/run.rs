@@ -14,8 +14,17 @@ fn example() -> String {
 /// Writes the example configuration with its simulated robot on `host` (each test its own
 /// loopback address, so tests in parallel do not share the UR ports); returns its path.
 fn example_at(dir: &TempDir, host: &str) -> String {
+    example_changed(dir, host, &[])
+}
+
+/// [`example_at`], with each `(key = old, key = new)` line replaced.
+fn example_changed(dir: &TempDir, host: &str, changes: &[(&str, &str)]) -> String {
     let path = dir.path("run.toml");
-    let cfg = example().replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
+    let mut cfg = example().replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
+    for (from, to) in changes {
+        assert!(cfg.contains(from), "the example has no {from:?}");
+        cfg = cfg.replace(from, to);
+    }
     std::fs::write(&path, cfg).unwrap();
     path
 }
@@ -74,13 +83,15 @@ fn contact_mode_on_the_simulated_scalp_holds_its_force_and_logs_it() {
     let dir = TempDir::new("mocomp-run-contact");
     // The example's e-Series arm and nodding head, pressing on the simulated scalp with a 3 N
     // set force after zeroing the sensor.
-    let path = dir.path("run.toml");
-    let cfg = example()
-        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.65\"")
-        .replace("zero_force_sensor = false", "zero_force_sensor = true")
-        .replace("force_sensing = false", "force_sensing = true")
-        .replace("contact_mode = false", "contact_mode = true");
-    std::fs::write(&path, cfg).unwrap();
+    let path = example_changed(
+        &dir,
+        "127.0.0.65",
+        &[
+            ("zero_force_sensor = false", "zero_force_sensor = true"),
+            ("force_sensing = false", "force_sensing = true"),
+            ("contact_mode = false", "contact_mode = true"),
+        ],
+    );
     let csv = dir.path("run.csv");
     let out = mocomp(&[
         "run",
@@ -125,12 +136,14 @@ fn contact_mode_on_the_simulated_scalp_holds_its_force_and_logs_it() {
 #[test]
 fn a_cb3_has_no_force_sensor_to_zero() {
     let dir = TempDir::new("mocomp-run-cb3-zero");
-    let path = dir.path("run.toml");
-    let cfg = example()
-        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.66\"")
-        .replace("model = \"ur3e\"", "model = \"ur3\"")
-        .replace("zero_force_sensor = false", "zero_force_sensor = true");
-    std::fs::write(&path, cfg).unwrap();
+    let path = example_changed(
+        &dir,
+        "127.0.0.66",
+        &[
+            ("model = \"ur3e\"", "model = \"ur3\""),
+            ("zero_force_sensor = false", "zero_force_sensor = true"),
+        ],
+    );
     let out = mocomp(&["run", "--config", &path, "--seconds", "1", "--quiet"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
