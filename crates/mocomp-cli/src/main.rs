@@ -17,6 +17,7 @@ mod print;
 mod robot;
 mod run;
 mod serve_poses;
+mod targets;
 mod teach_goal;
 mod track;
 mod ursim;
@@ -45,6 +46,7 @@ enum Command {
     Run(run::RunCmd),
     Demo(Box<demo::DemoCmd>),
     TeachGoal(teach_goal::TeachCmd),
+    Targets(targets::TargetsCmd),
     Config(config::ConfigCmd),
     Robot(robot::RobotCmd),
     Calibrate(calibrate::CalibrateCmd),
@@ -70,6 +72,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Run(c) => c.run(out)?,
         Command::Demo(c) => c.run(out)?,
         Command::TeachGoal(c) => c.run(out)?,
+        Command::Targets(c) => c.run(out)?,
         Command::Config(c) => c.run(out)?,
         Command::Robot(c) => c.run(out)?,
         Command::Calibrate(c) => c.run(out)?,

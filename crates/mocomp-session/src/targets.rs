@@ -11,6 +11,8 @@
 //!
 //! Parsing and printing only: the caller reads and writes the file.
 
+use crate::grid::{GridError, GridParams, grid_around};
+use mocomp_control::HeadModel;
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -77,6 +79,15 @@ pub enum TargetsError {
     /// Two targets of one name, or an empty name.
     #[error("target name {0:?}: names must be unique and not empty")]
     Name(String),
+    /// A grid that cannot be laid.
+    #[error("the grid around {name:?}: {source}")]
+    Grid {
+        /// The target it is around.
+        name: String,
+        /// Why.
+        #[source]
+        source: GridError,
+    },
     /// No target of this name.
     #[error("no target {name:?} (the session has: {known})")]
     Unknown {
@@ -155,6 +166,36 @@ impl Targets {
         Ok(self.targets.remove(i))
     }
 
+    /// Adds a grid around the target `name` on `head` ([`crate::grid`]): targets named
+    /// `{name}-r{row}c{col}` (re-teaching any of those names), noted as the grid's. Returns
+    /// their names, row by row.
+    pub fn add_grid(
+        &mut self,
+        head: &HeadModel,
+        name: &str,
+        p: &GridParams,
+        taught_at: &str,
+    ) -> Result<Vec<String>, TargetsError> {
+        let centre = self.get(name)?.pose();
+        let points = grid_around(head, &centre, p).map_err(|source| TargetsError::Grid {
+            name: name.to_string(),
+            source,
+        })?;
+        let note = format!(
+            "grid around {name}: {} × {}, {} mm apart",
+            p.rows,
+            p.cols,
+            p.spacing_m * 1e3
+        );
+        let mut names = Vec::with_capacity(points.len());
+        for g in points {
+            let n = format!("{name}-r{}c{}", g.row, g.col);
+            self.teach(Target::new(&n, &g.head_from_coil, &note, taught_at))?;
+            names.push(n);
+        }
+        Ok(names)
+    }
+
     fn unknown(&self, name: &str) -> TargetsError {
         TargetsError::Unknown {
             name: name.to_string(),
@@ -210,6 +251,50 @@ mod tests {
             e.to_string(),
             "no target \"hotspot-r0c0\" (the session has: hotspot)"
         );
+    }
+
+    #[test]
+    fn a_grid_is_added_as_named_targets_around_one() {
+        let head = HeadModel {
+            head_from_ellipsoid: Isometry3::identity(),
+            radii: Vector3::new(0.075, 0.095, 0.11),
+        };
+        let mut t = Targets::default();
+        let top = Isometry3::from_parts(
+            mocomp_geom::nalgebra::Translation3::new(0.0, 0.0, 0.113),
+            mocomp_geom::nalgebra::UnitQuaternion::from_axis_angle(
+                &Vector3::x_axis(),
+                std::f64::consts::PI,
+            ),
+        );
+        t.teach(Target::new("hotspot", &top, "", "then")).unwrap();
+        let names = t
+            .add_grid(&head, "hotspot", &GridParams::default(), "now")
+            .unwrap();
+        assert_eq!(names.len(), 9);
+        assert_eq!(names[0], "hotspot-r0c0");
+        assert_eq!(t.targets.len(), 10);
+        assert!(t.get("hotspot-r1c1").unwrap().note.contains("3 × 3, 10 mm"));
+        // Again: the same names, re-taught, not doubled.
+        t.add_grid(&head, "hotspot", &GridParams::default(), "later")
+            .unwrap();
+        assert_eq!(t.targets.len(), 10);
+        assert!(matches!(
+            t.add_grid(&head, "nothing", &GridParams::default(), ""),
+            Err(TargetsError::Unknown { .. })
+        ));
+        let e = t
+            .add_grid(
+                &head,
+                "hotspot",
+                &GridParams {
+                    rows: 0,
+                    ..GridParams::default()
+                },
+                "",
+            )
+            .unwrap_err();
+        assert!(e.to_string().contains("rows = 0"), "{e}");
     }
 
     #[test]

@@ -1,0 +1,50 @@
+//! The session's targets file ([`mocomp_session::targets`]) on disk: read (a missing file is a
+//! session without targets yet), written whole through a temporary file and a rename so a crash
+//! never leaves half a file, and the grid added from the configuration's head model.
+
+use crate::config::Setup;
+use crate::{AppError, Context};
+use mocomp_session::{GridParams, Targets, TargetsError};
+use std::path::Path;
+
+/// Reads the targets file at `path`; a file that does not exist yet reads as no targets.
+pub fn load(path: &Path) -> Result<Targets, AppError> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Targets::default()),
+        Err(e) => return Err(e).what(|| format!("reading the targets file {}", path.display())),
+    };
+    Targets::parse(&path.display().to_string(), &text).map_err(input)
+}
+
+/// Writes `targets` to `path`, whole.
+pub fn save(path: &Path, targets: &Targets) -> Result<(), AppError> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = std::path::PathBuf::from(tmp);
+    std::fs::write(&tmp, targets.to_toml())
+        .what(|| format!("writing the targets file {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).what(|| format!("writing the targets file {}", path.display()))
+}
+
+/// Now, as a target's `taught_at`: an HTTP date (UTC).
+pub fn now() -> String {
+    httpdate::fmt_http_date(std::time::SystemTime::now())
+}
+
+/// Adds the grid around the target `name`, on the head model of `setup`; returns the new names.
+pub fn add_grid(
+    setup: &Setup,
+    targets: &mut Targets,
+    name: &str,
+    p: &GridParams,
+) -> Result<Vec<String>, AppError> {
+    targets
+        .add_grid(&setup.file.head_model(), name, p, &now())
+        .map_err(input)
+}
+
+/// Everything wrong with targets is the user's input: a file, a name, a grid's parameters.
+fn input(e: TargetsError) -> AppError {
+    AppError::Config(e.to_string())
+}
