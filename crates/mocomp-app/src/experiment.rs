@@ -45,11 +45,13 @@ use mocomp_igtl::client::{Client, ClientConfig, IgtlPoseSource, TimestampMode};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use mocomp_kin::{Arm, Model, Selection};
+use mocomp_session::{DriftMonitor, DriftParams};
 use mocomp_sim::HeadMotion;
 use mocomp_sim::contact::{Contact, ContactParams};
 use mocomp_sim::{TrackerModel, TrackerSim};
 use mocomp_ur::{Robot, ServoParams, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig, ToolLoad};
+use std::collections::VecDeque;
 use std::net::IpAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -175,6 +177,10 @@ pub struct ExperimentConfig {
     /// On the scalp: the goal moved along the coil's axis until it touches; `mocomp` holds
     /// its contact force there (`force_sensing`, `contact_mode`), `paper` holds the pose.
     pub on_scalp: bool,
+    /// The tracker is bumped during each controller's run: at `.0` s into it, the camera moves
+    /// by `.1` in its own frame (`tracker_from_bumped`). The calibration no longer holds; the
+    /// drift monitor ([`mocomp_session::drift`]) on the coil's marker should see it.
+    pub tracker_bump: Option<(f64, Isometry3<f64>)>,
 }
 
 /// The simulated force sensor's noise in the experiment, N (1σ per axis): a live sensor's
@@ -236,6 +242,7 @@ impl ExperimentConfig {
                 ..ContactParams::default()
             },
             on_scalp: x.contact,
+            tracker_bump: None,
         };
         if e.on_scalp {
             e.loop_params.force_sensing = true;
@@ -249,6 +256,33 @@ impl ExperimentConfig {
             other => AppError::failed("the experiment's configuration", other),
         })?;
         Ok(e)
+    }
+
+    /// Bumps the tracker `at_s` into each run: the camera shifts by `offset_m` along its x axis
+    /// and turns by `angle_rad` about its z axis. Refused (naming the option) when a value is not
+    /// finite or the time is outside the run.
+    pub fn bump_tracker(
+        &mut self,
+        at_s: f64,
+        offset_m: f64,
+        angle_rad: f64,
+    ) -> Result<(), ExperimentError> {
+        if !(at_s.is_finite() && at_s >= 0.0 && at_s < self.duration_s) {
+            return Err(ExperimentError::Config(format!(
+                "--tracker-bump-at-s {at_s}: must be within the run (0 to {} s)",
+                self.duration_s
+            )));
+        }
+        if !(offset_m.is_finite() && angle_rad.is_finite()) {
+            return Err(ExperimentError::Config(
+                "--tracker-bump-mm, --tracker-bump-deg: must be finite".into(),
+            ));
+        }
+        self.tracker_bump = Some((
+            at_s,
+            Isometry3::new(Vector3::x() * offset_m, Vector3::z() * angle_rad),
+        ));
+        Ok(())
     }
 
     /// Seeds the random motion (if the motion is random) and the tracker's noise.
@@ -599,6 +633,8 @@ pub struct Record {
     pub coil_clearance_m: f64,
     /// The force the true coil presses on the scalp with (the contact law's springs), N.
     pub contact_force_n: f64,
+    /// The drift monitor's verdict when it changed this tick.
+    pub drift: Option<mocomp_session::Drift>,
 }
 
 /// Summary statistics of a series.
@@ -653,6 +689,9 @@ pub struct Run {
     pub inside_head_s: f64,
     /// The contact force, N.
     pub contact_force_n: Stats,
+    /// With a tracker bump: how long after it the drift monitor called the calibration
+    /// invalid, s (`None`: no bump, or never).
+    pub bump_detected_after_s: Option<f64>,
 }
 
 impl Run {
@@ -670,6 +709,7 @@ impl Run {
             translation_mm: Stats::of(&col(&|r| r.translation_m * 1e3)),
             rotation_deg: Stats::of(&col(&|r| r.rotation_rad.to_degrees())),
             contact_force_n: Stats::of(&col(&|r| r.contact_force_n)),
+            bump_detected_after_s: None,
             records,
         }
     }
@@ -798,6 +838,8 @@ struct Rig {
     base1_from_head: Arc<Mutex<Isometry3<f64>>>,
     /// The contact law, for the true force each tick.
     contact: Contact,
+    /// The tracker's bump during a run: from this clock time on, the camera is moved by it.
+    bump: Option<(f64, Isometry3<f64>)>,
 }
 
 impl Rig {
@@ -914,6 +956,7 @@ impl Rig {
             t_prev: 0.0,
             base1_from_head,
             contact: Contact::new(cfg.contact, cfg.head, cfg.coil, 0),
+            bump: None,
         };
         // One step so the states carry the stepped clock's time.
         w.advance()?;
@@ -947,9 +990,15 @@ impl Rig {
             }
             q
         };
-        let tracker_from_world = self.scene.world_from_tracker.inverse();
+        let unbumped = self.scene.world_from_tracker.inverse();
+        let bump = self.bump;
         let (arm1, arm2, scene) = (self.arm1, self.arm2, self.scene);
         let mut truth = |marker: usize, t: f64| {
+            // The camera as it stood when the sample was acquired.
+            let tracker_from_world = match bump {
+                Some((at, b)) if t + base >= at => (scene.world_from_tracker * b).inverse(),
+                _ => unbumped,
+            };
             Some(match marker {
                 0 => {
                     tracker_from_world * arm2.fk_flange(&lerp(&qa.1, &qb.1, t)) * scene.e2_from_head
@@ -1272,6 +1321,7 @@ impl Rig {
                     .map_err(|e| io("restarting the control program after a protective stop", e))?;
             }
         }
+        self.bump = None;
         // The coil out of the way while the head goes back, then in along its axis.
         self.coil_clear_of_head()?;
         self.move_to(false, &q2)?;
@@ -1327,10 +1377,11 @@ impl Rig {
         controller: Controller,
         cfg: &ExperimentConfig,
         loop_cfg: LoopConfig,
+        drift_sigma: (f64, f64),
         progress: &mut dyn FnMut(Phase, f64),
         watch: Option<&mut Watch<'_>>,
     ) -> Result<Run, ExperimentError> {
-        self.compensate_inner(controller, cfg, loop_cfg, progress, watch)
+        self.compensate_inner(controller, cfg, loop_cfg, drift_sigma, progress, watch)
             .map_err(|e| match e {
                 ExperimentError::Io { what, source, .. } => ExperimentError::Io {
                     what,
@@ -1346,6 +1397,7 @@ impl Rig {
         controller: Controller,
         cfg: &ExperimentConfig,
         loop_cfg: LoopConfig,
+        drift_sigma: (f64, f64),
         progress: &mut dyn FnMut(Phase, f64),
         watch: Option<&mut Watch<'_>>,
     ) -> Result<Run, ExperimentError> {
@@ -1357,6 +1409,15 @@ impl Rig {
             held: false,
         });
         let t0 = self.clock.now_s();
+        self.bump = cfg.tracker_bump.map(|(at, b)| (t0 + at, b));
+        // The coil's marker seen by the tracker against where the robot and the calibration put
+        // it (the loop's `flange_from_coil` is the coil marker's frame here).
+        let drift = Drift {
+            monitor: DriftMonitor::new(DriftParams::default(), drift_sigma.0, drift_sigma.1),
+            base_from_tracker: loop_cfg.base_from_tracker,
+            flange_from_marker: loop_cfg.flange_from_coil,
+            q1: VecDeque::with_capacity(128),
+        };
         let trajectory = cfg.motion.trajectory();
         let rest = self.scene.world_from_head_rest;
         let head_from_e2 = self.scene.e2_from_head.inverse();
@@ -1386,11 +1447,19 @@ impl Rig {
             records: Vec::with_capacity(n),
             progress,
             watching,
+            drift,
         };
         crate::driver::drive(ctl.as_mut(), &mut pace)?;
         let records = pace.records;
         progress(Phase::Compensating(controller), 1.0);
-        Ok(Run::new(controller, records, self.period))
+        let mut run = Run::new(controller, records, self.period);
+        run.bump_detected_after_s = cfg.tracker_bump.and_then(|(at, _)| {
+            run.records
+                .iter()
+                .find(|r| r.t >= at && matches!(r.drift, Some(mocomp_session::Drift::Invalid(..))))
+                .map(|r| r.t - at)
+        });
+        Ok(run)
     }
 }
 
@@ -1421,6 +1490,30 @@ struct Lockstep<'a, 'p> {
     progress: &'p mut dyn FnMut(Phase, f64),
     /// A front end watching, if any.
     watching: Option<Watching<'a>>,
+    /// The calibration drift monitor on the coil's marker.
+    drift: Drift,
+}
+
+/// The drift monitor and what it needs: the calibration, and the coil robot's recent joints
+/// (a marker sample is compared with the robot where it was when the sample was acquired).
+struct Drift {
+    monitor: DriftMonitor,
+    base_from_tracker: Isometry3<f64>,
+    flange_from_marker: Isometry3<f64>,
+    q1: VecDeque<(f64, [f64; 6])>,
+}
+
+impl Drift {
+    /// The joints at clock time `t`, interpolated between the ticks kept.
+    fn q_at(&self, t: f64) -> Option<[f64; 6]> {
+        let i = self.q1.iter().position(|(ti, _)| *ti >= t)?;
+        let (t1, q1) = self.q1[i];
+        let Some(&(t0, q0)) = i.checked_sub(1).and_then(|j| self.q1.get(j)) else {
+            return (t1 - t < 1e-9).then_some(q1);
+        };
+        let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+        Some(std::array::from_fn(|j| q0[j] + (q1[j] - q0[j]) * s))
+    }
 }
 
 impl crate::driver::Pace for Lockstep<'_, '_> {
@@ -1477,6 +1570,20 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             sim1.stats().inputs > inputs
         })?;
         w.advance()?;
+        // The drift monitor: every coil-marker sample against the robot at its acquisition.
+        let d = &mut self.drift;
+        if d.q1.len() == d.q1.capacity() {
+            d.q1.pop_front();
+        }
+        d.q1.push_back((w.clock.now_s(), w.q_now.0));
+        let mut drift = None;
+        while let Some(s) = w.coil_source.latest() {
+            if let (true, Some(q)) = (s.valid, d.q_at(s.acquired_s)) {
+                let tracked = d.base_from_tracker * s.tracker_from_marker;
+                let robot = w.arm1.fk_flange(&q) * d.flange_from_marker;
+                drift = d.monitor.update(s.acquired_s, &tracked, &robot).or(drift);
+            }
+        }
         let tr = self.t - self.t0;
         let e2 = w.world_from_e2(&w.q_now.1);
         let e1 = w.world_from_e1(&w.q_now.0);
@@ -1495,6 +1602,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             event: rec.event,
             coil_clearance_m: self.coil.distance(&self.head, &head_from_coil),
             contact_force_n: w.contact.force_n(&head_from_coil),
+            drift,
         });
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);
@@ -1580,7 +1688,14 @@ pub fn run_experiment_watched(
     loop_cfg.coil = cfg.coil;
     let mut runs = Vec::with_capacity(order.len());
     for &c in order {
-        runs.push(world.compensate(c, cfg, loop_cfg.clone(), progress, watch.as_deref_mut())?);
+        runs.push(world.compensate(
+            c,
+            cfg,
+            loop_cfg.clone(),
+            coil_calibration.residual,
+            progress,
+            watch.as_deref_mut(),
+        )?);
     }
     let head_peak_speed = cfg.motion.trajectory().peak_speeds(cfg.duration_s);
     Ok(Outcome {

@@ -114,6 +114,26 @@ pub struct DemoCmd {
     /// `loop.contact_force_n` (3 N) by its admittance, the paper's controller holds the pose.
     #[arg(long)]
     pub contact: bool,
+    /// Bump the simulated tracker this many seconds into each run (the camera knocked: the
+    /// calibration no longer holds); the summary says how soon the drift monitor saw it.
+    #[arg(long, value_name = "S")]
+    pub tracker_bump_at_s: Option<f64>,
+    /// The bump's shift along the camera's x axis, mm [3].
+    #[arg(
+        long,
+        value_name = "MM",
+        default_value_t = 3.0,
+        requires = "tracker_bump_at_s"
+    )]
+    pub tracker_bump_mm: f64,
+    /// The bump's turn about the camera's z axis, degrees [1].
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 1.0,
+        requires = "tracker_bump_at_s"
+    )]
+    pub tracker_bump_deg: f64,
 }
 
 impl DemoCmd {
@@ -219,7 +239,15 @@ impl DemoCmd {
     /// Runs the demo (or prints its configuration).
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let config = self.configuration()?;
-        let exp = ExperimentConfig::from_config(&config)?;
+        let mut exp = ExperimentConfig::from_config(&config)?;
+        if let Some(at) = self.tracker_bump_at_s {
+            exp.bump_tracker(
+                at,
+                mm_to_m(self.tracker_bump_mm),
+                deg_to_rad(self.tracker_bump_deg),
+            )
+            .map_err(|e| crate::UsageError(e.to_string()))?;
+        }
         let file = mocomp_app::config_file::print(&config)?;
         if self.print_config {
             write!(out, "{file}")?;

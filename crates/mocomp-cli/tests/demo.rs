@@ -133,6 +133,55 @@ fn the_demo_on_the_scalp_holds_a_light_contact_which_the_papers_pipeline_cannot(
     assert!((max - f(1, "contact_force_n_max")).abs() < 1e-3, "{max}");
 }
 
+#[test]
+fn a_tracker_bumped_mid_run_is_seen_by_the_drift_monitor_within_half_a_second() {
+    let dir = TempDir::new("mocomp-demo-bump");
+    let out_dir = dir.path("out");
+    let out = demo_json(
+        &out_dir,
+        "6",
+        ("127.0.0.67", "127.0.0.68"),
+        &[
+            "--tracker-bump-at-s",
+            "3",
+            "--tracker-bump-mm",
+            "3",
+            "--tracker-bump-deg",
+            "1",
+        ],
+    );
+    assert_success(&out);
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for row in j["controllers"].as_array().unwrap() {
+        let after = row["tracker_bump_detected_s"].as_f64().unwrap();
+        assert!(after > 0.0 && after < 0.5, "{row}");
+    }
+    // Before the bump the monitor said nothing: the calibration held.
+    let csv = std::fs::read_to_string(format!("{out_dir}/demo.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let (t, drift) = (
+        header.iter().position(|h| *h == "t_s").unwrap(),
+        header.iter().position(|h| *h == "drift").unwrap(),
+    );
+    let mut changes = csv.lines().skip(1).filter_map(|l| {
+        let f: Vec<&str> = l.split(',').collect();
+        (!f[drift].is_empty()).then(|| f[t].parse::<f64>().unwrap())
+    });
+    assert!(
+        changes.all(|at| at >= 3.0),
+        "a drift verdict before the bump"
+    );
+    // A bump outside the run is refused, naming the option.
+    let bad = demo_json(
+        &out_dir,
+        "6",
+        ("127.0.0.67", "127.0.0.68"),
+        &["--tracker-bump-at-s", "9"],
+    );
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--tracker-bump-at-s"));
+}
+
 fn stdout(out: &std::process::Output) -> String {
     String::from_utf8(out.stdout.clone()).unwrap()
 }

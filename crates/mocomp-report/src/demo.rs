@@ -46,6 +46,9 @@ pub struct Row {
     pub contact_force_n_max: f64,
     /// The same: RMS over the run.
     pub contact_force_n_rms: f64,
+    /// With `--tracker-bump-at-s`: how long after the bump the drift monitor called the
+    /// calibration invalid, s (null: no bump, or never).
+    pub tracker_bump_detected_s: Option<f64>,
 }
 
 /// The experiment's summary (`mocomp demo --json`).
@@ -109,6 +112,7 @@ pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
                 inside_head_s: r.inside_head_s,
                 contact_force_n_max: r.contact_force_n.max,
                 contact_force_n_rms: r.contact_force_n.rms,
+                tracker_bump_detected_s: r.bump_detected_after_s,
             }
         })
         .collect();
@@ -195,6 +199,23 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
         "\npaper ÷ mocomp: d RMS {:.1}×, d max {:.1}×.\n\n",
         s.ratio_d_rms, s.ratio_d_max
     ));
+    if let Some((at, b)) = cfg.tracker_bump {
+        t.push_str(&format!(
+            "The tracker was bumped {at:.1} s into each run ({:.1} mm, {:.2}°). The drift monitor on the coil's marker called the calibration invalid after: {}.\n\n",
+            m_to_mm(b.translation.vector.norm()),
+            rad_to_deg(b.rotation.angle()),
+            s.controllers
+                .iter()
+                .map(|r| format!(
+                    "{} {}",
+                    r.controller,
+                    r.tracker_bump_detected_s
+                        .map_or("never".to_string(), |d| format!("{:.3} s", d))
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
     let c = &o.coil_calibration;
     t.push_str(&format!(
         "Calibration of the coil robot ({} pairs): Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}° from the truth. The `paper` controller: a {:.0} ms loop, {:.0} ms from sample to command, movej at {} rad/s and {} rad/s² to the least-angle-sum IK solution, no prediction.\n",
@@ -229,6 +250,7 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
         "contact_force_n",
         "mode",
         "event",
+        "drift",
     ])?;
     for r in &o.runs {
         for x in &r.records {
@@ -246,6 +268,7 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
                 format!("{:.3}", x.contact_force_n),
                 format!("{:?}", x.mode),
                 x.event.map(|e| format!("{e:?}")).unwrap_or_default(),
+                x.drift.map(|d| format!("{d:?}")).unwrap_or_default(),
             ])?;
         }
     }
