@@ -183,10 +183,6 @@ pub struct ExperimentConfig {
     pub tracker_bump: Option<(f64, Isometry3<f64>)>,
 }
 
-/// The simulated force sensor's noise in the experiment, N (1σ per axis): a live sensor's
-/// reading is never constant, which the loop's staleness rule relies on.
-pub const SENSOR_NOISE_N: f64 = 0.3;
-
 /// The paper's goal as a rigid transform (metres).
 pub fn paper_goal() -> Result<Isometry3<f64>, ExperimentError> {
     let rows = crate::config::PAPER_GOAL_E2_FROM_E1_MM;
@@ -238,7 +234,7 @@ impl ExperimentConfig {
             head: cfg.head_model(),
             coil: cfg.coil_model(),
             contact: ContactParams {
-                noise_n: SENSOR_NOISE_N,
+                noise_n: mocomp_sim::contact::SIMULATED_SENSOR_NOISE_N,
                 ..ContactParams::default()
             },
             on_scalp: x.contact,
@@ -1412,7 +1408,7 @@ impl Rig {
         self.bump = cfg.tracker_bump.map(|(at, b)| (t0 + at, b));
         // The coil's marker seen by the tracker against where the robot and the calibration put
         // it (the loop's `flange_from_coil` is the coil marker's frame here).
-        let drift = Drift {
+        let drift = DriftWatch {
             monitor: DriftMonitor::new(DriftParams::default(), drift_sigma.0, drift_sigma.1),
             base_from_tracker: loop_cfg.base_from_tracker,
             flange_from_marker: loop_cfg.flange_from_coil,
@@ -1491,19 +1487,19 @@ struct Lockstep<'a, 'p> {
     /// A front end watching, if any.
     watching: Option<Watching<'a>>,
     /// The calibration drift monitor on the coil's marker.
-    drift: Drift,
+    drift: DriftWatch,
 }
 
 /// The drift monitor and what it needs: the calibration, and the coil robot's recent joints
 /// (a marker sample is compared with the robot where it was when the sample was acquired).
-struct Drift {
+struct DriftWatch {
     monitor: DriftMonitor,
     base_from_tracker: Isometry3<f64>,
     flange_from_marker: Isometry3<f64>,
     q1: VecDeque<(f64, [f64; 6])>,
 }
 
-impl Drift {
+impl DriftWatch {
     /// The joints at clock time `t`, interpolated between the ticks kept.
     fn q_at(&self, t: f64) -> Option<[f64; 6]> {
         let i = self.q1.iter().position(|(ti, _)| *ti >= t)?;

@@ -173,7 +173,7 @@ impl World {
 }
 
 /// The simulated robot's tool meets the simulated head's scalp ([`mocomp_sim::contact`], the
-/// configured head and coil models, a sensor with [`crate::experiment::SENSOR_NOISE_N`] of
+/// configured head and coil models, a sensor with [`mocomp_sim::contact::SIMULATED_SENSOR_NOISE_N`] of
 /// noise): the head where the simulated tracker's truth puts it, at the same instant.
 fn scalp_contact(setup: &Setup, head_t0: Arc<OnceLock<Instant>>) -> Result<ToolLoad, AppError> {
     let file = &setup.file;
@@ -183,7 +183,7 @@ fn scalp_contact(setup: &Setup, head_t0: Arc<OnceLock<Instant>>) -> Result<ToolL
     let tcp_from_coil = file.flange_from_coil()?;
     let mut law = Contact::new(
         ContactParams {
-            noise_n: crate::experiment::SENSOR_NOISE_N,
+            noise_n: mocomp_sim::contact::SIMULATED_SENSOR_NOISE_N,
             ..ContactParams::default()
         },
         file.head_model(),

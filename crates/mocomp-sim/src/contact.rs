@@ -23,6 +23,11 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
+/// The noise (1σ per axis) of the force sensor in mocomp's simulated worlds (the experiment,
+/// `mocomp run`'s simulated robot), N: a live sensor's reading is never constant, which the loop's
+/// staleness rule relies on.
+pub const SIMULATED_SENSOR_NOISE_N: f64 = 0.3;
+
 /// The contact law's parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactParams {

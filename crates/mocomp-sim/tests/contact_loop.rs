@@ -15,7 +15,7 @@ use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{Clock, SteppedClock};
 use mocomp_kin::{Arm, Model, Selection};
-use mocomp_sim::contact::{Contact, ContactParams};
+use mocomp_sim::contact::{Contact, ContactParams, SIMULATED_SENSOR_NOISE_N};
 use mocomp_testkit::mem::ScriptedPoses;
 use mocomp_testkit::scene::{base_from_tracker, flange_from_coil, head_from_coil_goal, head_rest};
 use mocomp_testkit::spin_until;
@@ -27,8 +27,6 @@ use rand_distr::{Distribution, Normal};
 use std::sync::{Arc, Mutex};
 
 const PERIOD: f64 = 0.002;
-/// The simulated sensor's noise (1σ per axis), N: a live sensor's reading is never constant.
-const SENSOR_NOISE_N: f64 = 0.3;
 
 /// `base_from_head` at a time.
 type Motion = Arc<dyn Fn(f64) -> Isometry3<f64> + Send + Sync>;
@@ -171,7 +169,7 @@ fn run(sc: Scenario) -> Outcome {
     let contact = |seed| {
         Contact::new(
             ContactParams {
-                noise_n: SENSOR_NOISE_N,
+                noise_n: SIMULATED_SENSOR_NOISE_N,
                 ..ContactParams::default()
             },
             true_head,
@@ -275,13 +273,7 @@ fn run(sc: Scenario) -> Outcome {
         ));
         records.push(rec);
     }
-    let faults = sim.with(|c| {
-        c.events()
-            .0
-            .iter()
-            .map(|e| e.text.clone())
-            .collect::<Vec<_>>()
-    });
+    let faults = sim.with(|c| c.event_texts());
     Outcome {
         records,
         truth,

@@ -313,6 +313,11 @@ impl Controller {
         (self.events.iter().cloned().collect(), self.events_total)
     }
 
+    /// The recent events' texts, oldest first (what a test looks through).
+    pub fn event_texts(&self) -> Vec<String> {
+        self.events.iter().map(|e| e.text.clone()).collect()
+    }
+
     /// Records an event (the servers log protocol problems here too).
     pub fn record_event(&mut self, text: String) {
         if self.events.len() >= MAX_EVENTS {

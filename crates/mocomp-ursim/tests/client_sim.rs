@@ -156,13 +156,7 @@ fn free_drive_follows_a_hand_while_the_client_talks_and_ends_when_it_falls_silen
     wait_until("the watchdog", || {
         sim.with(|c| c.runtime_state()) == RuntimeState::Stopped
     });
-    let events = sim.with(|c| {
-        c.events()
-            .0
-            .iter()
-            .map(|e| e.text.clone())
-            .collect::<Vec<_>>()
-    });
+    let events = sim.with(|c| c.event_texts());
     assert!(
         events.iter().any(|e| e.contains("free-drive started")),
         "{events:?}"

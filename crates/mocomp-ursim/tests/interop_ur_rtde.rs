@@ -133,13 +133,7 @@ fn a_command_the_simulator_does_not_emulate_is_refused_not_faked() {
     let r = p.request(&json!({"op": "teachMode"}));
     eprintln!("ur_rtde teachMode against the simulator: {r}");
     assert_eq!(r["ok"], false, "{r}");
-    let events = sim.with(|c| {
-        c.events()
-            .0
-            .iter()
-            .map(|e| e.text.clone())
-            .collect::<Vec<_>>()
-    });
+    let events = sim.with(|c| c.event_texts());
     assert!(
         events
             .iter()
