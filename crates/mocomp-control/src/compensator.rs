@@ -120,6 +120,10 @@ pub struct CycleRecord {
     /// The measured flange's distance from the goal for the head as estimated now (the state's
     /// time), m and rad: the deviation a live system can report. NaN without a head estimate.
     pub deviation: (f64, f64),
+    /// The measured coil's distance from the goal's coil pose for the head as estimated now, m
+    /// and rad: what the on-target gate judges (the flange's [`Self::deviation`] differs by the
+    /// angle error times the coil's offset from the flange). NaN without a head estimate.
+    pub coil_error: (f64, f64),
     /// The head marker now (`tracker_from_head` estimated for the cycle's time), when known:
     /// what teaching the goal while the loop runs averages.
     pub head_now: Option<Isometry3<f64>>,
@@ -155,6 +159,7 @@ impl CycleRecord {
             required_m: f64::NAN,
             coasting: false,
             deviation: (f64::NAN, f64::NAN),
+            coil_error: (f64::NAN, f64::NAN),
             head_now: None,
             contact_force_n: f64::NAN,
             contact_axial_n: f64::NAN,
@@ -232,6 +237,8 @@ pub struct Compensator {
     coil_lever: f64,
     /// The operator asks the loop to hold ([`Self::set_operator_hold`]).
     operator_hold: bool,
+    /// The drift monitor's offset while the calibration is not valid.
+    calibration_invalid: Option<(f64, f64)>,
     /// When a held coil last had to give way to the head, s (loop time).
     gave_way_at: f64,
     /// The wrench's filter and timers.
@@ -293,6 +300,7 @@ impl Compensator {
             coasting: false,
             giving_way: false,
             operator_hold: false,
+            calibration_invalid: None,
             gave_way_at: f64::NEG_INFINITY,
             force: ForceMonitor::new(),
             force_range,
@@ -309,6 +317,13 @@ impl Compensator {
     /// off its goal. Takes effect at the next cycle.
     pub fn set_operator_hold(&mut self, hold: bool) {
         self.operator_hold = hold;
+    }
+
+    /// The calibration no longer holds (the drift monitor's offset, m and rad): the loop holds
+    /// with [`Reason::CalibrationInvalid`] until `None` (a new calibration). Faults, force rules
+    /// and the coil's giving way outrank it; the operator's hold and the goal's check do not.
+    pub fn set_calibration_invalid(&mut self, offset: Option<(f64, f64)>) {
+        self.calibration_invalid = offset;
     }
 
     /// Whether the operator holds the loop.
@@ -980,10 +995,23 @@ impl Compensator {
                 (flange.translation.vector - goal_now.translation.vector).norm(),
                 flange.rotation.angle_to(&goal_now.rotation),
             );
+            let (coil, coil_goal) = (
+                flange * self.cfg.flange_from_coil,
+                goal_now * self.cfg.flange_from_coil,
+            );
+            rec.coil_error = (
+                (coil.translation.vector - coil_goal.translation.vector).norm(),
+                rec.deviation.1,
+            );
         }
         if let Err(e) = self.goal_check {
             // A wrong goal outranks everything but a fault.
             reason = Some(Reason::from(e));
+        }
+        if let Some((m, a)) = self.calibration_invalid
+            && reason.is_none_or(|r| reaction(&r) == Reaction::Hold)
+        {
+            reason = Some(Reason::CalibrationInvalid(m, a));
         }
         if self.operator_hold && reason.is_none() {
             reason = Some(Reason::Operator);

@@ -34,6 +34,11 @@ pub trait Controller {
     /// A new goal (`head_from_coil`, checked by the caller), from the next cycle. A controller
     /// without one (the paper's pipeline, which has its own) ignores it.
     fn set_goal(&mut self, _head_from_coil: &Isometry3<f64>) {}
+
+    /// The calibration is no longer valid (the drift monitor's offset, m and rad), or valid
+    /// again (`None`, after a new calibration), from the next cycle. A controller without a
+    /// supervisor (the paper's pipeline) ignores it.
+    fn set_calibration_invalid(&mut self, _offset: Option<(f64, f64)>) {}
 }
 
 impl Controller for Compensator {
@@ -61,5 +66,9 @@ impl Controller for Compensator {
     fn set_goal(&mut self, head_from_coil: &Isometry3<f64>) {
         // Checked by the caller with the same check: a refusal here keeps the goal as it was.
         Compensator::set_goal(self, head_from_coil).ok();
+    }
+
+    fn set_calibration_invalid(&mut self, offset: Option<(f64, f64)>) {
+        Compensator::set_calibration_invalid(self, offset);
     }
 }

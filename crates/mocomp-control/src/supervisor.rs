@@ -25,6 +25,7 @@
 //! | `ContactForceSustained` (above `contact_warning_force_n` for `contact_warning_s`) | retreat | a lighter press held too long |
 //! | `ForceSensorStale` | retreat | the force is unknown: a coil that may be pressing moves off rather than stand against a moving head |
 //! | `ForceSaturated` | retreat | the sensor says only "at least its range" |
+//! | `CalibrationInvalid` (the drift monitor: tracker or base moved) | hold | every goal computed through a wrong `base_from_tracker` is wrong by the offset: stop, recalibrate. It stays until the session clears it; the coil still gives way |
 //!
 //! The force rules ([`crate::force`]) outrank every other rule but a fault, and their retreats
 //! end only when they have been clear for `contact_resume_s`.
@@ -90,6 +91,10 @@ pub enum Reason {
     ForceSensorStale(f64),
     /// A force component at the end of the sensor's range (N).
     ForceSaturated(f64),
+    /// Calibration no longer valid (tracker or base moved): a marker on the coil, seen by the
+    /// tracker, is this far (m, rad) from where the robot and the calibration put it (the
+    /// session's drift monitor, [`crate::Controller::set_calibration_invalid`]).
+    CalibrationInvalid(f64, f64),
 }
 
 impl From<GoalError> for Reason {
@@ -144,6 +149,7 @@ pub fn reaction(reason: &Reason) -> Reaction {
         Reason::ContactForceSustained(_) => Retreat,
         Reason::ForceSensorStale(_) => Retreat,
         Reason::ForceSaturated(_) => Retreat,
+        Reason::CalibrationInvalid(..) => Hold,
     }
 }
 

@@ -60,6 +60,11 @@ fn run(motion: Motion, seconds: f64) -> Run {
 
 /// [`run`], with the operator holding the loop while `held(t)`.
 fn run_held(motion: Motion, seconds: f64, held: fn(f64) -> bool) -> Run {
+    run_with(motion, seconds, |t, comp| comp.set_operator_hold(held(t)))
+}
+
+/// [`run`], with `before(t, loop)` before each cycle (what the operator and the session ask).
+fn run_with(motion: Motion, seconds: f64, before: impl Fn(f64, &mut Compensator)) -> Run {
     let arm = Arm::new(Model::Ur3e);
     let cfg = LoopConfig::new(
         base_from_tracker(),
@@ -93,7 +98,7 @@ fn run_held(motion: Motion, seconds: f64, held: fn(f64) -> bool) -> Run {
         let t = k as f64 * PERIOD;
         robot.tick(t);
         poses.now = t;
-        comp.set_operator_hold(held(t));
+        before(t, &mut comp);
         let rec = comp.cycle(t, &mut robot, &mut poses);
         let coil_pose = arm.fk_flange(&rec.q_command) * flange_from_coil();
         let acts = if rec.horizon_s > 0.0 {
@@ -323,6 +328,51 @@ fn the_operators_hold_stops_the_coil_and_resume_brings_it_back_to_the_goal() {
     let end = r.records.last().unwrap();
     assert_eq!(end.mode, Mode::Tracking, "{ev:?}");
     assert!(end.deviation.0 < 1e-3, "{:?}", end.deviation);
+}
+
+fn at_rest(_: f64) -> Option<Isometry3<f64>> {
+    Some(head_rest())
+}
+
+#[test]
+fn an_invalid_calibration_holds_with_its_offset_before_the_operators_hold_and_ends_when_cleared() {
+    let offset = (0.003, 1f64.to_radians());
+    let r = run_with(at_rest, 3.0, |t, comp| {
+        comp.set_calibration_invalid((1.0..2.0).contains(&t).then_some(offset));
+        // The operator holds too, from 1.5 s to 1.8 s: the calibration's reason stays shown.
+        comp.set_operator_hold((1.5..1.8).contains(&t));
+    });
+    let ev = r.events();
+    let holds: Vec<_> = ev
+        .iter()
+        .filter(|(_, e)| matches!(e, Event::Hold(_)))
+        .collect();
+    assert_eq!(
+        holds,
+        [&(
+            1.0,
+            Event::Hold(Reason::CalibrationInvalid(offset.0, offset.1))
+        )],
+        "{ev:?}"
+    );
+    assert!(
+        r.records
+            .iter()
+            .filter(|x| (1.0..2.0).contains(&x.t))
+            .all(|x| x.mode == Mode::Holding(Reason::CalibrationInvalid(offset.0, offset.1)))
+    );
+    // Before and after, on target: the coil's own error is what the gate judges, and it is
+    // small where the flange's is.
+    let before = r.records.iter().rfind(|x| x.t < 1.0).unwrap();
+    assert_eq!(before.mode, Mode::Tracking);
+    assert!(before.coil_error.0 < 1e-3, "{:?}", before.coil_error);
+    let end = r.records.last().unwrap();
+    assert_eq!(end.mode, Mode::Tracking, "{ev:?}");
+    assert!(
+        end.coil_error.0 < 1e-3 && end.coil_error.1 < 0.01,
+        "{:?}",
+        end.coil_error
+    );
 }
 
 fn push_in(t: f64) -> Option<Isometry3<f64>> {

@@ -46,6 +46,8 @@ impl MemRobot {
                 program_ours: true,
                 connected: true,
                 tcp_force: [0.0; 6],
+                digital_inputs: 0,
+                digital_outputs: 0,
             },
             period_s,
             seq: 0,

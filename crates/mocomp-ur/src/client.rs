@@ -32,7 +32,7 @@ pub const SCRIPT_PORT: u16 = 30003;
 pub const MAX_JOINT_SPEED: f64 = 3.14;
 
 /// The output variables of the state recipe, in order.
-pub const STATE_NAMES: [&str; 17] = [
+pub const STATE_NAMES: [&str; 19] = [
     "timestamp",
     "actual_q",
     "actual_qd",
@@ -52,6 +52,19 @@ pub const STATE_NAMES: [&str; 17] = [
     // The wrench on the tool (CB3: estimated from the joint currents; e-Series: from the tool
     // flange's force/torque sensor), base frame.
     "actual_TCP_force",
+    // Bits 0-7 standard, 8-15 configurable, 16-17 tool (UR's RTDE guide): the stimulator's
+    // pulse comes in on an input; the on-target gate goes out on an output.
+    "actual_digital_input_bits",
+    "actual_digital_output_bits",
+];
+
+/// The input recipe that sets digital outputs: only the bits in a mask change, so setting one
+/// output leaves the others (and the program's) as they are.
+pub const IO_INPUT_NAMES: [&str; 4] = [
+    "standard_digital_output_mask",
+    "standard_digital_output",
+    "configurable_digital_output_mask",
+    "configurable_digital_output",
 ];
 
 /// How to reach and run the robot.
@@ -97,7 +110,7 @@ impl UrConfig {
     }
 }
 
-const WORDS: usize = 43;
+const WORDS: usize = 45;
 
 struct Shared {
     cell: SeqLock<WORDS>,
@@ -116,6 +129,8 @@ pub struct UrRobot {
     thread: Option<JoinHandle<()>>,
     writer: TcpStream,
     recipe: Recipe,
+    /// The [`IO_INPUT_NAMES`] recipe.
+    io_recipe: Recipe,
     values: [Value; 11],
     buf: Vec<u8>,
     seq: i32,
@@ -154,6 +169,9 @@ fn encode_state(s: &RobotState) -> [f64; WORDS] {
     w[35] = f64::from(u8::from(s.program_ours));
     w[36] = f64::from(u8::from(s.connected));
     w[37..43].copy_from_slice(&s.tcp_force);
+    // Exact: the bits in use (18) are far below f64's 53.
+    w[43] = s.digital_inputs as f64;
+    w[44] = s.digital_outputs as f64;
     w
 }
 
@@ -183,6 +201,8 @@ fn decode_state(w: &[f64; WORDS]) -> RobotState {
         program_ours: w[35] != 0.0,
         connected: w[36] != 0.0,
         tcp_force: six(&w[37..43]),
+        digital_inputs: w[43] as u64,
+        digital_outputs: w[44] as u64,
     }
 }
 
@@ -210,7 +230,16 @@ fn state_from_values(v: &[Value], received_s: f64) -> Option<RobotState> {
         move_done_seq: f(14)? as i32,
         connected: true,
         tcp_force: v6(16)?,
+        digital_inputs: bits(v.get(17)?)?,
+        digital_outputs: bits(v.get(18)?)?,
     })
+}
+
+fn bits(v: &Value) -> Option<u64> {
+    match *v {
+        Value::Uint64(b) => Some(b),
+        _ => None,
+    }
 }
 
 impl UrRobot {
@@ -225,6 +254,7 @@ impl UrRobot {
         range("RTDE frequency", frequency, 1.0, max)?;
         let out = conn.setup_outputs(frequency, &STATE_NAMES)?;
         let recipe = conn.setup_inputs(&INPUT_NAMES)?;
+        let io_recipe = conn.setup_inputs(&IO_INPUT_NAMES)?;
         conn.start()?;
         let mut values = Vec::with_capacity(STATE_NAMES.len());
         conn.receive(&out, &mut values, true)?;
@@ -264,6 +294,7 @@ impl UrRobot {
             thread: Some(thread),
             writer,
             recipe,
+            io_recipe,
             values: [Value::Int32(0); 11],
             buf: Vec::with_capacity(128),
             seq: start_seq,
@@ -453,6 +484,46 @@ impl UrRobot {
         }
         self.send()?;
         Ok(self.seq)
+    }
+
+    /// Sets digital output `bit` (0-7 standard, 8-15 configurable) high or low through RTDE,
+    /// leaving every other output as it is. Allowed in any robot state (it moves nothing); a
+    /// safety configuration that gives the output another function overrides it on the robot.
+    pub fn set_digital_output(&mut self, bit: u32, on: bool) -> Result<(), UrError> {
+        if bit > 15 {
+            return Err(UrError::Refused {
+                what: format!("digital output {bit}: outputs 0-7 are standard, 8-15 configurable"),
+            });
+        }
+        let (mask, level) = (1u8 << (bit % 8), if on { 1u8 << (bit % 8) } else { 0 });
+        let values = if bit < 8 {
+            [
+                Value::Uint8(mask),
+                Value::Uint8(level),
+                Value::Uint8(0),
+                Value::Uint8(0),
+            ]
+        } else {
+            [
+                Value::Uint8(0),
+                Value::Uint8(0),
+                Value::Uint8(mask),
+                Value::Uint8(level),
+            ]
+        };
+        self.buf.clear();
+        self.io_recipe
+            .encode_input_package(&values, &mut self.buf)
+            .map_err(|e| UrError::Rtde {
+                context: "encoding a digital output".into(),
+                cause: e,
+            })?;
+        self.writer.write_all(&self.buf).map_err(|e| {
+            UrError::io(
+                format!("setting digital output {bit} on {}", self.config.host),
+                e,
+            )
+        })
     }
 
     fn send(&mut self) -> Result<(), UrError> {

@@ -243,6 +243,10 @@ pub struct RobotState {
     /// frame. A CB3 estimates it from the joint currents; an e-Series measures it with the
     /// force/torque sensor in its tool flange ([`crate::types`]' model table says which).
     pub tcp_force: [f64; 6],
+    /// `actual_digital_input_bits`: 0-7 standard, 8-15 configurable, 16-17 tool.
+    pub digital_inputs: u64,
+    /// `actual_digital_output_bits`, numbered alike.
+    pub digital_outputs: u64,
 }
 
 impl RobotState {

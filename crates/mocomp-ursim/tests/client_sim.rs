@@ -128,6 +128,41 @@ fn zeroing_the_force_sensor_takes_its_present_reading_as_zero_and_a_cb3_has_none
 }
 
 #[test]
+fn digital_outputs_set_through_rtde_change_only_their_bit_and_inputs_reach_the_state() {
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut robot = connect(&sim);
+    // The world drives standard input 2 and configurable input 9 (a stimulator's pulse).
+    sim.with(|c| {
+        c.set_digital_input(2, true);
+        c.set_digital_input(9, true);
+    });
+    wait_until("the inputs in the state", || {
+        robot.keep_alive().unwrap();
+        robot
+            .state()
+            .is_some_and(|s| s.digital_inputs == (1 << 2) | (1 << 9))
+    });
+    robot.set_digital_output(7, true).unwrap();
+    robot.set_digital_output(10, true).unwrap();
+    wait_until("outputs 7 and 10 high", || {
+        robot.keep_alive().unwrap();
+        robot
+            .state()
+            .is_some_and(|s| s.digital_outputs == (1 << 7) | (1 << 10))
+    });
+    assert_eq!(sim.with(|c| c.io().digital_outputs()), (1 << 7) | (1 << 10));
+    // Low again: the other output stays as it was.
+    robot.set_digital_output(7, false).unwrap();
+    wait_until("output 7 low, 10 still high", || {
+        robot.keep_alive().unwrap();
+        robot.state().is_some_and(|s| s.digital_outputs == 1 << 10)
+    });
+    // The tool's outputs are not RTDE's to set.
+    let e = robot.set_digital_output(16, true).unwrap_err();
+    assert!(e.to_string().contains("digital output 16"), "{e}");
+}
+
+#[test]
 fn free_drive_follows_a_hand_while_the_client_talks_and_ends_when_it_falls_silent() {
     let sim = sim(Model::Ur5e, SimClock::RealTime);
     let mut robot = connect(&sim);
