@@ -37,6 +37,9 @@ pub struct Requests {
     pub params: Option<LoopParams>,
     /// A new goal (`head_from_coil`), checked.
     pub goal: Option<Isometry3<f64>>,
+    /// The session's drift monitor calls the calibration invalid (offset m, angle rad): the loop
+    /// holds (latched: a run does not recalibrate).
+    pub calibration_invalid: Option<(f64, f64)>,
 }
 
 /// Runs `controller` at `pace` until the pace ends it. Each record carries the cycle's compute
@@ -56,6 +59,9 @@ pub fn drive<P: Pace + ?Sized>(
         }
         if let Some(goal) = &requests.goal {
             controller.set_goal(goal);
+        }
+        if requests.calibration_invalid.is_some() {
+            controller.set_calibration_invalid(requests.calibration_invalid);
         }
         let started = Instant::now();
         let (robot, source) = pace.loop_io();
@@ -177,8 +183,7 @@ mod tests {
                     4 => Some(false),
                     _ => None,
                 },
-                params: None,
-                goal: None,
+                ..Requests::default()
             }
         }
     }

@@ -33,6 +33,7 @@ use crate::calibration::MoveState;
 use crate::config::Config;
 use crate::driver::Requests;
 use crate::live::{Controls, Observer};
+use crate::session_plan::SessionPlan;
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode};
@@ -45,7 +46,7 @@ use mocomp_igtl::client::{Client, ClientConfig, IgtlPoseSource, TimestampMode};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use mocomp_kin::{Arm, Model, Selection};
-use mocomp_session::{DriftMonitor, DriftParams};
+use mocomp_session::{PulseAt, Session, SessionParams};
 use mocomp_sim::HeadMotion;
 use mocomp_sim::contact::{Contact, ContactParams};
 use mocomp_sim::{TrackerModel, TrackerSim};
@@ -181,6 +182,9 @@ pub struct ExperimentConfig {
     /// by `.1` in its own frame (`tracker_from_bumped`). The calibration no longer holds; the
     /// drift monitor ([`mocomp_session::drift`]) on the coil's marker should see it.
     pub tracker_bump: Option<(f64, Isometry3<f64>)>,
+    /// A clinical session during each `mocomp` run: targets walked, the on-target gate on the
+    /// coil robot's output, a stimulator pulsing its input (see [`SessionPlan`]).
+    pub session: Option<SessionPlan>,
 }
 
 /// The paper's goal as a rigid transform (metres).
@@ -239,6 +243,7 @@ impl ExperimentConfig {
             },
             on_scalp: x.contact,
             tracker_bump: None,
+            session: None,
         };
         if e.on_scalp {
             e.loop_params.force_sensing = true;
@@ -293,6 +298,19 @@ impl ExperimentConfig {
     /// the configuration file (see [`crate::config`]).
     pub fn validate(&self) -> Result<(), ExperimentError> {
         let bad = |m: String| Err(ExperimentError::Config(m));
+        if let Some(plan) = &self.session {
+            plan.params
+                .validate()
+                .map_err(|m| ExperimentError::Config(format!("session: {m}")))?;
+            if plan.targets.is_empty() || plan.duration_s() > self.duration_s + 1e-9 {
+                return bad(format!(
+                    "session: {} targets of {} s do not fit the run's {} s",
+                    plan.targets.len(),
+                    plan.per_target_s,
+                    self.duration_s
+                ));
+            }
+        }
         if !(self.duration_s.is_finite() && self.duration_s > 0.0 && self.duration_s <= 3600.0) {
             return bad(format!(
                 "experiment.duration_s = {}: must be in (0, 3600]",
@@ -631,6 +649,26 @@ pub struct Record {
     pub contact_force_n: f64,
     /// The drift monitor's verdict when it changed this tick.
     pub drift: Option<mocomp_session::Drift>,
+    /// The target selected (its index in the session's plan; 0 without one).
+    pub target: usize,
+    /// The true coil against the selected target on the true head at the cycle's time, m and
+    /// rad (the truth the gate's measured error estimates).
+    pub target_error: (f64, f64),
+    /// The measured error the gate judged, m and rad (NaN without a head estimate).
+    pub measured_error: (f64, f64),
+    /// The gate after this tick's cycle.
+    pub gate_open: bool,
+}
+
+/// A pulse the session logged, with the truth at its time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoggedPulse {
+    /// As logged (its time on the run's clock, from the run's start).
+    pub pulse: PulseAt,
+    /// The true coil against the target then, m and rad.
+    pub truth: (f64, f64),
+    /// Given by hand (not through the gate).
+    pub by_hand: bool,
 }
 
 /// Summary statistics of a series.
@@ -688,6 +726,10 @@ pub struct Run {
     /// With a tracker bump: how long after it the drift monitor called the calibration
     /// invalid, s (`None`: no bump, or never).
     pub bump_detected_after_s: Option<f64>,
+    /// With a session: every pulse logged, in order.
+    pub pulses: Vec<LoggedPulse>,
+    /// With a session: the stimulator's gated tries the shut gate withheld.
+    pub withheld_pulses: usize,
 }
 
 impl Run {
@@ -706,6 +748,8 @@ impl Run {
             rotation_deg: Stats::of(&col(&|r| r.rotation_rad.to_degrees())),
             contact_force_n: Stats::of(&col(&|r| r.contact_force_n)),
             bump_detected_after_s: None,
+            pulses: Vec::new(),
+            withheld_pulses: 0,
             records,
         }
     }
@@ -1409,11 +1453,19 @@ impl Rig {
         // The coil's marker seen by the tracker against where the robot and the calibration put
         // it (the loop's `flange_from_coil` is the coil marker's frame here).
         let drift = DriftWatch {
-            monitor: DriftMonitor::new(DriftParams::default(), drift_sigma.0, drift_sigma.1),
             base_from_tracker: loop_cfg.base_from_tracker,
             flange_from_marker: loop_cfg.flange_from_coil,
             q1: VecDeque::with_capacity(128),
         };
+        // The session: the plan's (the paper's pipeline has no goal to switch), or the gate and
+        // the drift monitor alone on the run's goal.
+        let plan = cfg
+            .session
+            .as_ref()
+            .filter(|_| controller == Controller::Mocomp);
+        let params = plan.map_or_else(SessionParams::default, |p| p.params);
+        let session = Session::new(params, drift_sigma, 0);
+        let goal_head_from_coil = loop_cfg.head_from_coil_goal;
         let trajectory = cfg.motion.trajectory();
         let rest = self.scene.world_from_head_rest;
         let head_from_e2 = self.scene.e2_from_head.inverse();
@@ -1444,11 +1496,37 @@ impl Rig {
             progress,
             watching,
             drift,
+            session,
+            plan,
+            goal_head_from_coil,
+            pending_goal: None,
+            next_attempt: 0,
+            pulse_until: None,
+            by_hand: false,
+            gate_level: false,
+            pulses: Vec::new(),
+            withheld: 0,
         };
         crate::driver::drive(ctl.as_mut(), &mut pace)?;
+        if pace.gate_level
+            && let Some(bit) = pace.session.params().gate_output
+        {
+            // The run is over: the stimulator's trigger is shut again.
+            let (robot1, sim1) = (&mut pace.world.robot1, &pace.world.sim1);
+            let n = sim1.stats().inputs;
+            robot1
+                .set_digital_output(bit, false)
+                .map_err(|e| io("shutting the gate output", e))?;
+            spin(Duration::from_secs(5), "the gate output to arrive", || {
+                sim1.stats().inputs > n
+            })?;
+        }
+        let (pulses, withheld) = (std::mem::take(&mut pace.pulses), pace.withheld);
         let records = pace.records;
         progress(Phase::Compensating(controller), 1.0);
         let mut run = Run::new(controller, records, self.period);
+        run.pulses = pulses;
+        run.withheld_pulses = withheld;
         run.bump_detected_after_s = cfg.tracker_bump.and_then(|(at, _)| {
             run.records
                 .iter()
@@ -1486,14 +1564,69 @@ struct Lockstep<'a, 'p> {
     progress: &'p mut dyn FnMut(Phase, f64),
     /// A front end watching, if any.
     watching: Option<Watching<'a>>,
-    /// The calibration drift monitor on the coil's marker.
+    /// The coil robot's recent joints for the drift monitor.
     drift: DriftWatch,
+    /// The session: gate, pulses, drift monitor.
+    session: Session,
+    /// The session's script, if any.
+    plan: Option<&'a SessionPlan>,
+    /// The run's goal (the target without a plan).
+    goal_head_from_coil: Isometry3<f64>,
+    /// A target's goal for the loop's next cycle.
+    pending_goal: Option<Isometry3<f64>>,
+    /// The stimulator's next try.
+    next_attempt: usize,
+    /// The pulse input is high until this clock time.
+    pulse_until: Option<f64>,
+    /// The pulse on the input was given by hand.
+    by_hand: bool,
+    /// The gate output's level as last set.
+    gate_level: bool,
+    pulses: Vec<LoggedPulse>,
+    withheld: usize,
 }
 
-/// The drift monitor and what it needs: the calibration, and the coil robot's recent joints
-/// (a marker sample is compared with the robot where it was when the sample was acquired).
+impl Lockstep<'_, '_> {
+    /// Before the coil robot's cycle, `tr` into the run: the plan's next target, and the
+    /// stimulator (its pulse on the coil robot's input, two robot periods long).
+    fn session_tick(&mut self, tr: f64) -> Result<(), ExperimentError> {
+        let Some(plan) = self.plan else {
+            return Ok(());
+        };
+        let w = &*self.world;
+        let due = plan.target_at(tr);
+        if due != self.session.target() || (self.k == 0 && !plan.targets.is_empty()) {
+            self.session.select(due);
+            self.pending_goal = plan.targets.get(due).map(|t| t.1);
+        }
+        let Some(bit) = plan.params.pulse_input else {
+            return Ok(());
+        };
+        if self.pulse_until.is_some_and(|until| self.t >= until) {
+            w.sim1.with(|c| c.set_digital_input(bit, false));
+            self.pulse_until = None;
+        }
+        while let Some(a) = plan.attempts.get(self.next_attempt).filter(|a| a.t_s <= tr) {
+            self.next_attempt += 1;
+            let gate_high = plan
+                .params
+                .gate_output
+                .is_some_and(|g| w.sim1.with(|c| c.io().digital_outputs()) & (1 << g) != 0);
+            if self.pulse_until.is_some() || (a.gated && !gate_high) {
+                self.withheld += usize::from(a.gated);
+                continue;
+            }
+            w.sim1.with(|c| c.set_digital_input(bit, true));
+            self.pulse_until = Some(self.t + 2.0 * w.period);
+            self.by_hand = !a.gated;
+        }
+        Ok(())
+    }
+}
+
+/// What the drift monitor needs: the calibration, and the coil robot's recent joints (a marker
+/// sample is compared with the robot where it was when the sample was acquired).
 struct DriftWatch {
-    monitor: DriftMonitor,
     base_from_tracker: Isometry3<f64>,
     flange_from_marker: Isometry3<f64>,
     q1: VecDeque<(f64, [f64; 6])>,
@@ -1544,6 +1677,8 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
         }
         let (robot2, q2, servo) = (&mut w.robot2, self.q2_cmd, &self.head_servo);
         Rig::sent(&w.sim2, || robot2.servo(&q2, servo).map(|_| ()))?;
+        self.session_tick(tr)?;
+        let w = &mut *self.world;
         // The coil robot's controller: one cycle, one command, taken by the simulator before
         // the clock moves on.
         self.inputs = w.sim1.stats().inputs;
@@ -1577,10 +1712,55 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             if let (true, Some(q)) = (s.valid, d.q_at(s.acquired_s)) {
                 let tracked = d.base_from_tracker * s.tracker_from_marker;
                 let robot = w.arm1.fk_flange(&q) * d.flange_from_marker;
-                drift = d.monitor.update(s.acquired_s, &tracked, &robot).or(drift);
+                drift = self
+                    .session
+                    .marker(s.acquired_s, &tracked, &robot)
+                    .or(drift);
             }
         }
         let tr = self.t - self.t0;
+        // The truth at the cycle's time (the joints before this tick's step): the true coil
+        // against the selected target on the true head.
+        let target = self.session.target();
+        let head_from_coil_target = self
+            .plan
+            .and_then(|p| p.targets.get(target))
+            .map_or(self.goal_head_from_coil, |t| t.1);
+        let true_coil = w.world_from_e1(&w.q_prev.0) * w.scene.e1_from_coil;
+        let true_target =
+            w.world_from_e2(&w.q_prev.1) * w.scene.e2_from_head * head_from_coil_target;
+        let target_error = (
+            (true_coil.translation.vector - true_target.translation.vector).norm(),
+            true_coil.rotation.angle_to(&true_target.rotation),
+        );
+        // The session on this cycle: the gate (to the coil robot's output) and a pulse on its
+        // input (the state after this tick's step carries it).
+        let inputs = w.robot1.state().map(|s| s.digital_inputs);
+        let step = self.session.cycle(&rec, inputs);
+        if let Some(p) = step.pulse {
+            self.pulses.push(LoggedPulse {
+                pulse: PulseAt {
+                    t_s: p.t_s - self.t0,
+                    ..p
+                },
+                truth: target_error,
+                by_hand: self.by_hand,
+            });
+        }
+        if step.gate_open != self.gate_level
+            && let Some(bit) = self.session.params().gate_output
+        {
+            let (robot1, sim1) = (&mut w.robot1, &w.sim1);
+            let n = sim1.stats().inputs;
+            robot1
+                .set_digital_output(bit, step.gate_open)
+                .map_err(|e| io("setting the gate output", e))?;
+            // Taken before the next cycle's command is counted.
+            spin(Duration::from_secs(5), "the gate output to arrive", || {
+                sim1.stats().inputs > n
+            })?;
+            self.gate_level = step.gate_open;
+        }
         let e2 = w.world_from_e2(&w.q_now.1);
         let e1 = w.world_from_e1(&w.q_now.0);
         let actual = e2.inverse() * e1;
@@ -1599,6 +1779,10 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             coil_clearance_m: self.coil.distance(&self.head, &head_from_coil),
             contact_force_n: w.contact.force_n(&head_from_coil),
             drift,
+            target,
+            target_error,
+            measured_error: rec.coil_error,
+            gate_open: step.gate_open,
         });
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);
@@ -1617,14 +1801,16 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
     }
 
     fn requests(&mut self) -> Requests {
-        let Some(watching) = self.watching.as_mut() else {
-            return Requests::default();
-        };
-        let hold = watching.controls.hold();
-        let changed = (hold != watching.held).then_some(hold);
-        watching.held = hold;
+        let hold = self.watching.as_mut().and_then(|watching| {
+            let hold = watching.controls.hold();
+            let changed = (hold != watching.held).then_some(hold);
+            watching.held = hold;
+            changed
+        });
         Requests {
-            hold: changed,
+            hold,
+            goal: self.pending_goal.take(),
+            calibration_invalid: self.session.calibration_invalid(),
             ..Requests::default()
         }
     }

@@ -28,6 +28,7 @@ pub mod listen;
 pub mod live;
 pub mod pose_lines;
 pub mod servo_check;
+pub mod session_plan;
 pub mod targets;
 pub mod teach;
 pub mod tuning;

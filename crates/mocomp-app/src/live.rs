@@ -697,6 +697,7 @@ impl crate::driver::Pace for Live<'_> {
             hold: changed,
             params,
             goal,
+            ..Requests::default()
         }
     }
 }

@@ -670,11 +670,24 @@ impl Compensator {
                 .min(head.distance(&Point3::from(p2)))
         };
         if approach_rule && d < zone && d < d_prev() - 1e-6 {
-            let g = &self.cfg.head_from_coil_goal;
-            let axis = g.rotation * Vector3::z();
+            // Near the head the coil moves only along an approach axis: the goal's, or on a
+            // path the axis it set out along (leaving one target for its neighbour, the coil
+            // backs out along its own axis, which is off the new goal's).
+            let axis_of = |g: &Isometry3<f64>| (g.translation.vector, g.rotation * Vector3::z());
+            let axes = [
+                Some(axis_of(&self.cfg.head_from_coil_goal)),
+                self.path
+                    .filter(|_| self.mode == Mode::Approaching)
+                    .map(|p| axis_of(p.start())),
+            ];
             let lateral_of = |c: Vector3<f64>| {
-                let rel = c - g.translation.vector;
-                (rel - axis * rel.dot(&axis)).norm()
+                axes.iter()
+                    .flatten()
+                    .map(|(o, axis)| {
+                        let rel = c - o;
+                        (rel - axis * rel.dot(axis)).norm()
+                    })
+                    .fold(f64::INFINITY, f64::min)
             };
             let lateral = lateral_of(centre);
             // Closer to the head only on the approach axis, or while converging onto it.
@@ -1146,7 +1159,8 @@ impl Compensator {
                         self.stand_still()
                     }
                 } else {
-                    if self.mode != Mode::Approaching {
+                    // A new goal while approaching drops the path: plan again, never go straight.
+                    if self.mode != Mode::Approaching || self.path.is_none() {
                         let from_retreat = matches!(self.mode, Mode::Retreating(_));
                         if self.anchor != self.cfg.head_from_coil_goal {
                             // The coil gave way away from the goal (approaching, holding): back

@@ -155,6 +155,11 @@ impl ShellPath {
         Ok(path)
     }
 
+    /// Where the path starts (`head_from_coil`).
+    pub fn start(&self) -> &Isometry3<f64> {
+        &self.start
+    }
+
     /// The path's length, m.
     pub fn length(&self) -> f64 {
         self.lengths.iter().sum()

@@ -375,6 +375,85 @@ fn an_invalid_calibration_holds_with_its_offset_before_the_operators_hold_and_en
     );
 }
 
+/// Gentle nods about the head's x axis and a sway along y (a seated patient's).
+fn nodding(t: f64) -> Option<Isometry3<f64>> {
+    let w = 2.0 * std::f64::consts::PI * 0.3;
+    Some(
+        head_rest()
+            * Isometry3::new(
+                Vector3::new(0.0, 0.004 * (w * t).sin(), 0.0),
+                Vector3::x() * 0.02 * (w * t).sin(),
+            ),
+    )
+}
+
+/// The goal moved sideways by `dx` m in the coil's frame and tilted as the normal of a 10 cm
+/// radius scalp turns over that distance (a neighbour on a mapping grid).
+fn neighbour(dx: f64) -> Isometry3<f64> {
+    head_from_coil_goal() * Isometry3::new(Vector3::new(dx, 0.0, -0.002), Vector3::y() * (dx / 0.1))
+}
+
+fn once_at(t: f64, at: f64) -> bool {
+    (t - at).abs() < PERIOD / 2.0
+}
+
+#[test]
+fn a_neighbouring_target_on_a_nodding_head_is_reached_by_a_path_without_a_hold() {
+    let r = run_with(nodding, 5.0, |t, comp| {
+        if once_at(t, 1.0) {
+            comp.set_goal(&neighbour(0.01)).unwrap();
+        }
+    });
+    let ev = r.events();
+    // Leaving the old target the coil backs out along its own axis, which is 1 cm off the new
+    // goal's: that is no approach from the side.
+    assert_eq!(r.holds(), 0, "{ev:?}");
+    let approaching: Vec<_> = r
+        .records
+        .iter()
+        .filter(|x| x.mode == Mode::Approaching)
+        .collect();
+    assert!(!approaching.is_empty() && approaching.iter().all(|x| x.path.is_some()));
+    let end = r.records.last().unwrap();
+    assert_eq!(end.mode, Mode::Tracking, "{ev:?}");
+    assert!(end.coil_error.0 < 1e-3, "{:?}", end.coil_error);
+    assert!(r.least_clearance() > 0.0);
+}
+
+#[test]
+fn a_goal_changed_while_approaching_gets_a_new_path_never_a_straight_line() {
+    let r = run_with(at_rest, 6.0, |t, comp| {
+        if once_at(t, 1.0) {
+            comp.set_goal(&neighbour(0.01)).unwrap();
+        }
+        // Halfway along that path, another.
+        if once_at(t, 1.8) {
+            comp.set_goal(&neighbour(-0.01)).unwrap();
+        }
+    });
+    let ev = r.events();
+    let approaching: Vec<_> = r
+        .records
+        .iter()
+        .filter(|x| x.mode == Mode::Approaching)
+        .collect();
+    assert!(
+        approaching.iter().all(|x| x.path.is_some()),
+        "approaching without a path: {ev:?}"
+    );
+    // The second path starts from where the first was left, at its start: a new plan.
+    let second = r
+        .records
+        .iter()
+        .find(|x| x.t > 1.8 && x.mode == Mode::Approaching)
+        .unwrap();
+    assert!(second.path.unwrap().0 < 1e-3, "{:?}", second.path);
+    let end = r.records.last().unwrap();
+    assert_eq!(end.mode, Mode::Tracking, "{ev:?}");
+    assert!(end.coil_error.0 < 1e-3, "{:?}", end.coil_error);
+    assert!(r.least_clearance() > 0.0);
+}
+
 fn push_in(t: f64) -> Option<Isometry3<f64>> {
     // 40 mm into the coil at 100 mm/s.
     Some(along_z(|t| ramp(t - 0.5, 0.04, 0.1))(t))

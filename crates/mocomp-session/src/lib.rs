@@ -7,6 +7,8 @@
 //!   the surface normal (motor mapping walks such a grid around the hotspot).
 //! - [`drift`]: whether the tracker and the robot's base are still where the calibration says.
 //! - [`targets`]: the session's named targets and their file.
+//! - [`session`]: the selected target, the gate on each cycle, the pulses and the drift
+//!   monitor's latched verdict, together beside the loop.
 //! - [`pulses`]: the pulse log, one CSV row per pulse with the coil's error and the gate.
 //!
 //! Pure logic: no robot, no socket, no clock (the targets file is parsed and printed, the pulse
@@ -16,10 +18,12 @@ pub mod drift;
 pub mod gate;
 pub mod grid;
 pub mod pulses;
+pub mod session;
 pub mod targets;
 
 pub use drift::{Drift, DriftMonitor, DriftParams};
 pub use gate::{Gate, GateEvent, GateInputs, GateParams, GateState, Shut};
 pub use grid::{GridError, GridParams, GridPoint, grid_around};
 pub use pulses::{Pulse, PulseLog};
+pub use session::{PulseAt, Session, SessionParams, Step, shut_reason};
 pub use targets::{Target, Targets, TargetsError};

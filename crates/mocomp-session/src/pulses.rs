@@ -5,7 +5,8 @@
 //! gate judges), the head's speed and whether the gate was open. A pulse while the gate is shut
 //! is written too, marked as such: the record must show every pulse the patient received.
 
-use crate::gate::{GateState, Shut};
+use crate::gate::GateState;
+use crate::session::{PulseAt, shut_reason};
 use std::io::Write;
 
 /// One pulse.
@@ -43,6 +44,20 @@ pub struct PulseLog<W: Write> {
     w: csv::Writer<W>,
 }
 
+impl Pulse {
+    /// The pulse the loop's thread saw, with its target's name.
+    pub fn named(at: &PulseAt, target: &str) -> Self {
+        Self {
+            t_s: at.t_s,
+            target: target.to_string(),
+            position_error_m: at.position_error_m,
+            angle_error_rad: at.angle_error_rad,
+            head_speed: at.head_speed,
+            gate: at.gate,
+        }
+    }
+}
+
 impl<W: Write> PulseLog<W> {
     /// A log writing its header to `out`.
     pub fn new(out: W) -> Result<Self, csv::Error> {
@@ -55,7 +70,7 @@ impl<W: Write> PulseLog<W> {
     pub fn write(&mut self, p: &Pulse) -> Result<(), csv::Error> {
         let (gate, why) = match p.gate {
             GateState::Open => ("open", String::new()),
-            GateState::Shut(s) => ("shut", why(&s)),
+            GateState::Shut(s) => ("shut", shut_reason(&s)),
         };
         self.w.write_record([
             format!("{:.4}", p.t_s),
@@ -77,20 +92,11 @@ impl<W: Write> PulseLog<W> {
     }
 }
 
-fn why(s: &Shut) -> String {
-    match s {
-        Shut::Dwelling(_) => "dwelling".into(),
-        Shut::PositionError(d) => format!("position error {:.2} mm", d * 1e3),
-        Shut::AngleError(a) => format!("angle error {:.2} deg", a.to_degrees()),
-        Shut::NotTracking => "not tracking".into(),
-        Shut::NoHead => "no head estimate".into(),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
+    use crate::gate::Shut;
 
     #[test]
     fn every_pulse_is_a_row_in_units_with_a_shut_gate_marked_and_why() {
