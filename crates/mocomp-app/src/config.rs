@@ -104,6 +104,73 @@ pub struct Config {
     pub realtime: mocomp_rt::RtConfig,
     /// `mocomp demo`: the paper's two-robot experiment.
     pub experiment: ExperimentSection,
+    /// `mocomp run`: the clinical session around the loop.
+    pub session: SessionSection,
+}
+
+/// `[session]`: the clinical session around `mocomp run`'s loop: the targets, the on-target gate
+/// on a robot output, the stimulator's pulses and their log, the calibration's drift monitor.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SessionSection {
+    /// The session's targets file (`mocomp targets`, `teach-goal --name`), relative to this
+    /// file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub targets: Option<String>,
+    /// The target the loop starts on (a name in `targets`; default: `[goal]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target: Option<String>,
+    /// Write one CSV row per pulse to this file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pulse_log: Option<String>,
+    /// The robot's digital output that carries the gate (0-7 standard, 8-15 configurable).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gate_output: Option<u32>,
+    /// The robot's digital input the stimulator's pulse comes in on (0-17).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pulse_input: Option<u32>,
+    /// Publish the gate to the tracker's OpenIGTLink server as STRING messages of this device
+    /// (`open`, or `shut: why`), and, without a `pulse_input`, take a STRING `pulse` from it as
+    /// a pulse (one source of pulses, never two: each would log the same pulse).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub igtl_device: Option<String>,
+    /// The tracker device of a marker on the flange, for the drift monitor (the calibration
+    /// marker's `calibrate.device`; none: no drift monitor).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub marker_device: Option<String>,
+    /// That marker on the flange, flange_from_marker (default: the calibration file's X; with
+    /// the simulated tracker, `tracker.simulated.flange_from_marker`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flange_from_marker: Option<Pose>,
+    /// The on-target gate's tolerances and dwell.
+    pub gate: mocomp_session::GateParams,
+    /// The drift monitor's levels.
+    pub drift: mocomp_session::DriftParams,
+    /// The simulated world's stimulator (with `robot.simulate`): pulses at `rate_hz` while the
+    /// gate output is high.
+    pub simulated_stimulator: SimStimulatorSection,
+}
+
+/// `[session.simulated_stimulator]`: a stimulator in the simulated world, its trigger wired
+/// through the gate output: while the output is high it fires at `rate_hz`, each pulse reported
+/// as the session is configured to take it (the robot's input, and an OpenIGTLink STRING).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimStimulatorSection {
+    /// Pulses per second while the gate is open (0: no stimulator).
+    pub rate_hz: f64,
+}
+
+impl SessionSection {
+    /// The session's parameters.
+    pub fn params(&self) -> mocomp_session::SessionParams {
+        mocomp_session::SessionParams {
+            gate: self.gate,
+            drift: self.drift,
+            gate_output: self.gate_output,
+            pulse_input: self.pulse_input,
+        }
+    }
 }
 
 /// `[robot]`.
@@ -615,6 +682,22 @@ impl Config {
             .validate()
             .map_err(|e| cfg(&e, "tracker.simulated.model."))?;
         Check::non_negative("duration_s", self.duration_s)?;
+        self.session
+            .params()
+            .validate()
+            .map_err(|e| AppError::Config(format!("session.{e}")))?;
+        Check::range(
+            "session.simulated_stimulator.rate_hz",
+            self.session.simulated_stimulator.rate_hz,
+            0.0,
+            50.0,
+            false,
+        )?;
+        if self.session.target.is_some() && self.session.targets.is_none() {
+            return Err(AppError::Config(
+                "session.target: needs session.targets (the file it is in)".into(),
+            ));
+        }
         for (i, r) in self.head.radii_m.iter().enumerate() {
             Check::positive(&format!("head.radii_m[{i}]"), *r)?;
         }
@@ -751,7 +834,7 @@ impl Config {
 
 /// Keys the experiment does not use (it builds its own scene, calibrates itself and sets its
 /// own goal), as dotted paths; a table stands for every key in it.
-const NOT_FOR_THE_EXPERIMENT: [&str; 15] = [
+const NOT_FOR_THE_EXPERIMENT: [&str; 16] = [
     "duration_s",
     "log_csv",
     "robot.simulate",
@@ -767,6 +850,7 @@ const NOT_FOR_THE_EXPERIMENT: [&str; 15] = [
     "calibration",
     "goal",
     "realtime",
+    "session",
 ];
 
 /// The keys a configuration's `text` sets, to other values than their defaults, that `mocomp

@@ -46,13 +46,12 @@ use mocomp_igtl::client::{Client, ClientConfig, IgtlPoseSource, TimestampMode};
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use mocomp_kin::{Arm, Model, Selection};
-use mocomp_session::{PulseAt, Session, SessionParams};
+use mocomp_session::{JointHistory, PulseAt, Session, SessionParams};
 use mocomp_sim::HeadMotion;
 use mocomp_sim::contact::{Contact, ContactParams};
 use mocomp_sim::{TrackerModel, TrackerSim};
 use mocomp_ur::{Robot, ServoParams, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimConfig, ToolLoad};
-use std::collections::VecDeque;
 use std::net::IpAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -1455,7 +1454,7 @@ impl Rig {
         let drift = DriftWatch {
             base_from_tracker: loop_cfg.base_from_tracker,
             flange_from_marker: loop_cfg.flange_from_coil,
-            q1: VecDeque::with_capacity(128),
+            q1: JointHistory::default(),
         };
         // The session: the plan's (the paper's pipeline has no goal to switch), or the gate and
         // the drift monitor alone on the run's goal.
@@ -1629,20 +1628,7 @@ impl Lockstep<'_, '_> {
 struct DriftWatch {
     base_from_tracker: Isometry3<f64>,
     flange_from_marker: Isometry3<f64>,
-    q1: VecDeque<(f64, [f64; 6])>,
-}
-
-impl DriftWatch {
-    /// The joints at clock time `t`, interpolated between the ticks kept.
-    fn q_at(&self, t: f64) -> Option<[f64; 6]> {
-        let i = self.q1.iter().position(|(ti, _)| *ti >= t)?;
-        let (t1, q1) = self.q1[i];
-        let Some(&(t0, q0)) = i.checked_sub(1).and_then(|j| self.q1.get(j)) else {
-            return (t1 - t < 1e-9).then_some(q1);
-        };
-        let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
-        Some(std::array::from_fn(|j| q0[j] + (q1[j] - q0[j]) * s))
-    }
+    q1: JointHistory,
 }
 
 impl crate::driver::Pace for Lockstep<'_, '_> {
@@ -1703,13 +1689,10 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
         w.advance()?;
         // The drift monitor: every coil-marker sample against the robot at its acquisition.
         let d = &mut self.drift;
-        if d.q1.len() == d.q1.capacity() {
-            d.q1.pop_front();
-        }
-        d.q1.push_back((w.clock.now_s(), w.q_now.0));
+        d.q1.push(w.clock.now_s(), w.q_now.0);
         let mut drift = None;
         while let Some(s) = w.coil_source.latest() {
-            if let (true, Some(q)) = (s.valid, d.q_at(s.acquired_s)) {
+            if let (true, Some(q)) = (s.valid, d.q1.at(s.acquired_s)) {
                 let tracked = d.base_from_tracker * s.tracker_from_marker;
                 let robot = w.arm1.fk_flange(&q) * d.flange_from_marker;
                 drift = self

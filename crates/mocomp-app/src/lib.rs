@@ -26,6 +26,7 @@ pub mod experiment;
 pub mod frames;
 pub mod listen;
 pub mod live;
+pub mod live_session;
 pub mod pose_lines;
 pub mod servo_check;
 pub mod session_plan;

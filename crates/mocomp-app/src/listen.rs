@@ -46,7 +46,7 @@ pub fn listen(
     cfg.keep_messages = 4096;
     cfg.start_tdata = o.stt_tdata.then_some(0);
     let client = Client::start(cfg, Arc::new(MonotonicClock::new()));
-    let Some(rx) = client.messages() else {
+    let Some(rx) = client.take_messages() else {
         refuse!("the OpenIGTLink client has no message channel");
     };
     let mut poses = 0u64;

@@ -16,6 +16,7 @@
 use crate::camera::VisionLink;
 use crate::config::Setup;
 use crate::driver::Requests;
+use crate::live_session::{LoopSession, Note, SessionLog, SessionReport, SessionSetup};
 use crate::world::World;
 use crate::{AppError, Context};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopParams, Mode, Reason};
@@ -48,6 +49,8 @@ struct Summary {
     contact_force_n: Vec<f64>,
     by_mode: [u64; 5],
     events: Vec<(f64, Event)>,
+    /// The session's notes, in words.
+    session_lines: Vec<(f64, String)>,
     /// Why the CSV log stopped being written, if it did.
     log_error: Option<String>,
 }
@@ -93,6 +96,8 @@ pub trait Observer: Send {
     /// clock when the logger took it, s (the hop from the loop to here; NaN before the clock is
     /// known).
     fn cycle(&mut self, _record: &CycleRecord, _age_s: f64) {}
+    /// What the session did at loop time `t` (a pulse, the gate, the drift monitor), in words.
+    fn session(&mut self, _t: f64, _text: &str) {}
 }
 
 /// Tells two observers.
@@ -112,6 +117,10 @@ impl<A: Observer, B: Observer> Observer for Both<A, B> {
         self.0.cycle(record, age_s);
         self.1.cycle(record, age_s);
     }
+    fn session(&mut self, t: f64, text: &str) {
+        self.0.session(t, text);
+        self.1.session(t, text);
+    }
 }
 
 impl<O: Observer + ?Sized> Observer for Box<O> {
@@ -124,7 +133,13 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     fn cycle(&mut self, record: &CycleRecord, age_s: f64) {
         (**self).cycle(record, age_s);
     }
+    fn session(&mut self, t: f64, text: &str) {
+        (**self).session(t, text);
+    }
 }
+
+/// A target selected: its index in the session's targets and its `head_from_coil`.
+type Selection = (usize, Isometry3<f64>);
 
 /// Parameter changes that may wait for the loop to take them.
 const PENDING_PARAMS: usize = 4;
@@ -141,6 +156,8 @@ pub struct Controls {
     params_rx: Mutex<Option<Receiver<LoopParams>>>,
     goal_tx: SyncSender<Isometry3<f64>>,
     goal_rx: Mutex<Option<Receiver<Isometry3<f64>>>>,
+    target_tx: SyncSender<Selection>,
+    target_rx: Mutex<Option<Receiver<Selection>>>,
     /// The simulated camera's pipeline, once the session has started one.
     vision: OnceLock<Arc<VisionLink>>,
 }
@@ -150,6 +167,7 @@ impl Controls {
     pub fn new() -> Arc<Self> {
         let (params_tx, rx) = sync_channel(PENDING_PARAMS);
         let (goal_tx, goal_rx) = sync_channel(1);
+        let (target_tx, target_rx) = sync_channel(1);
         Arc::new(Self {
             stop: AtomicBool::new(false),
             hold: AtomicBool::new(false),
@@ -158,6 +176,8 @@ impl Controls {
             params_rx: Mutex::new(Some(rx)),
             goal_tx,
             goal_rx: Mutex::new(Some(goal_rx)),
+            target_tx,
+            target_rx: Mutex::new(Some(target_rx)),
             vision: OnceLock::new(),
         })
     }
@@ -225,6 +245,33 @@ impl Controls {
         }
     }
 
+    /// Selects the session's target `index` (its `head_from_coil`, checked with the loop's goal
+    /// check): the loop goes there by a planned path while it keeps compensating, and the gate
+    /// stays shut until it is on it.
+    pub fn select_target(
+        &self,
+        index: usize,
+        head_from_coil: Isometry3<f64>,
+    ) -> Result<(), AppError> {
+        match self.target_tx.try_send((index, head_from_coil)) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => Err(AppError::Refused(
+                "an earlier target is still waiting for the loop; try again".into(),
+            )),
+            Err(TrySendError::Disconnected(_)) => {
+                Err(AppError::Refused("the loop has ended".into()))
+            }
+        }
+    }
+
+    /// The loop's end of the target channel (once).
+    fn take_targets(&self) -> Option<Receiver<Selection>> {
+        self.target_rx
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take()
+    }
+
     /// The loop's end of the goal channel (once).
     fn take_goals(&self) -> Option<Receiver<Isometry3<f64>>> {
         self.goal_rx
@@ -262,12 +309,30 @@ pub fn mode_name(m: &Mode) -> String {
     }
 }
 
+/// The session's notes and log, on the logger's thread.
+struct SessionSide {
+    notes: Receiver<Note>,
+    log: SessionLog,
+}
+
+impl SessionSide {
+    fn drain(&mut self, s: &mut Summary, observer: &mut dyn Observer) {
+        while let Ok(n) = self.notes.try_recv() {
+            let t = crate::live_session::note_time(&n);
+            let line = self.log.take(&n);
+            observer.session(t, &line);
+            s.session_lines.push((t, line));
+        }
+    }
+}
+
 fn logger(
     rx: Receiver<CycleRecord>,
     period: f64,
     csv: Option<std::fs::File>,
     clock: &OnceLock<Arc<dyn Clock>>,
     observer: &mut dyn Observer,
+    session: &mut SessionSide,
 ) -> Summary {
     let mut s = Summary::default();
     let mut w = csv.map(csv::Writer::from_writer);
@@ -342,6 +407,7 @@ fn logger(
             s.events.push((r.t, e));
             observer.event(r.t, &e);
         }
+        session.drain(&mut s, observer);
         if let Some(w) = w.as_mut().filter(|_| log_error.is_none()) {
             let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
             let mut row = vec![
@@ -387,6 +453,8 @@ fn logger(
             (window_cycles, window_max) = (0, 0.0);
         }
     }
+    // The loop has ended: the notes of its last cycles.
+    session.drain(&mut s, observer);
     if let Some(w) = w.as_mut()
         && log_error.is_none()
         && let Err(e) = w.flush()
@@ -523,6 +591,8 @@ pub struct RunReport {
     pub realtime: String,
     /// Whether it got all it asked for.
     pub realtime_complete: bool,
+    /// The session: pulses, the gate, the drift monitor.
+    pub session: SessionReport,
 }
 
 impl RunReport {
@@ -531,6 +601,7 @@ impl RunReport {
         rt: Option<&mocomp_rt::RtReport>,
         final_mode: &Mode,
         stop: StopOutcome,
+        session: SessionReport,
     ) -> Self {
         let span = s.last_t - s.first_t.unwrap_or(s.last_t);
         let n = s.cycles.max(1) as f64;
@@ -587,16 +658,22 @@ impl RunReport {
                 })
                 .count(),
             events: s.events.len(),
-            event_log: s
-                .events
-                .iter()
-                .map(|(t, e)| (*t, format!("{e:?}")))
-                .collect(),
+            event_log: {
+                let mut log: Vec<(f64, String)> = s
+                    .events
+                    .iter()
+                    .map(|(t, e)| (*t, format!("{e:?}")))
+                    .chain(s.session_lines.iter().cloned())
+                    .collect();
+                log.sort_by(|a, b| a.0.total_cmp(&b.0));
+                log
+            },
             final_mode: mode_name(final_mode),
             stop,
             log_error: s.log_error.clone(),
             realtime: rt.map_or_else(|| "normal scheduling".into(), mocomp_rt::RtReport::describe),
             realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
+            session,
         }
     }
 
@@ -605,6 +682,9 @@ impl RunReport {
     pub fn failure(&self, log_csv: Option<&Path>) -> Option<String> {
         if let StopOutcome::StillMoving { .. } = &self.stop {
             return Some(format!("the robot did not stop: {}", self.stop));
+        }
+        if let Some(e) = &self.session.pulse_log_error {
+            return Some(format!("the pulse log is incomplete: {e}"));
         }
         self.log_error.as_ref().map(|e| {
             format!(
@@ -628,6 +708,12 @@ struct Live<'a> {
     params: Option<Receiver<LoopParams>>,
     /// The loop's end of the goal channel.
     goals: Option<Receiver<Isometry3<f64>>>,
+    /// The loop's end of the target channel.
+    targets: Option<Receiver<Selection>>,
+    /// The session beside the loop.
+    session: LoopSession,
+    /// The start target's goal, for the first cycle.
+    start_goal: Option<Isometry3<f64>>,
     /// The operator's hold as last passed on.
     held: bool,
     t_end: f64,
@@ -675,6 +761,7 @@ impl crate::driver::Pace for Live<'_> {
     }
 
     fn cycle_done(&mut self, record: CycleRecord) -> Result<(), Self::Error> {
+        self.session.after_cycle(&record, &mut self.robot);
         if let Err(TrySendError::Full(_)) = self.tx.try_send(record) {
             self.dropped += 1;
         }
@@ -689,15 +776,22 @@ impl crate::driver::Pace for Live<'_> {
             Some(Ok(p)) => Some(p),
             Some(Err(TryRecvError::Empty | TryRecvError::Disconnected)) | None => None,
         };
-        let goal = match self.goals.as_ref().map(Receiver::try_recv) {
+        let mut goal = match self.goals.as_ref().map(Receiver::try_recv) {
             Some(Ok(g)) => Some(g),
             Some(Err(TryRecvError::Empty | TryRecvError::Disconnected)) | None => None,
         };
+        if let Some(Ok((index, g))) = self.targets.as_ref().map(Receiver::try_recv) {
+            self.session.select(self.clock.now_s(), index);
+            goal = Some(g);
+        }
+        if let Some(g) = self.start_goal.take() {
+            goal = Some(g);
+        }
         Requests {
             hold: changed,
             params,
             goal,
-            ..Requests::default()
+            calibration_invalid: self.session.calibration_invalid(),
         }
     }
 }
@@ -724,6 +818,15 @@ pub fn run(
         None => None,
     };
     let (tx, rx) = sync_channel::<CycleRecord>(8192);
+    // The session: its notes go to the logger too, which writes the pulse log (opened now, so a
+    // path that cannot be written stops the run before the robot moves).
+    let session_setup = SessionSetup::from_setup(setup)?;
+    let (notes_tx, notes_rx) = sync_channel::<Note>(1024);
+    let publisher: crate::live_session::Publisher = Arc::new(OnceLock::new());
+    let mut session_side = SessionSide {
+        notes: notes_rx,
+        log: SessionLog::open(&session_setup, Arc::clone(&publisher))?,
+    };
     // The loop's clock, once the world has made it.
     let loop_clock: Arc<OnceLock<Arc<dyn Clock>>> = Arc::new(OnceLock::new());
     let logger_clock = Arc::clone(&loop_clock);
@@ -735,7 +838,16 @@ pub fn run(
             mocomp_rt::set_normal().ok();
             mocomp_rt::unpin().ok();
             let mut observer = observer;
-            logger(rx, period, csv, &logger_clock, observer.as_mut())
+            let s = logger(
+                rx,
+                period,
+                csv,
+                &logger_clock,
+                observer.as_mut(),
+                &mut session_side,
+            );
+            session_side.log.finish();
+            (s, session_side.log.report)
         })
         .what(|| "starting the logger thread")?;
 
@@ -754,6 +866,20 @@ pub fn run(
         controls.vision.set(Arc::clone(v)).ok();
     }
     let client = world.client(setup, &file.tracker.device);
+    // The session's own OpenIGTLink connection: the drift marker's poses, the pulses the server
+    // announces, the gate published back.
+    let session_client = (session_setup.marker.is_some() || session_setup.igtl_device.is_some())
+        .then(|| {
+            let device = session_setup
+                .marker
+                .as_ref()
+                .map_or(file.tracker.device.as_str(), |m| m.0.as_str());
+            // Pulses over OpenIGTLink only without a pulse input (one source of pulses).
+            let by_message =
+                session_setup.igtl_device.is_some() && session_setup.params.pulse_input.is_none();
+            let keep = if by_message { 256 } else { 0 };
+            world.client_keeping(setup, device, keep)
+        });
     // The simulators (the rest of `world`) stay up until the end of this function.
     let mut robot = world.robot;
     if file.robot.zero_force_sensor {
@@ -763,6 +889,48 @@ pub fn run(
         writeln!(progress, "force/torque sensor zeroed").what(|| "writing the progress")?;
     }
     let source = client.pose_source();
+    let (session_client, messages) = match session_client {
+        Some(c) => {
+            let m = c.take_messages();
+            (Some(Arc::new(c)), m)
+        }
+        None => (None, None),
+    };
+    let (pulses_tx, pulses_rx) = sync_channel::<f64>(64);
+    let forwarding = Arc::new(AtomicBool::new(false));
+    if let (Some(c), Some(_)) = (&session_client, &session_setup.igtl_device) {
+        publisher.set(Arc::clone(c)).ok();
+    }
+    let forwarder = match (&session_client, messages) {
+        (Some(_), Some(rx)) if session_setup.params.pulse_input.is_none() => {
+            let stop = Arc::clone(&forwarding);
+            Some(
+                std::thread::Builder::new()
+                    .name("mocomp-pulses".into())
+                    .spawn(move || {
+                        mocomp_rt::set_normal().ok();
+                        mocomp_rt::unpin().ok();
+                        crate::live_session::forward_pulses(&rx, &pulses_tx, &stop);
+                    })
+                    .what(|| "starting the pulse listener")?,
+            )
+        }
+        _ => None,
+    };
+    let loop_session = LoopSession::new(
+        &session_setup,
+        setup,
+        session_client
+            .as_ref()
+            .filter(|_| session_setup.marker.is_some())
+            .map(|c| c.pose_source()),
+        forwarder.is_some().then_some(pulses_rx),
+        notes_tx,
+    );
+    let start_goal = session_setup
+        .start
+        .and_then(|i| session_setup.targets.get(i))
+        .map(|t| t.1);
     progress.flush().what(|| "writing the progress")?;
 
     // The loop, at the robot's rate: one cycle per new state.
@@ -779,6 +947,9 @@ pub fn run(
         controls,
         params: controls.take_params(),
         goals: controls.take_goals(),
+        targets: controls.take_targets(),
+        session: loop_session,
+        start_goal,
         held: false,
         t_end,
         patience: Duration::from_secs_f64(3.0 * period),
@@ -792,8 +963,12 @@ pub fn run(
         Err(never) => match never {},
     }
     let Live {
-        mut robot, dropped, ..
+        mut robot,
+        dropped,
+        mut session,
+        ..
     } = pace;
+    session.close(&mut robot);
     // Stop the robot in a defined way, and wait for standstill.
     let decel = comp.config().params.stop_decel_rad_s2;
     let sent = robot.stop(decel);
@@ -817,13 +992,25 @@ pub fn run(
         },
     };
     let final_mode = comp.mode();
+    forwarding.store(true, Ordering::Relaxed);
+    if let Some(f) = forwarder {
+        f.join().ok();
+    }
     drop(tx);
-    let mut s = log_thread
+    drop(session);
+    let (mut s, session_report) = log_thread
         .join()
         .map_err(|_| AppError::Refused("the logger thread panicked".into()))?;
     s.dropped = dropped;
     // The robot stands still (or the report says it does not): a failed close changes nothing.
     robot.close().ok();
     drop(client);
-    Ok(RunReport::new(&mut s, realtime.as_ref(), &final_mode, stop))
+    drop(session_client);
+    Ok(RunReport::new(
+        &mut s,
+        realtime.as_ref(),
+        &final_mode,
+        stop,
+        session_report,
+    ))
 }

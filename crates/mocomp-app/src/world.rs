@@ -33,7 +33,8 @@ pub struct World {
     /// The simulated camera's pipeline parameters and newest frame (source "camera").
     pub vision: Option<Arc<VisionLink>>,
     // Dropped after the robot client (field order): the simulators.
-    tracker: Option<TrackerServer>,
+    _stimulator: Option<Stimulator>,
+    tracker: Option<Arc<TrackerServer>>,
     camera: Option<CameraServer>,
     sim: Option<Arc<Sim>>,
 }
@@ -99,9 +100,16 @@ impl World {
         let tracker = if file.tracker.source == TrackerSource::Simulated {
             let t = start_tracker(setup, sim.clone())?;
             head_t0.set(t.started()).ok();
-            Some(t)
+            Some(Arc::new(t))
         } else {
             None
+        };
+        let stimulator = match &sim {
+            Some(sim) if file.session.simulated_stimulator.rate_hz > 0.0 => Some(
+                Stimulator::start(setup, Arc::clone(sim), tracker.clone())
+                    .what(|| "the simulated stimulator")?,
+            ),
+            _ => None,
         };
         let (camera, vision) = if file.tracker.source == TrackerSource::Camera {
             let link = VisionLink::new(file.tracker.camera.params);
@@ -144,6 +152,7 @@ impl World {
             realtime: report,
             _cpu_latency: cpu_latency,
             vision,
+            _stimulator: stimulator,
             tracker,
             camera,
             sim,
@@ -153,8 +162,14 @@ impl World {
     /// An OpenIGTLink client for `device`, with the configured timestamp handling (a simulated
     /// tracker on this host is read as synchronized).
     pub fn client(&self, setup: &Setup, device: &str) -> Client {
+        self.client_keeping(setup, device, 0)
+    }
+
+    /// [`Self::client`], keeping every message received in a channel of `keep_messages`.
+    pub fn client_keeping(&self, setup: &Setup, device: &str, keep_messages: usize) -> Client {
         let t = &setup.file.tracker;
         let mut icfg = ClientConfig::new(&self.tracker_addr);
+        icfg.keep_messages = keep_messages;
         icfg.device = Some(device.to_string());
         icfg.fixed_latency_s = t.fixed_latency_s;
         let simulated = self.tracker.is_some() || self.camera.is_some();
@@ -169,6 +184,84 @@ impl World {
     /// Whether the robot is simulated.
     pub fn simulated_robot(&self) -> bool {
         self.sim.is_some()
+    }
+}
+
+/// The simulated world's stimulator (`[session.simulated_stimulator]`): its trigger wired
+/// through the gate output (`session.gate_output`; without one it is not gated), it fires at
+/// `rate_hz` while the output is high, each pulse reported as the session takes it: 20 ms high
+/// on the robot's `session.pulse_input` (longer than a CB3's 8 ms state period), or, without
+/// one, a STRING `pulse` from device `Stimulator` on the simulated tracker's OpenIGTLink server.
+struct Stimulator {
+    stop: Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Stimulator {
+    fn start(
+        setup: &Setup,
+        sim: Arc<Sim>,
+        tracker: Option<Arc<TrackerServer>>,
+    ) -> std::io::Result<Self> {
+        let s = &setup.file.session;
+        let (gate, input, rate) = (s.gate_output, s.pulse_input, s.simulated_stimulator.rate_hz);
+        // One source of pulses: the robot's input when there is one, else the message.
+        let by_message = (s.igtl_device.is_some() && input.is_none())
+            .then_some(tracker)
+            .flatten();
+        let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stopping = Arc::clone(&stop);
+        let thread = std::thread::Builder::new()
+            .name("sim-stimulator".into())
+            .spawn(move || {
+                use std::sync::atomic::Ordering;
+                let period = std::time::Duration::from_secs_f64(1.0 / rate);
+                let width = std::time::Duration::from_millis(20);
+                let mut next = Instant::now() + period;
+                while !stopping.load(Ordering::Relaxed) {
+                    let now = Instant::now();
+                    if now < next {
+                        std::thread::sleep((next - now).min(std::time::Duration::from_millis(20)));
+                        continue;
+                    }
+                    next += period;
+                    let open = gate
+                        .is_none_or(|b| sim.with(|c| c.io().digital_outputs()) & (1u64 << b) != 0);
+                    if !open {
+                        continue;
+                    }
+                    if let Some(t) = &by_message
+                        && let Ok(m) = mocomp_igtl::Message::new(
+                            "STRING",
+                            "Stimulator",
+                            mocomp_igtl::message::Body::String {
+                                encoding: 3,
+                                text: b"pulse".to_vec(),
+                            },
+                        )
+                    {
+                        t.send(&m);
+                    }
+                    if let Some(b) = input {
+                        sim.with(|c| c.set_digital_input(b, true));
+                        std::thread::sleep(width);
+                        sim.with(|c| c.set_digital_input(b, false));
+                    }
+                }
+            })?;
+        Ok(Self {
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for Stimulator {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            t.join().ok();
+        }
     }
 }
 

@@ -45,6 +45,9 @@ impl Observer for Lines {
     fn event(&mut self, t: f64, e: &Event) {
         eprintln!("{t:9.3} s  event {e:?}");
     }
+    fn session(&mut self, t: f64, text: &str) {
+        eprintln!("{t:9.3} s  session: {text}");
+    }
     fn status(&mut self, s: &Status) {
         eprintln!(
             "{:9.3} s  {:.0} Hz  horizon {:.1} ms (sample age {:.1} + command delay {:.1} + lookahead)  deviation max {:.2} mm  {}",
@@ -165,6 +168,22 @@ fn print(out: &mut dyn Write, r: &RunReport, log: Option<&str>) -> std::io::Resu
         "  holds             {} (robot state stale {}, protective stops {})",
         r.holds, r.robot_stale_holds, r.protective_stops
     )?;
+    let ses = &r.session;
+    if ses.pulses > 0 || ses.gate_openings > 0 || !ses.drift_max_mm.is_nan() {
+        writeln!(
+            out,
+            "  session           {} pulses ({} off target, largest error on target {:.2} mm), gate opened {} times{}",
+            ses.pulses,
+            ses.pulses_off_target,
+            ses.pulse_error_max_mm,
+            ses.gate_openings,
+            if ses.calibration_invalid {
+                "; CALIBRATION NO LONGER VALID"
+            } else {
+                ""
+            }
+        )?;
+    }
     writeln!(out, "  events            {}", r.events)?;
     for (t, e) in &r.event_log {
         writeln!(out, "    {t:9.3} s  {e}")?;

@@ -156,7 +156,8 @@ pub struct Received {
 pub struct Client {
     shared: Arc<Shared>,
     thread: Option<JoinHandle<()>>,
-    messages: Option<Receiver<Received>>,
+    /// Behind a lock so the client can be shared (the receiver is taken once).
+    messages: Mutex<Option<Receiver<Received>>>,
 }
 
 impl std::fmt::Debug for Client {
@@ -204,7 +205,7 @@ impl Client {
         Client {
             shared,
             thread,
-            messages: rx,
+            messages: Mutex::new(rx),
         }
     }
 
@@ -223,9 +224,13 @@ impl Client {
         self.shared.last_error.lock().ok().and_then(|e| e.clone())
     }
 
-    /// Every decoded message (when `keep_messages > 0`).
-    pub fn messages(&self) -> Option<&Receiver<Received>> {
-        self.messages.as_ref()
+    /// Takes the channel of every decoded message (when `keep_messages > 0`; once), for whichever
+    /// thread reads them.
+    pub fn take_messages(&self) -> Option<Receiver<Received>> {
+        self.messages
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take()
     }
 
     /// A [`PoseSource`] over the configured device's newest pose.

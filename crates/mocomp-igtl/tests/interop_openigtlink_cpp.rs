@@ -215,7 +215,7 @@ fn the_cpp_tracker_server_streams_to_our_client() {
     cfg.device = Some("Tracker".into());
     cfg.keep_messages = 1000;
     let client = Client::start(cfg, Arc::new(MonotonicClock::new()));
-    let rx = client.messages().unwrap();
+    let rx = client.take_messages().unwrap();
     let mut got = Vec::new();
     let deadline = Instant::now() + Duration::from_secs(20);
     while got.len() < 100 && Instant::now() < deadline {

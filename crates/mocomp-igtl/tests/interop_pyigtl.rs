@@ -64,7 +64,7 @@ fn pyigtl_server_to_our_client() {
     py.request(&json!({"op": "send", "kind": "transform", "device": "CoilToTracker", "matrix": rows(&m), "timestamp": t + 1.0,
         "header_version": 2, "metadata": {"TransformStatus": "OK", "Patient": "Mueller"}, "message_id": 7}));
     py.request(&json!({"op": "send", "kind": "string", "device": "Note", "string": "hello from pyigtl", "timestamp": t + 2.0, "header_version": 2}));
-    let rx = client.messages().unwrap();
+    let rx = client.take_messages().unwrap();
     let got: Vec<_> = (0..3)
         .map(|_| {
             rx.recv_timeout(Duration::from_secs(10))

@@ -67,7 +67,7 @@ fn queries_are_answered() {
     wait_until("connection", || c.is_connected() && s.client_count() == 1);
     s.send(&Message::transform("HeadToTracker", &pose(7.0), Timestamp::now()).unwrap());
     wait_until("first transform", || c.counters().transforms == 1);
-    let rx = c.messages().unwrap();
+    let rx = c.take_messages().unwrap();
     while rx.try_recv().is_ok() {}
     for t in ["GET_TRANS", "GET_TRANSFOR"] {
         c.send(&Message::new(t, "HeadToTracker", Body::Query(vec![])).unwrap())

@@ -9,6 +9,8 @@
 //! - [`targets`]: the session's named targets and their file.
 //! - [`session`]: the selected target, the gate on each cycle, the pulses and the drift
 //!   monitor's latched verdict, together beside the loop.
+//! - [`history`]: the robot's recent joints, to compare a marker sample with the robot where it
+//!   was when the sample was acquired.
 //! - [`pulses`]: the pulse log, one CSV row per pulse with the coil's error and the gate.
 //!
 //! Pure logic: no robot, no socket, no clock (the targets file is parsed and printed, the pulse
@@ -17,6 +19,7 @@
 pub mod drift;
 pub mod gate;
 pub mod grid;
+pub mod history;
 pub mod pulses;
 pub mod session;
 pub mod targets;
@@ -24,6 +27,7 @@ pub mod targets;
 pub use drift::{Drift, DriftMonitor, DriftParams};
 pub use gate::{Gate, GateEvent, GateInputs, GateParams, GateState, Shut};
 pub use grid::{GridError, GridParams, GridPoint, grid_around};
+pub use history::JointHistory;
 pub use pulses::{Pulse, PulseLog};
 pub use session::{PulseAt, Session, SessionParams, Step, shut_reason};
 pub use targets::{Target, Targets, TargetsError};

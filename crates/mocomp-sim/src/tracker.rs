@@ -325,6 +325,8 @@ pub enum TrackerError {
 #[derive(Debug)]
 pub struct TrackerServer {
     addr: SocketAddr,
+    /// Shared with the thread; the last one dropped stops it.
+    server: Arc<Server>,
     started: Instant,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -345,6 +347,8 @@ impl TrackerServer {
                 source,
             })?;
         let addr = server.local_addr();
+        let server = Arc::new(server);
+        let serving = Arc::clone(&server);
         let stop = Arc::new(AtomicBool::new(false));
         let stop2 = Arc::clone(&stop);
         // Time 0 on both clocks at once: the monotonic one for the truth, the wall clock for the
@@ -354,10 +358,11 @@ impl TrackerServer {
         let wall0 = Timestamp::now().to_secs_f64();
         let thread = std::thread::Builder::new()
             .name("sim-tracker".into())
-            .spawn(move || serve(server, model, markers, (started, wall0), &stop2))
+            .spawn(move || serve(&serving, model, markers, (started, wall0), &stop2))
             .map_err(TrackerError::Thread)?;
         Ok(Self {
             addr,
+            server,
             started,
             stop,
             thread: Some(thread),
@@ -369,6 +374,12 @@ impl TrackerServer {
         self.addr
     }
 
+    /// Sends `m` to every client besides the markers' stream (a simulated device on the same
+    /// server: a stimulator's STRING).
+    pub fn send(&self, m: &Message) {
+        self.server.send(m);
+    }
+
     /// The instant of the markers' time 0: a marker's truth is asked for `t` seconds after it.
     pub fn started(&self) -> Instant {
         self.started
@@ -376,7 +387,7 @@ impl TrackerServer {
 }
 
 fn serve(
-    server: Server,
+    server: &Server,
     model: TrackerModel,
     mut markers: Vec<TrackedMarker>,
     (start, wall0): (Instant, f64),
@@ -401,7 +412,6 @@ fn serve(
         let wait = (sim.next_event_s() - start.elapsed().as_secs_f64()).clamp(0.0, 0.005);
         std::thread::sleep(Duration::from_secs_f64(wait));
     }
-    server.stop();
 }
 
 impl Drop for TrackerServer {
