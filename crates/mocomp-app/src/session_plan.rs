@@ -123,13 +123,14 @@ mod tests {
         assert_eq!(p.target_at(0.0), 0);
         assert_eq!(p.target_at(3.9), 1);
         assert_eq!(p.target_at(99.0), 8);
-        for (i, chunk) in p.attempts.chunks(4).enumerate() {
+        for (i, chunk) in p.attempts.chunks(5).enumerate() {
             let t0 = i as f64 * 2.0;
             assert!(!chunk[0].gated && chunk[0].t_s - t0 < 0.1);
+            assert!(chunk[1].gated && chunk[1].t_s - t0 < 0.3);
             assert!(
-                chunk[1..]
+                chunk[2..]
                     .iter()
-                    .all(|a| a.gated && a.t_s > t0 + 1.0 && a.t_s < t0 + 2.0)
+                    .all(|a| a.gated && a.t_s > t0 + 1.2 && a.t_s < t0 + 2.0)
             );
         }
         assert!(SessionPlan::grid(&head, &goal, &GridParams::default(), 0.0, 3).is_err());
