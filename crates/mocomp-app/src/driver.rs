@@ -40,6 +40,8 @@ pub struct Requests {
     /// The session's drift monitor calls the calibration invalid (offset m, angle rad): the loop
     /// holds (latched: a run does not recalibrate).
     pub calibration_invalid: Option<(f64, f64)>,
+    /// Free-drive on or handed back, when it changed.
+    pub freedrive: Option<bool>,
 }
 
 /// Runs `controller` at `pace` until the pace ends it. Each record carries the cycle's compute
@@ -59,6 +61,9 @@ pub fn drive<P: Pace + ?Sized>(
         }
         if let Some(goal) = &requests.goal {
             controller.set_goal(goal);
+        }
+        if let Some(on) = requests.freedrive {
+            controller.set_freedrive(on);
         }
         if requests.calibration_invalid.is_some() {
             controller.set_calibration_invalid(requests.calibration_invalid);

@@ -151,6 +151,9 @@ const PENDING_PARAMS: usize = 4;
 pub struct Controls {
     stop: AtomicBool,
     hold: AtomicBool,
+    freedrive: AtomicBool,
+    /// The running session's targets, once the loop has started.
+    targets: OnceLock<Arc<crate::live_session::NamedTargets>>,
     start: AtomicBool,
     params_tx: SyncSender<LoopParams>,
     params_rx: Mutex<Option<Receiver<LoopParams>>>,
@@ -171,6 +174,8 @@ impl Controls {
         Arc::new(Self {
             stop: AtomicBool::new(false),
             hold: AtomicBool::new(false),
+            freedrive: AtomicBool::new(false),
+            targets: OnceLock::new(),
             start: AtomicBool::new(false),
             params_tx,
             params_rx: Mutex::new(Some(rx)),
@@ -216,6 +221,23 @@ impl Controls {
     /// Whether the operator holds the loop.
     pub fn hold(&self) -> bool {
         self.hold.load(Ordering::Relaxed)
+    }
+
+    /// Free-drive (`true`: the arm yields to the operator's hand while the loop keeps it
+    /// alive) or the hand-over back to the loop (`false`).
+    pub fn set_freedrive(&self, on: bool) {
+        self.freedrive.store(on, Ordering::Relaxed);
+    }
+
+    /// Whether free-drive is asked for.
+    pub fn freedrive(&self) -> bool {
+        self.freedrive.load(Ordering::Relaxed)
+    }
+
+    /// The running session's targets (name, `head_from_coil`) in the order
+    /// [`Self::select_target`] numbers them; empty before the loop starts or without targets.
+    pub fn targets(&self) -> &[(String, Isometry3<f64>)] {
+        self.targets.get().map_or(&[], |t| t.as_slice())
     }
 
     /// New loop parameters (already validated) for the loop to take at its next cycle.
@@ -716,6 +738,8 @@ struct Live<'a> {
     start_goal: Option<Isometry3<f64>>,
     /// The operator's hold as last passed on.
     held: bool,
+    /// Free-drive as last passed on.
+    guided: bool,
     t_end: f64,
     /// The robot state count of the last cycle.
     seen: u64,
@@ -772,6 +796,9 @@ impl crate::driver::Pace for Live<'_> {
         let hold = self.controls.hold();
         let changed = (hold != self.held).then_some(hold);
         self.held = hold;
+        let guided = self.controls.freedrive();
+        let freedrive = (guided != self.guided).then_some(guided);
+        self.guided = guided;
         let params = match self.params.as_ref().map(Receiver::try_recv) {
             Some(Ok(p)) => Some(p),
             Some(Err(TryRecvError::Empty | TryRecvError::Disconnected)) | None => None,
@@ -792,6 +819,7 @@ impl crate::driver::Pace for Live<'_> {
             params,
             goal,
             calibration_invalid: self.session.calibration_invalid(),
+            freedrive,
         }
     }
 }
@@ -927,6 +955,10 @@ pub fn run(
         forwarder.is_some().then_some(pulses_rx),
         notes_tx,
     );
+    controls
+        .targets
+        .set(Arc::new(session_setup.targets.clone()))
+        .ok();
     let start_goal = session_setup
         .start
         .and_then(|i| session_setup.targets.get(i))
@@ -951,6 +983,7 @@ pub fn run(
         session: loop_session,
         start_goal,
         held: false,
+        guided: false,
         t_end,
         patience: Duration::from_secs_f64(3.0 * period),
         tx: &tx,

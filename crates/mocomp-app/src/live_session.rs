@@ -20,12 +20,15 @@ use mocomp_ur::{Robot, UrRobot};
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
 
+/// The session's targets: name and `head_from_coil`, in the file's order.
+pub type NamedTargets = Vec<(String, Isometry3<f64>)>;
+
 /// The session's configuration, resolved: the targets read, the start target found, the
 /// drift monitor's marker known.
 #[derive(Debug, Clone)]
 pub struct SessionSetup {
     /// The targets (name, `head_from_coil`), in the file's order.
-    pub targets: Vec<(String, Isometry3<f64>)>,
+    pub targets: NamedTargets,
     /// The target the loop starts on, if one is named.
     pub start: Option<usize>,
     /// The gate, the drift monitor, the robot's I/O.
@@ -456,4 +459,47 @@ pub fn note_time(n: &Note) -> f64 {
         Note::Gate(t, ..) | Note::Drift(t, _) | Note::Selected(t, _) | Note::OutputFailed(t) => t,
         Note::Pulse(p, _) => p.t_s,
     }
+}
+
+/// Selects the running session's target `name`: checked with the loop's goal check on the
+/// running configuration `config`, then given to the loop (which goes there by a planned path
+/// while it keeps compensating). Returns its index. Refused, with why: an unknown name, a goal
+/// the check refuses, a loop that has ended or still has an earlier selection waiting.
+pub fn select_target(
+    config: &crate::config::Config,
+    controls: &crate::live::Controls,
+    name: &str,
+) -> Result<usize, AppError> {
+    let targets = controls.targets();
+    let Some(index) = targets.iter().position(|t| t.0 == name) else {
+        refuse!(
+            "no target {name:?} in this session (it has: {})",
+            targets
+                .iter()
+                .map(|t| t.0.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    };
+    let goal = targets[index].1;
+    mocomp_control::check_goal(
+        &config.head_model(),
+        &config.coil_model(),
+        &goal,
+        config.params.goal_min_distance_m(),
+    )
+    .map_err(|e| AppError::Refused(format!("target {name:?}: {e}")))?;
+    controls.select_target(index, goal)?;
+    Ok(index)
+}
+
+/// Starts free-drive (the arm yields to the operator's hand) while the operator holds the loop,
+/// or hands back to the loop (`on` false). Refused while the loop is not held: a coil that
+/// follows a head must not go limp under a hand.
+pub fn set_freedrive(controls: &crate::live::Controls, on: bool) -> Result<(), AppError> {
+    if on && !controls.hold() {
+        refuse!("hold the loop first: free-drive starts from a coil standing still");
+    }
+    controls.set_freedrive(on);
+    Ok(())
 }

@@ -48,3 +48,36 @@ pub fn add_grid(
 fn input(e: TargetsError) -> AppError {
     AppError::Config(e.to_string())
 }
+
+/// The session's targets file of `setup`: `[session] targets` (beside the configuration), else
+/// `session-targets.toml` beside it.
+pub fn session_file(setup: &Setup) -> std::path::PathBuf {
+    setup.dir.join(
+        setup
+            .file
+            .session
+            .targets
+            .as_deref()
+            .unwrap_or("session-targets.toml"),
+    )
+}
+
+/// Writes the taught pose as the target `name` (with `note`, taught now) into `file`, replacing
+/// a target of that name; returns the file's path.
+pub fn write_taught(
+    file: &Path,
+    name: &str,
+    note: &str,
+    taught: &crate::teach::Taught,
+) -> Result<(), AppError> {
+    let mut targets = load(file)?;
+    targets
+        .teach(mocomp_session::Target::new(
+            name,
+            &taught.head_from_coil,
+            note,
+            &now(),
+        ))
+        .map_err(input)?;
+    save(file, &targets)
+}

@@ -23,6 +23,14 @@ pub struct TeachCmd {
     /// Print the goal, do not write it.
     #[arg(long)]
     pub dry_run: bool,
+    /// Keep it as the session's target NAME instead (in `[session] targets`, default
+    /// `session-targets.toml` beside the configuration), replacing one of that name; the
+    /// configuration's goal is left as it is.
+    #[arg(long, value_name = "NAME")]
+    pub name: Option<String>,
+    /// A note kept with the target (with --name).
+    #[arg(long, default_value = "", requires = "name")]
+    pub note: String,
 }
 
 impl TeachCmd {
@@ -68,6 +76,16 @@ impl TeachCmd {
                 "previous            = [{}]",
                 six(ur_pose_from_iso(old))
             )?;
+        }
+        if let Some(name) = &self.name {
+            let file = mocomp_app::targets::session_file(&setup);
+            if self.dry_run {
+                writeln!(out, "--dry-run: {} not changed", file.display())?;
+                return Ok(());
+            }
+            mocomp_app::targets::write_taught(&file, name, &self.note, &t)?;
+            writeln!(out, "wrote target {name:?} to {}", file.display())?;
+            return Ok(());
         }
         if self.dry_run {
             writeln!(out, "--dry-run: {} not changed", self.config.display())?;

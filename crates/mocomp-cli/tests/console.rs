@@ -513,6 +513,82 @@ fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
     });
 }
 
+#[test]
+fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_and_back() {
+    let dir = TempDir::new("mocomp-console-session");
+    let path = write_example(&dir, "run-sim.toml", "127.0.0.78");
+    // A gently nodding head; the session's targets: the goal and one 1 cm beside it.
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    for (from, to) in [
+        ("sway_m = 0.02 ", "sway_m = 0.004 "),
+        ("nod_rad = 0.08 ", "nod_rad = 0.02 "),
+        ("turn_rad = 0.15 ", "turn_rad = 0.03 "),
+    ] {
+        assert!(text.contains(from));
+        text = text.replace(from, to);
+    }
+    text.push_str("\n[session]\ntargets = \"targets.toml\"\ntarget = \"hot\"\n");
+    std::fs::write(&path, &text).unwrap();
+    std::fs::write(
+        dir.path("targets.toml"),
+        "[[target]]\nname = \"hot\"\nhead_from_coil = [0.0, 0.0, 0.113, 3.141592653589793, 0.0, 0.0]\n\n\
+         [[target]]\nname = \"beside\"\nhead_from_coil = [0.01, 0.0, 0.1125, 3.141592653589793, 0.0, 0.0]\n",
+    )
+    .unwrap();
+    let s = Session::start_file(&path, 90, &[]);
+    s.wait_status("tracking", |v| v["mode"] == "tracking");
+    let (code, v) = s.get("/api/targets");
+    assert_eq!(code, 200, "{v}");
+    let names: Vec<&str> = v["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["hot", "beside"]);
+    // Selecting needs the token and a target the session has.
+    let (code, _) = s.post("/api/target", &[], &json!({"name": "beside"}));
+    assert_eq!(code, 401);
+    let (code, v) = s.post_auth("/api/target", &json!({"name": "nowhere"}));
+    assert_eq!(code, 409, "{v}");
+    assert!(v["error"].as_str().unwrap().contains("hot, beside"), "{v}");
+    // Switched while compensating: by a planned path, then tracking the new target.
+    let (code, v) = s.post_auth("/api/target", &json!({"name": "beside"}));
+    assert_eq!(code, 200, "{v}");
+    s.wait_status("the path to the new target", |v| v["mode"] == "approaching");
+    s.wait_status("tracking the new target", |v| {
+        v["mode"] == "tracking" && v["deviation_mm"].as_f64().is_some_and(|d| d < 1.0)
+    });
+    let (_, ev) = s.get("/api/events");
+    assert!(
+        ev.as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e["kind"] == "session" && e["text"] == "target beside selected"),
+        "{ev}"
+    );
+    // Free-drive only from a held loop.
+    let (code, v) = s.post_auth("/api/freedrive", &json!({}));
+    assert_eq!(code, 409, "{v}");
+    s.post_auth("/api/hold", &json!({}));
+    s.wait_status("held", |v| v["mode"] == "holding");
+    let (code, v) = s.post_auth("/api/freedrive", &json!({}));
+    assert_eq!(code, 200, "{v}");
+    s.wait_status("hand-guided", |v| {
+        v["freedrive"] == true && v["reason"].as_str() == Some("HandGuided")
+    });
+    // Handed back: held by the operator still, from where the arm is; resumed, on target again.
+    let (code, _) = s.post_auth("/api/handback", &json!({}));
+    assert_eq!(code, 200);
+    s.wait_status("held after the hand-over", |v| {
+        v["freedrive"] == false && v["reason"].as_str() == Some("Operator")
+    });
+    s.post_auth("/api/resume", &json!({}));
+    s.wait_status("tracking after the hand-over", |v| {
+        v["mode"] == "tracking" && v["deviation_mm"].as_f64().is_some_and(|d| d < 1.0)
+    });
+}
+
 /// Starts `calibrate collect --dashboard` on the example with its simulated robot on `host`,
 /// with fewer, quicker poses than the example's (6); the session and where it saves.
 fn start_collection(dir: &TempDir, host: &str) -> (Session, String) {

@@ -71,6 +71,58 @@ fn teach_goal_stores_where_the_coil_is_relative_to_the_head() {
 }
 
 #[test]
+fn teach_goal_with_a_name_keeps_the_pose_as_a_session_target_and_leaves_the_goal() {
+    let dir = TempDir::new("mocomp-teach-named");
+    let cfg = example("127.0.0.77").replace("start_s = 1.0", "start_s = 1000.0");
+    let path = dir.path("run.toml");
+    std::fs::write(&path, &cfg).unwrap();
+    let out = mocomp(&[
+        "teach-goal",
+        "--config",
+        &path,
+        "--samples",
+        "30",
+        "--name",
+        "hotspot",
+        "--note",
+        "APB, 62 % RMT",
+    ]);
+    assert_success(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("wrote target \"hotspot\""), "{text}");
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        cfg,
+        "the goal is left"
+    );
+    // Beside the configuration, in the session's targets file: where the coil is (15 cm out on
+    // the goal's axis at the start), with its note and when.
+    let file = dir.path("session-targets.toml");
+    let t =
+        mocomp_session::Targets::parse(&file, &std::fs::read_to_string(&file).unwrap()).unwrap();
+    let hot = t.get("hotspot").unwrap();
+    let expected = goal_of(&cfg) * Isometry3::translation(0.0, 0.0, -0.15);
+    assert!(translation_error(&hot.pose(), &expected) < 3e-4);
+    assert_eq!(hot.note, "APB, 62 % RMT");
+    assert!(hot.taught_at.ends_with("GMT"), "{}", hot.taught_at);
+    // Taught again under the same name: replaced, not doubled.
+    let out = mocomp(&[
+        "teach-goal",
+        "--config",
+        &path,
+        "--samples",
+        "10",
+        "--name",
+        "hotspot",
+    ]);
+    assert_success(&out);
+    let t =
+        mocomp_session::Targets::parse(&file, &std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(t.targets.len(), 1);
+    assert_eq!(t.targets[0].note, "");
+}
+
+#[test]
 fn teach_goal_refuses_a_coil_facing_away_from_the_head() {
     let dir = TempDir::new("mocomp-teach-bad");
     // The coil mounted the other way round: its +z (the approach axis) points away from the head.

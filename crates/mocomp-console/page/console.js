@@ -65,6 +65,9 @@ function showStatus(s) {
   $("resume").disabled = !s.running || !s.operator_hold;
   $("stop").disabled = !s.running;
   $("teach").disabled = !s.running || !s.operator_hold;
+  $("freedrive").disabled = !s.running || !s.operator_hold || s.freedrive;
+  $("handback").disabled = !s.running || !s.freedrive;
+  $("go-target").disabled = !s.running || $("target-select").options.length === 0;
   if (Number.isFinite(s.cycle_unix_ms)) {
     const lat = Date.now() - s.cycle_unix_ms;
     state.latencies.push(lat);
@@ -256,7 +259,7 @@ function addEvent(e) {
   const body = document.querySelector("#events tbody");
   const tr = document.createElement("tr");
   tr.className = e.kind;
-  for (const text of [fmt(e.t, 3), e.kind, e.reason || ""]) {
+  for (const text of [fmt(e.t, 3), e.kind, e.reason || (e.kind === "session" ? e.text : "")]) {
     const td = document.createElement("td"); td.textContent = text; tr.appendChild(td);
   }
   body.insertBefore(tr, body.firstChild);
@@ -291,6 +294,24 @@ function buttons() {
   $("teach").addEventListener("click", () => $("teach-dialog").showModal());
   $("cancel-teach").addEventListener("click", () => $("teach-dialog").close());
   $("confirm-teach").addEventListener("click", teach);
+  $("freedrive").addEventListener("click", () => command("/api/freedrive"));
+  $("handback").addEventListener("click", () => command("/api/handback"));
+  $("go-target").addEventListener("click", async () => {
+    $("control-error").textContent = "";
+    const r = await api("POST", "/api/target", { name: $("target-select").value });
+    if (!r.ok) $("control-error").textContent = (r.data && r.data.error) || ("refused: " + r.status);
+  });
+}
+
+async function loadTargets() {
+  const r = await api("GET", "/api/targets");
+  if (!r.ok) return;
+  const sel = $("target-select");
+  const names = r.data.targets.map((t) => t.name);
+  if (names.join("\n") === Array.from(sel.options).map((o) => o.value).join("\n")) return;
+  sel.replaceChildren(...names.map((n) => { const o = document.createElement("option"); o.value = n; o.textContent = n; return o; }));
+  sel.hidden = names.length === 0;
+  $("go-target").hidden = names.length === 0;
 }
 
 async function teach() {
@@ -488,6 +509,9 @@ async function start() {
   if (s.ok) showStatus(s.data);
   await pollEvents();
   setInterval(pollEvents, 500);
+  // The session's targets are known once the loop has started.
+  await loadTargets();
+  setInterval(loadTargets, 2000);
   connect();
 }
 

@@ -11,6 +11,9 @@
 //! | `POST /api/params` | yes | a partial configuration (JSON); 400 `{"key", "error"}` when refused |
 //! | `POST /api/hold`, `/api/resume`, `/api/stop` | yes | the operator's hold, resume, stop |
 //! | `POST /api/calibrate` | yes | a calibration collection waiting for the go: start it (the arm moves); 409 otherwise |
+//! | `GET /api/targets` | reading | the session's targets (name, position mm, approach axis) |
+//! | `POST /api/target` | yes | `{"name": …}`: go to that target by a planned path while compensating; 409 with why when refused |
+//! | `POST /api/freedrive`, `/api/handback` | yes | while held: free-drive (the arm yields to a hand); hand back to the loop from where the hand left it |
 //! | `POST /api/teach` | yes | while held: the coil's pose on the head becomes the goal (and is written to the configuration file); 409 with why when refused |
 //! | `GET /api/frame.png` | reading | the camera's newest IR frame with the pipeline's overlays (404 without a camera) |
 //! | `GET /ws` | reading | the status, 25 times a second, as JSON text messages |
@@ -72,6 +75,10 @@ pub fn router(api: Api) -> Router {
         .route("/api/resume", post(resume))
         .route("/api/stop", post(stop))
         .route("/api/teach", post(teach))
+        .route("/api/targets", get(targets))
+        .route("/api/target", post(target))
+        .route("/api/freedrive", post(freedrive))
+        .route("/api/handback", post(handback))
         .route("/api/calibrate", post(calibrate))
         .route("/ws", get(ws))
         .layer(DefaultBodyLimit::max(MAX_BODY))
@@ -301,6 +308,66 @@ async fn stop(State(api): State<Api>, headers: HeaderMap) -> Response {
     }
     api.shared.controls.stop();
     axum::Json(json!({ "stopping": true })).into_response()
+}
+
+async fn targets(State(api): State<Api>, headers: HeaderMap) -> Response {
+    if let Err(r) = api.may_read(&headers) {
+        return r;
+    }
+    let list: Vec<_> = api
+        .shared
+        .controls
+        .targets()
+        .iter()
+        .map(|(name, pose)| {
+            let p = pose.translation.vector * 1e3;
+            let axis = pose.rotation * mocomp_geom::nalgebra::Vector3::z();
+            json!({ "name": name, "position_mm": [p.x, p.y, p.z], "axis": [axis.x, axis.y, axis.z] })
+        })
+        .collect();
+    axum::Json(json!({ "targets": list })).into_response()
+}
+
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TargetRequest {
+    name: String,
+}
+
+async fn target(State(api): State<Api>, headers: HeaderMap, body: Bytes) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    let req: TargetRequest = match serde_json::from_slice(&body) {
+        Ok(r) => r,
+        Err(e) => return refuse(StatusCode::BAD_REQUEST, &format!("body: {e}")),
+    };
+    match mocomp_app::live_session::select_target(
+        &api.shared.config(),
+        &api.shared.controls,
+        &req.name,
+    ) {
+        Ok(index) => axum::Json(json!({ "selected": req.name, "index": index })).into_response(),
+        Err(e) => refuse(StatusCode::CONFLICT, &e.to_string()),
+    }
+}
+
+fn set_freedrive(api: &Api, headers: &HeaderMap, on: bool) -> Response {
+    if let Err(r) = api.may_change(headers) {
+        return r;
+    }
+    match mocomp_app::live_session::set_freedrive(&api.shared.controls, on) {
+        Ok(()) => axum::Json(json!({ "freedrive": on })).into_response(),
+        Err(e) => refuse(StatusCode::CONFLICT, &e.to_string()),
+    }
+}
+
+async fn freedrive(State(api): State<Api>, headers: HeaderMap) -> Response {
+    set_freedrive(&api, &headers, true)
+}
+
+async fn handback(State(api): State<Api>, headers: HeaderMap) -> Response {
+    set_freedrive(&api, &headers, false)
 }
 
 async fn calibrate(State(api): State<Api>, headers: HeaderMap) -> Response {

@@ -139,6 +139,8 @@ pub struct StatusJson {
     pub force_n: Option<f64>,
     /// Whether the operator holds the loop.
     pub operator_hold: bool,
+    /// Free-drive is on (the arm yields to the operator's hand).
+    pub freedrive: bool,
     /// Whether the loop runs (false once it has ended).
     pub running: bool,
     /// Wall-clock time of the cycle this status is from, ms since the Unix epoch (the page
@@ -175,6 +177,7 @@ impl StatusJson {
             standoff_mm: f64::NAN,
             force_n: None,
             operator_hold: false,
+            freedrive: false,
             running: true,
             cycle_unix_ms: f64::NAN,
             camera: None,
@@ -196,7 +199,8 @@ impl StatusJson {
 pub struct EventJson {
     /// Loop time, s.
     pub t: f64,
-    /// hold, retreat, resume, reached, outlier, coasting.
+    /// hold, retreat, resume, reached, outlier, coasting; session (a pulse, the gate, the drift
+    /// monitor: the text says which).
     pub kind: &'static str,
     /// The rule that fired, if any.
     pub reason: Option<String>,
@@ -608,6 +612,7 @@ impl ConsoleObserver {
             standoff_mm: r.standoff_m * 1e3,
             force_n: r.contact_force_n.is_finite().then_some(r.contact_force_n),
             operator_hold: self.shared.controls.hold(),
+            freedrive: self.shared.controls.freedrive(),
             running: true,
             cycle_unix_ms: now_ms - age_s.max(0.0) * 1e3,
             camera: self
@@ -635,6 +640,15 @@ impl Observer for ConsoleObserver {
     }
 
     fn status(&mut self, _: &Status) {}
+
+    fn session(&mut self, t: f64, text: &str) {
+        self.shared.push_event(EventJson {
+            t,
+            kind: "session",
+            reason: None,
+            text: text.to_string(),
+        });
+    }
 
     fn cycle(&mut self, r: &CycleRecord, age_s: f64) {
         self.cycles += 1;

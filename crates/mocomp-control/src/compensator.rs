@@ -239,6 +239,8 @@ pub struct Compensator {
     operator_hold: bool,
     /// The drift monitor's offset while the calibration is not valid.
     calibration_invalid: Option<(f64, f64)>,
+    /// The operator guides the arm by hand.
+    freedrive: bool,
     /// When a held coil last had to give way to the head, s (loop time).
     gave_way_at: f64,
     /// The wrench's filter and timers.
@@ -301,6 +303,7 @@ impl Compensator {
             giving_way: false,
             operator_hold: false,
             calibration_invalid: None,
+            freedrive: false,
             gave_way_at: f64::NEG_INFINITY,
             force: ForceMonitor::new(),
             force_range,
@@ -324,6 +327,29 @@ impl Compensator {
     /// and the coil's giving way outrank it; the operator's hold and the goal's check do not.
     pub fn set_calibration_invalid(&mut self, offset: Option<(f64, f64)>) {
         self.calibration_invalid = offset;
+    }
+
+    /// Free-drive (`true`): from the next cycle the loop sends free-drive's keep-alive instead
+    /// of a command, the arm yielding to the operator's hand, and holds with
+    /// [`Reason::HandGuided`] (the head is still tracked, so the coil's pose on it can be taught).
+    /// Its end (`false`) hands back to the loop from the arm's actual pose: the command starts
+    /// there, and the goal is reached by a planned path, never straight from where the hand left
+    /// the coil. A fault ends free-drive on the robot; the loop stays hand-guided until told.
+    pub fn set_freedrive(&mut self, on: bool) {
+        if self.freedrive && !on {
+            self.have_cmd = false;
+            self.path = None;
+            self.replan = true;
+            self.anchor = self.cfg.head_from_coil_goal;
+            self.standoff = 0.0;
+            self.clear_since = None;
+        }
+        self.freedrive = on;
+    }
+
+    /// Whether the arm is hand-guided.
+    pub fn freedrive(&self) -> bool {
+        self.freedrive
     }
 
     /// Whether the operator holds the loop.
@@ -887,6 +913,38 @@ impl Compensator {
         }
         self.stop_sent = false;
         let Some(state) = state else { return rec };
+        if self.freedrive {
+            // The hand moves the arm: the loop keeps free-drive alive, follows where the arm is
+            // and keeps estimating the head (to teach the coil's pose on it).
+            self.have_cmd = false;
+            self.last_controller_s = state.controller_s;
+            self.q_cmd = state.actual_q;
+            rec.q_command = state.actual_q;
+            if let Ok(seq) = robot.freedrive() {
+                self.note_command(seq, now);
+            }
+            if let Some(tracker_from_head) = self.predictor.predict(now) {
+                rec.head_now = Some(tracker_from_head);
+                let goal_now = self.goal_for(&tracker_from_head);
+                let flange = self.arm.fk_flange(&state.actual_q);
+                let (coil, coil_goal) = (
+                    flange * self.cfg.flange_from_coil,
+                    goal_now * self.cfg.flange_from_coil,
+                );
+                rec.deviation = (
+                    (flange.translation.vector - goal_now.translation.vector).norm(),
+                    flange.rotation.angle_to(&goal_now.rotation),
+                );
+                rec.coil_error = (
+                    (coil.translation.vector - coil_goal.translation.vector).norm(),
+                    rec.deviation.1,
+                );
+            }
+            event = event.or(self.enter(Mode::Holding(Reason::HandGuided)));
+            rec.mode = self.mode;
+            rec.event = event;
+            return rec;
+        }
         // Step by the controller's time, not the loop's: what matters is how long the controller
         // held the previous setpoint. Several states that arrive together give one longer step;
         // a cycle on the same state (woken without a new one) gives none.

@@ -39,6 +39,10 @@ pub trait Controller {
     /// again (`None`, after a new calibration), from the next cycle. A controller without a
     /// supervisor (the paper's pipeline) ignores it.
     fn set_calibration_invalid(&mut self, _offset: Option<(f64, f64)>) {}
+
+    /// Free-drive on (`true`) or handed back (`false`), from the next cycle. A controller
+    /// without it (the paper's pipeline) ignores it.
+    fn set_freedrive(&mut self, _on: bool) {}
 }
 
 impl Controller for Compensator {
@@ -70,5 +74,9 @@ impl Controller for Compensator {
 
     fn set_calibration_invalid(&mut self, offset: Option<(f64, f64)>) {
         Compensator::set_calibration_invalid(self, offset);
+    }
+
+    fn set_freedrive(&mut self, on: bool) {
+        Compensator::set_freedrive(self, on);
     }
 }

@@ -25,6 +25,7 @@
 //! | `ContactForceSustained` (above `contact_warning_force_n` for `contact_warning_s`) | retreat | a lighter press held too long |
 //! | `ForceSensorStale` | retreat | the force is unknown: a coil that may be pressing moves off rather than stand against a moving head |
 //! | `ForceSaturated` | retreat | the sensor says only "at least its range" |
+//! | `HandGuided` (the operator's free-drive) | hold | the hand moves the arm: the loop sends only free-drive's keep-alive; it resumes from the actual pose, by a path |
 //! | `CalibrationInvalid` (the drift monitor: tracker or base moved) | hold | every goal computed through a wrong `base_from_tracker` is wrong by the offset: stop, recalibrate. It stays until the session clears it; the coil still gives way |
 //!
 //! The force rules ([`crate::force`]) outrank every other rule but a fault, and their retreats
@@ -95,6 +96,9 @@ pub enum Reason {
     /// tracker, is this far (m, rad) from where the robot and the calibration put it (the
     /// session's drift monitor, [`crate::Controller::set_calibration_invalid`]).
     CalibrationInvalid(f64, f64),
+    /// The operator guides the arm by hand (free-drive): the loop commands nothing but
+    /// free-drive's keep-alive, and comes back from where the hand left the coil, by a path.
+    HandGuided,
 }
 
 impl From<GoalError> for Reason {
@@ -150,6 +154,7 @@ pub fn reaction(reason: &Reason) -> Reaction {
         Reason::ForceSensorStale(_) => Retreat,
         Reason::ForceSaturated(_) => Retreat,
         Reason::CalibrationInvalid(..) => Hold,
+        Reason::HandGuided => Hold,
     }
 }
 

@@ -454,6 +454,85 @@ fn a_goal_changed_while_approaching_gets_a_new_path_never_a_straight_line() {
     assert!(r.least_clearance() > 0.0);
 }
 
+#[test]
+fn free_drive_yields_to_the_hand_and_hands_back_from_where_the_hand_left_the_coil() {
+    let arm = Arm::new(Model::Ur3e);
+    let cfg = LoopConfig::new(
+        base_from_tracker(),
+        flange_from_coil(),
+        head_from_coil_goal(),
+        PERIOD,
+    );
+    let q0 = coil_on_head_joints(&arm);
+    let mut comp = Compensator::new(cfg, arm, PERIOD);
+    let mut robot = MemRobot::at(q0, arm.fk(&q0), PERIOD);
+    let tracker_from_base = base_from_tracker().inverse();
+    let noisy = move |t: f64| {
+        let mut g = SplitMix64((t * 1e6).round() as u64);
+        let mut n = || (g.next_f64() - 0.5) * 1.7e-4;
+        let mut p = tracker_from_base * head_rest();
+        p.translation.vector += Vector3::new(n(), n(), n());
+        Some(p)
+    };
+    let mut poses = ScriptedPoses::new(60.0, 0.02, Box::new(noisy));
+    let mut records = Vec::new();
+    let mut q_hand = q0;
+    for k in 0..(7.0 / PERIOD) as usize {
+        let t = k as f64 * PERIOD;
+        if once_at(t, 1.0) {
+            comp.set_freedrive(true);
+        }
+        if (1.0..2.0).contains(&t) {
+            // The hand: the base joint turned by 0.15 rad and the coil lifted off, over a second.
+            q_hand = robot.state.actual_q;
+            q_hand[0] += 0.15 * PERIOD;
+            q_hand[1] -= 0.1 * PERIOD;
+            robot.state.actual_q = q_hand;
+        }
+        if once_at(t, 2.0) {
+            comp.set_freedrive(false);
+        }
+        robot.tick(t);
+        poses.now = t;
+        records.push(comp.cycle(t, &mut robot, &mut poses));
+    }
+    let guided: Vec<_> = records
+        .iter()
+        .filter(|r| (1.0..2.0).contains(&r.t))
+        .collect();
+    // While guided: held for the hand, nothing commanded but free-drive (the command is the arm
+    // itself), the head still estimated.
+    assert!(
+        guided
+            .iter()
+            .all(|r| r.mode == Mode::Holding(Reason::HandGuided))
+    );
+    assert!(
+        guided
+            .iter()
+            .all(|r| r.q_command == r.q_actual && r.head_now.is_some())
+    );
+    assert!(robot.freedrives >= 499, "{}", robot.freedrives);
+    let moved = guided.last().unwrap().coil_error.0;
+    assert!(
+        moved > 0.02,
+        "the hand moved the coil {moved} m off its goal"
+    );
+    // Handed back: the first command starts where the hand left the arm (no jump back to the
+    // last command before free-drive), and the goal is reached by a path.
+    let back = records.iter().find(|r| r.t >= 2.0).unwrap();
+    let jump = (0..6).fold(0.0f64, |m, j| m.max((back.q_command[j] - q_hand[j]).abs()));
+    assert!(jump < 0.01, "{jump} rad");
+    assert!(
+        records
+            .iter()
+            .any(|r| r.t > 2.0 && r.mode == Mode::Approaching && r.path.is_some())
+    );
+    let end = records.last().unwrap();
+    assert_eq!(end.mode, Mode::Tracking);
+    assert!(end.coil_error.0 < 1e-3, "{:?}", end.coil_error);
+}
+
 fn push_in(t: f64) -> Option<Isometry3<f64>> {
     // 40 mm into the coil at 100 mm/s.
     Some(along_z(|t| ramp(t - 0.5, 0.04, 0.1))(t))

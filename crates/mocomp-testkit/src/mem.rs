@@ -21,6 +21,8 @@ pub struct MemRobot {
     pub last_move: Option<[f64; 6]>,
     /// `keep_alive` calls.
     pub keep_alives: u32,
+    /// `freedrive` calls (a hand moves the arm: tests set its joints).
+    pub freedrives: u32,
 }
 
 impl MemRobot {
@@ -54,6 +56,7 @@ impl MemRobot {
             stops: 0,
             last_move: None,
             keep_alives: 0,
+            freedrives: 0,
         }
     }
 
@@ -96,6 +99,12 @@ impl Robot for MemRobot {
     fn keep_alive(&mut self) -> Result<(), UrError> {
         self.keep_alives += 1;
         Ok(())
+    }
+    fn freedrive(&mut self) -> Result<i32, UrError> {
+        self.seq += 1;
+        self.freedrives += 1;
+        self.state.acked_seq = self.seq;
+        Ok(self.seq)
     }
 }
 

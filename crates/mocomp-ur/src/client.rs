@@ -620,6 +620,10 @@ impl Robot for UrRobot {
         self.command(cmd::STOPJ, [0.0; 6], [decel, 0.0, 0.0])
     }
 
+    fn freedrive(&mut self) -> Result<i32, UrError> {
+        UrRobot::freedrive(self)
+    }
+
     fn keep_alive(&mut self) -> Result<(), UrError> {
         self.send()
     }

@@ -372,6 +372,9 @@ pub trait Robot {
     fn stop(&mut self, decel: f64) -> Result<i32, UrError>;
     /// Repeats the last command (keeps the watchdog fed while nothing new is commanded).
     fn keep_alive(&mut self) -> Result<(), UrError>;
+    /// Free-drive: the arm yields to a hand for as long as this is sent each cycle (its
+    /// keep-alive is the dead-man switch); any other command ends it.
+    fn freedrive(&mut self) -> Result<i32, UrError>;
 }
 
 #[cfg(test)]
