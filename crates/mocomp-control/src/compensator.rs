@@ -410,6 +410,32 @@ impl Compensator {
             * self.coil_from_flange
     }
 
+    /// The measured flange's and the measured coil's errors (m, rad) against the goal for the
+    /// head at `tracker_from_head`, with the arm at `q`.
+    fn measured_errors(
+        &self,
+        q: &[f64; 6],
+        tracker_from_head: &Isometry3<f64>,
+    ) -> ((f64, f64), (f64, f64)) {
+        let goal_now = self.goal_for(tracker_from_head);
+        let flange = self.arm.fk_flange(q);
+        let angle = flange.rotation.angle_to(&goal_now.rotation);
+        let (coil, coil_goal) = (
+            flange * self.cfg.flange_from_coil,
+            goal_now * self.cfg.flange_from_coil,
+        );
+        (
+            (
+                (flange.translation.vector - goal_now.translation.vector).norm(),
+                angle,
+            ),
+            (
+                (coil.translation.vector - coil_goal.translation.vector).norm(),
+                angle,
+            ),
+        )
+    }
+
     /// Takes the newest tracker sample, applying the tracker rules. Returns an outlier event.
     fn take_sample(&mut self, s: PoseSample) -> Option<Event> {
         self.last_valid = s.valid;
@@ -925,20 +951,8 @@ impl Compensator {
             }
             if let Some(tracker_from_head) = self.predictor.predict(now) {
                 rec.head_now = Some(tracker_from_head);
-                let goal_now = self.goal_for(&tracker_from_head);
-                let flange = self.arm.fk_flange(&state.actual_q);
-                let (coil, coil_goal) = (
-                    flange * self.cfg.flange_from_coil,
-                    goal_now * self.cfg.flange_from_coil,
-                );
-                rec.deviation = (
-                    (flange.translation.vector - goal_now.translation.vector).norm(),
-                    flange.rotation.angle_to(&goal_now.rotation),
-                );
-                rec.coil_error = (
-                    (coil.translation.vector - coil_goal.translation.vector).norm(),
-                    rec.deviation.1,
-                );
+                (rec.deviation, rec.coil_error) =
+                    self.measured_errors(&state.actual_q, &tracker_from_head);
             }
             event = event.or(self.enter(Mode::Holding(Reason::HandGuided)));
             rec.mode = self.mode;
@@ -1060,20 +1074,8 @@ impl Compensator {
         rec.required_m = required;
         if head_known && let Some(tracker_from_head) = self.predictor.predict(now) {
             rec.head_now = Some(tracker_from_head);
-            let goal_now = self.goal_for(&tracker_from_head);
-            let flange = self.arm.fk_flange(&state.actual_q);
-            rec.deviation = (
-                (flange.translation.vector - goal_now.translation.vector).norm(),
-                flange.rotation.angle_to(&goal_now.rotation),
-            );
-            let (coil, coil_goal) = (
-                flange * self.cfg.flange_from_coil,
-                goal_now * self.cfg.flange_from_coil,
-            );
-            rec.coil_error = (
-                (coil.translation.vector - coil_goal.translation.vector).norm(),
-                rec.deviation.1,
-            );
+            (rec.deviation, rec.coil_error) =
+                self.measured_errors(&state.actual_q, &tracker_from_head);
         }
         if let Err(e) = self.goal_check {
             // A wrong goal outranks everything but a fault.

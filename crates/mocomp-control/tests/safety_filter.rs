@@ -65,6 +65,15 @@ fn run_held(motion: Motion, seconds: f64, held: fn(f64) -> bool) -> Run {
 
 /// [`run`], with `before(t, loop)` before each cycle (what the operator and the session ask).
 fn run_with(motion: Motion, seconds: f64, before: impl Fn(f64, &mut Compensator)) -> Run {
+    run_with_robot(motion, seconds, |t, comp, _| before(t, comp)).0
+}
+
+/// [`run_with`], `before` also given the robot (a hand that moves it); returns the robot too.
+fn run_with_robot(
+    motion: Motion,
+    seconds: f64,
+    mut before: impl FnMut(f64, &mut Compensator, &mut MemRobot),
+) -> (Run, MemRobot) {
     let arm = Arm::new(Model::Ur3e);
     let cfg = LoopConfig::new(
         base_from_tracker(),
@@ -98,7 +107,7 @@ fn run_with(motion: Motion, seconds: f64, before: impl Fn(f64, &mut Compensator)
         let t = k as f64 * PERIOD;
         robot.tick(t);
         poses.now = t;
-        before(t, &mut comp);
+        before(t, &mut comp, &mut robot);
         let rec = comp.cycle(t, &mut robot, &mut poses);
         let coil_pose = arm.fk_flange(&rec.q_command) * flange_from_coil();
         let acts = if rec.horizon_s > 0.0 {
@@ -112,7 +121,7 @@ fn run_with(motion: Motion, seconds: f64, before: impl Fn(f64, &mut Compensator)
             .push(coil.distance(&head, &(true_head.inverse() * coil_pose)));
         out.records.push(rec);
     }
-    out
+    (out, robot)
 }
 
 /// Speed ramps of the moves, s: a head reaching 100 mm/s in 0.3 s accelerates at up to
@@ -456,29 +465,8 @@ fn a_goal_changed_while_approaching_gets_a_new_path_never_a_straight_line() {
 
 #[test]
 fn free_drive_yields_to_the_hand_and_hands_back_from_where_the_hand_left_the_coil() {
-    let arm = Arm::new(Model::Ur3e);
-    let cfg = LoopConfig::new(
-        base_from_tracker(),
-        flange_from_coil(),
-        head_from_coil_goal(),
-        PERIOD,
-    );
-    let q0 = coil_on_head_joints(&arm);
-    let mut comp = Compensator::new(cfg, arm, PERIOD);
-    let mut robot = MemRobot::at(q0, arm.fk(&q0), PERIOD);
-    let tracker_from_base = base_from_tracker().inverse();
-    let noisy = move |t: f64| {
-        let mut g = SplitMix64((t * 1e6).round() as u64);
-        let mut n = || (g.next_f64() - 0.5) * 1.7e-4;
-        let mut p = tracker_from_base * head_rest();
-        p.translation.vector += Vector3::new(n(), n(), n());
-        Some(p)
-    };
-    let mut poses = ScriptedPoses::new(60.0, 0.02, Box::new(noisy));
-    let mut records = Vec::new();
-    let mut q_hand = q0;
-    for k in 0..(7.0 / PERIOD) as usize {
-        let t = k as f64 * PERIOD;
+    let mut q_hand = [0.0; 6];
+    let (run, robot) = run_with_robot(at_rest, 7.0, |t, comp, robot| {
         if once_at(t, 1.0) {
             comp.set_freedrive(true);
         }
@@ -492,10 +480,8 @@ fn free_drive_yields_to_the_hand_and_hands_back_from_where_the_hand_left_the_coi
         if once_at(t, 2.0) {
             comp.set_freedrive(false);
         }
-        robot.tick(t);
-        poses.now = t;
-        records.push(comp.cycle(t, &mut robot, &mut poses));
-    }
+    });
+    let records = run.records;
     let guided: Vec<_> = records
         .iter()
         .filter(|r| (1.0..2.0).contains(&r.t))
