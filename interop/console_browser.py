@@ -1,7 +1,7 @@
 """Drives mocomp's operator console in a real headless Chromium (Debian's `chromium` and
 `chromium-driver`) through Selenium, and prints one JSON object with what it saw.
 
-usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR [loop|camera|calibrate]
+usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR [loop|camera|calibrate|session]
 
 The console must serve a running `mocomp run` on the simulated world. With `loop` (the default)
 the script checks, in the
@@ -14,7 +14,10 @@ depth camera) it checks the IR frame with the pipeline's overlays shows, a scan 
 the mouse and a new threshold take effect in the pipeline, a bad depth range shows its error
 beside the field, and writes the IR screenshots (whole image, and the scan area drawn). With
 `calibrate` (a `calibrate collect --dashboard`) it starts the collection from the page's button
-after its confirmation and waits for the outcome. Any failure is an exception (exit 1).
+after its confirmation and waits for the outcome. With `session` (a run with a `[session]` of
+two targets, `hot` and `beside`, and the simulated stimulator) it checks the targets list shows,
+"Go to target" takes the coil to `beside` by a path and back to tracking, the pulses show in the
+events, and free-drive starts only from a hold and hands back. Any failure is an exception (exit 1).
 Browser and driver paths: $MOCOMP_CHROMIUM (default /usr/bin/chromium) and
 $MOCOMP_CHROMEDRIVER (default /usr/bin/chromedriver); nothing is downloaded.
 """
@@ -266,7 +269,53 @@ def calibrate_session(url, shots):
     return seen
 
 
+def session_session(url, shots):
+    d = browser()
+    seen = {}
+    try:
+        d.get(url)
+        wait("tracking on the start target", lambda: text(d, "mode") == "tracking", 40)
+        options = wait("the targets", lambda: d.execute_script(
+            "const s = document.getElementById('target-select');"
+            "return s.options.length ? [...s.options].map(o => o.value) : null"))
+        assert options == ["hot", "beside"], options
+        seen["targets_shown"] = options
+        # Free-drive is offered only from a hold.
+        assert d.find_element(By.ID, "freedrive").get_attribute("disabled")
+        d.execute_script("document.getElementById('target-select').value = 'beside'")
+        d.find_element(By.ID, "go-target").click()
+        wait("the path to it", lambda: text(d, "mode") == "approaching", 20)
+        wait("tracking it", lambda: text(d, "mode") == "tracking", 40)
+        rows = lambda: d.execute_script(
+            "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
+        wait("the selection in the events", lambda: any("target beside selected" in r for r in rows()))
+        pulse = wait("a pulse in the events", lambda: next((r for r in rows() if "pulse on beside" in r), None))
+        seen["pulse_row"] = pulse
+        d.find_element(By.ID, "hold").click()
+        wait("holding", lambda: text(d, "mode") == "holding" and "Operator" in text(d, "reason"))
+        wait("free-drive offered", lambda: not d.find_element(By.ID, "freedrive").get_attribute("disabled"))
+        d.find_element(By.ID, "freedrive").click()
+        wait("hand-guided", lambda: text(d, "reason") == "HandGuided")
+        seen["guided_reason"] = text(d, "reason")
+        settle(d)
+        d.execute_script("window.scrollTo(0, 0)")
+        d.save_screenshot(os.path.join(shots, "console-session.png"))
+        d.find_element(By.ID, "handback").click()
+        wait("held again after the hand-over", lambda: text(d, "reason") == "Operator")
+        d.find_element(By.ID, "resume").click()
+        wait("tracking after the hand-over", lambda: text(d, "mode") == "tracking", 40)
+        seen["tracking_after_handback"] = True
+        d.find_element(By.ID, "stop").click()
+        wait("the confirmation", lambda: d.find_element(By.ID, "stop-dialog").is_displayed())
+        d.find_element(By.ID, "confirm-stop").click()
+        wait("stopped", lambda: text(d, "mode") == "stopped", 20)
+    finally:
+        d.quit()
+    return seen
+
+
 if __name__ == "__main__":
     which = sys.argv[3] if len(sys.argv) > 3 else "loop"
-    run = {"camera": camera_session, "calibrate": calibrate_session}.get(which, loop_session)
+    run = {"camera": camera_session, "calibrate": calibrate_session,
+           "session": session_session}.get(which, loop_session)
     print(json.dumps(run(sys.argv[1], sys.argv[2])))

@@ -513,11 +513,10 @@ fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
     });
 }
 
-#[test]
-fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_and_back() {
-    let dir = TempDir::new("mocomp-console-session");
-    let path = write_example(&dir, "run-sim.toml", "127.0.0.78");
-    // A gently nodding head; the session's targets: the goal and one 1 cm beside it.
+/// The example on `host`, the head nodding gently, with a `[session]` of two targets (`hot`, the
+/// goal, where the run starts, and `beside`, 1 cm off) and `extra` session keys; its path.
+fn session_example(dir: &TempDir, host: &str, extra: &str) -> String {
+    let path = write_example(dir, "run-sim.toml", host);
     let mut text = std::fs::read_to_string(&path).unwrap();
     for (from, to) in [
         ("sway_m = 0.02 ", "sway_m = 0.004 "),
@@ -528,6 +527,7 @@ fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_a
         text = text.replace(from, to);
     }
     text.push_str("\n[session]\ntargets = \"targets.toml\"\ntarget = \"hot\"\n");
+    text.push_str(extra);
     std::fs::write(&path, &text).unwrap();
     std::fs::write(
         dir.path("targets.toml"),
@@ -535,6 +535,13 @@ fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_a
          [[target]]\nname = \"beside\"\nhead_from_coil = [0.01, 0.0, 0.1125, 3.141592653589793, 0.0, 0.0]\n",
     )
     .unwrap();
+    path
+}
+
+#[test]
+fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_and_back() {
+    let dir = TempDir::new("mocomp-console-session");
+    let path = session_example(&dir, "127.0.0.78", "");
     let s = Session::start_file(&path, 90, &[]);
     s.wait_status("tracking", |v| v["mode"] == "tracking");
     let (code, v) = s.get("/api/targets");
@@ -587,6 +594,34 @@ fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_a
     s.wait_status("tracking after the hand-over", |v| {
         v["mode"] == "tracking" && v["deviation_mm"].as_f64().is_some_and(|d| d < 1.0)
     });
+}
+
+#[test]
+fn the_session_in_a_real_browser_switches_targets_shows_pulses_and_hands_the_arm_over() {
+    let dir = TempDir::new("mocomp-console-session-browser");
+    let path = session_example(
+        &dir,
+        "127.0.0.79",
+        "gate_output = 7\npulse_input = 0\n[session.simulated_stimulator]\nrate_hz = 5.0\n",
+    );
+    let s = Session::start_file(&path, 120, &[]);
+    let shots = dir.path("shots");
+    let seen = browse(&s, &shots, "session");
+    assert_eq!(seen["targets_shown"], json!(["hot", "beside"]), "{seen}");
+    assert_eq!(seen["guided_reason"], "HandGuided", "{seen}");
+    assert!(
+        seen["pulse_row"]
+            .as_str()
+            .is_some_and(|r| r.contains("gate open")),
+        "{seen}"
+    );
+    let len = std::fs::metadata(Path::new(&shots).join("console-session.png"))
+        .unwrap()
+        .len();
+    assert!(len > 20_000, "{len} bytes");
+    let (ok, summary) = s.finish();
+    assert!(ok, "{summary}");
+    assert!(summary.contains("target beside selected"), "{summary}");
 }
 
 /// Starts `calibrate collect --dashboard` on the example with its simulated robot on `host`,

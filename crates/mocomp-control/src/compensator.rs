@@ -949,6 +949,11 @@ impl Compensator {
             if let Ok(seq) = robot.freedrive() {
                 self.note_command(seq, now);
             }
+            let (v, w) = self.predictor.velocity();
+            rec.head_speed = (v.norm(), w.norm());
+            if self.predictor.is_initialised() {
+                rec.sample_age_s = now - self.predictor.time_s();
+            }
             if let Some(tracker_from_head) = self.predictor.predict(now) {
                 rec.head_now = Some(tracker_from_head);
                 (rec.deviation, rec.coil_error) =
