@@ -496,7 +496,7 @@ fn free_drive_yields_to_the_hand_and_hands_back_from_where_the_hand_left_the_coi
     assert!(
         guided
             .iter()
-            .all(|r| r.q_command == r.q_actual && r.head_now.is_some())
+            .all(|r| r.q_command == r.q_actual && r.head_now.is_some() && r.sample_age_s < 0.1)
     );
     assert!(robot.freedrives >= 499, "{}", robot.freedrives);
     let moved = guided.last().unwrap().coil_error.0;
