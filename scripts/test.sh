@@ -16,10 +16,11 @@ say "installing interop peers (requirements-interop.txt)"
 .venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-interop.txt
 export MOCOMP_PYTHON="$PWD/.venv/bin/python"
 
-# 2. Debian packages: the C++ OpenIGTLink library and its example sources (interop peer), and
-#    the browser the console's tests drive (Chromium and its WebDriver).
+# 2. Debian packages: the C++ OpenIGTLink library and its example sources (interop peer), the
+#    browser the console's tests drive (Chromium and its WebDriver), and `ip` for the tests'
+#    network namespace.
 missing=()
-for p in libopenigtlink-dev openigtlink-examples g++ chromium chromium-driver; do
+for p in libopenigtlink-dev openigtlink-examples g++ chromium chromium-driver iproute2; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
 done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -35,6 +36,18 @@ say "cargo fmt --check"
 cargo fmt --all -- --check
 say "cargo clippy (all targets, -D warnings)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
-say "cargo test (workspace)"
-cargo test --workspace --locked
+say "cargo test (workspace): build"
+cargo test --workspace --locked --no-run
+# The tests run in a network namespace of their own with only loopback: the ROS 2 tests speak
+# DDS, which discovers peers by UDP multicast on every interface it finds, and no test traffic
+# may leave this machine (every other test uses loopback already). Root makes the namespace
+# directly; anyone else through a user namespace mapped to root.
+say "cargo test (workspace), in a network namespace with only loopback"
+NS=(unshare --net)
+[ "$(id -u)" -ne 0 ] && NS=(unshare --net --map-root-user)
+"${NS[@]}" -- sh -c '
+  ip link set lo up &&
+  ip link set lo multicast on &&
+  ip route add 224.0.0.0/4 dev lo &&
+  exec cargo test --workspace --locked --offline'
 say "all checks passed"

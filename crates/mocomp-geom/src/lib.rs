@@ -16,6 +16,7 @@
 
 pub mod error;
 pub mod interp;
+pub mod latest;
 pub mod metrics;
 pub mod pose;
 pub mod sample;
@@ -24,6 +25,7 @@ pub mod units;
 
 pub use error::GeomError;
 pub use interp::{average, interpolate, orthonormalize, slerp};
+pub use latest::LatestCell;
 pub use metrics::{LengthUnit, PoseError, frobenius_deviation, rotation_error, translation_error};
 pub use nalgebra;
 pub use pose::{

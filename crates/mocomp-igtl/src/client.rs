@@ -18,10 +18,10 @@
 //! time.
 
 use crate::codec::{DEFAULT_MAX_BODY, Decoder, encode};
-use crate::latest::LatestCell;
 use crate::message::{Body, Message, pose_of};
 use crate::name::{DeviceName, Name};
 use crate::timestamp::Timestamp;
+use mocomp_geom::LatestCell;
 use mocomp_geom::nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use mocomp_geom::{Clock, PoseSample, PoseSource};
 use std::collections::HashMap;

@@ -13,7 +13,6 @@
 
 pub mod client;
 pub mod codec;
-pub mod latest;
 pub mod message;
 pub mod name;
 pub mod server;

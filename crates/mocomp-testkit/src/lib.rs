@@ -293,3 +293,24 @@ pub mod scene {
         )
     }
 }
+
+/// Panics unless this process's network namespace has no interface but loopback: DDS discovers
+/// peers by multicast on every interface it finds, and test traffic must not leave the machine.
+/// `scripts/test.sh` runs the tests in such a namespace (`unshare --net`, `lo` up with a multicast
+/// route).
+pub fn assert_loopback_only() {
+    let dev = std::fs::read_to_string("/proc/net/dev").unwrap_or_default();
+    let others: Vec<&str> = dev
+        .lines()
+        .skip(2)
+        .filter_map(|l| l.split(':').next().map(str::trim))
+        .filter(|name| *name != "lo")
+        .collect();
+    assert!(
+        others.is_empty() && !dev.is_empty(),
+        "this test speaks DDS, which discovers by multicast on every interface, and the network \
+         here has {others:?} besides loopback: run it through scripts/test.sh, which runs the \
+         tests in a network namespace with only `lo` (unshare --net; ip link set lo up; ip route \
+         add 224.0.0.0/4 dev lo)"
+    );
+}

@@ -1,8 +1,8 @@
 //! A single-writer cell holding the newest [`PoseSample`], readable from another thread without
 //! locks or allocation: a sequence lock over atomics (no `unsafe`).
 
-use mocomp_geom::nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
-use mocomp_geom::{PoseSample, SeqLock};
+use crate::{PoseSample, SeqLock};
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 
 /// The newest sample, with a version that grows with every publication.
 #[derive(Debug, Default)]
@@ -57,7 +57,7 @@ impl LatestCell {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mocomp_geom::nalgebra::Vector3;
+    use nalgebra::Vector3;
     use std::sync::Arc;
 
     fn sample(k: f64) -> PoseSample {
