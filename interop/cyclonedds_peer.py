@@ -1,7 +1,7 @@
 """Expose Cyclone DDS (PyPI `cyclonedds`, the DDS under ROS 2's rmw_cyclonedds_cpp) to mocomp's
 tests, speaking ROS 2's DDS names and types as a ROS 2 node would.
 
-Requests (one JSON line each):
+Requests (one JSON line each; each may name its DDS "domain", default 0):
   {"op": "version"}                        -> {"version": "11.0.1"}
   {"op": "listen", "seconds": s, "wait": w}
       subscribes to rt/joint_states, rt/tf, rt/mocomp/coil_pose, rt/mocomp/head_pose and
@@ -9,15 +9,20 @@ Requests (one JSON line each):
       {"counts": {topic: n}, "rates_hz": {topic: r}, "last": {topic: message as JSON},
        "latency_ms": {"median": m, "p99": p, "n": n}}  (joint states: receive time - header stamp)
   {"op": "publish_head", "topic": t, "rate_hz": r, "seconds": s, "frame": f,
-   "pose": [x, y, z, qx, qy, qz, qw], "wait": w}
+   "pose": [x, y, z, qx, qy, qz, qw], "wait": w, "noise_m": n, "seed": k}
       waits up to w s for a subscriber to topic t, then publishes geometry_msgs/PoseStamped at r Hz
-      for s seconds, each stamped now -> {"published": n, "matched": bool}
+      for s seconds, each stamped now, its position with n m of Gaussian noise per axis (seeded
+      by k) -> {"published": n, "matched": bool}
+
+  {"op": "call", "service": "/mocomp/hold", "seq": n, "wait": w}
+      calls a std_srvs/Trigger service as rmw_cyclonedds_cpp does -> {"success": b, "message": m}
 
 Cyclone takes its configuration from CYCLONEDDS_URI; the test script runs this inside a network
 namespace with only loopback, so discovery and data never leave the machine.
 """
 
 import os
+import random
 import statistics
 from importlib import metadata as md
 import time
@@ -34,7 +39,7 @@ os.environ.setdefault(
 from cyclonedds.core import Qos, Policy  # noqa: E402
 from cyclonedds.domain import DomainParticipant  # noqa: E402
 from cyclonedds.idl import IdlStruct  # noqa: E402
-from cyclonedds.idl.types import float64, int32, sequence, uint8, uint32  # noqa: E402
+from cyclonedds.idl.types import array, float64, int32, sequence, uint8, uint32  # noqa: E402
 from cyclonedds.pub import DataWriter  # noqa: E402
 from cyclonedds.sub import DataReader  # noqa: E402
 from cyclonedds.topic import Topic  # noqa: E402
@@ -137,7 +142,26 @@ class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::Diagnosti
     status: sequence[DiagnosticStatus] = field(default_factory=list)
 
 
-STATE = {"dp": None}
+# A service as rmw_cyclonedds_cpp maps it: request and reply topics whose samples start with
+# the client's GUID (its last 8 bytes) and a sequence number.
+@dataclass
+class TriggerRequest(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
+    guid: array[uint8, 8] = field(default_factory=lambda: [0] * 8)
+    seq_high: int32 = 0
+    seq_low: uint32 = 0
+    structure_needs_at_least_one_member: uint8 = 0
+
+
+@dataclass
+class TriggerResponse(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Response_"):
+    guid: array[uint8, 8] = field(default_factory=lambda: [0] * 8)
+    seq_high: int32 = 0
+    seq_low: uint32 = 0
+    success: bool = False
+    message: str = ""
+
+
+STATE = {"dp": {}, "services": {}}
 
 TOPICS = {
     "joint_states": ("rt/joint_states", JointState, True),
@@ -148,10 +172,11 @@ TOPICS = {
 }
 
 
-def dp():
-    if STATE["dp"] is None:
-        STATE["dp"] = DomainParticipant(0)
-    return STATE["dp"]
+def dp(req=None):
+    domain = int((req or {}).get("domain", 0))
+    if domain not in STATE["dp"]:
+        STATE["dp"][domain] = DomainParticipant(domain)
+    return STATE["dp"][domain]
 
 
 def qos(reliable):
@@ -173,7 +198,8 @@ def stamp_s(h):
 
 
 def listen(req):
-    readers = {k: DataReader(dp(), Topic(dp(), name, t), qos=qos(rel)) for k, (name, t, rel) in TOPICS.items()}
+    p = dp(req)
+    readers = {k: DataReader(p, Topic(p, name, t), qos=qos(rel)) for k, (name, t, rel) in TOPICS.items()}
     deadline = time.time() + float(req.get("wait", 10))
     while time.time() < deadline and not readers["joint_states"].take(N=100):
         time.sleep(0.002)
@@ -207,7 +233,8 @@ def listen(req):
 
 
 def publish_head(req):
-    writer = DataWriter(dp(), Topic(dp(), "rt" + req["topic"], PoseStamped), qos=qos(False))
+    p = dp(req)
+    writer = DataWriter(p, Topic(p, "rt" + req["topic"], PoseStamped), qos=qos(False))
     deadline = time.time() + float(req.get("wait", 10))
     matched = False
     while time.time() < deadline:
@@ -216,6 +243,9 @@ def publish_head(req):
             break
         time.sleep(0.01)
     x, y, z, qx, qy, qz, qw = req["pose"]
+    # A tracker's noise (a noiseless stream is a frozen one to a tracker's consumer), seeded.
+    noise = float(req.get("noise_m", 0.0))
+    rng = random.Random(int(req.get("seed", 1)))
     period = 1.0 / float(req["rate_hz"])
     n = 0
     end = time.time() + float(req["seconds"])
@@ -225,11 +255,34 @@ def publish_head(req):
         sec = int(now)
         writer.write(PoseStamped(
             header=Header(stamp=Time(sec=sec, nanosec=int((now - sec) * 1e9)), frame_id=req.get("frame", "tracker")),
-            pose=Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))))
+            pose=Pose(position=Point(x=x + rng.gauss(0, noise), y=y + rng.gauss(0, noise), z=z + rng.gauss(0, noise)), orientation=Quaternion(x=qx, y=qy, z=qz, w=qw))))
         n += 1
         nxt += period
         time.sleep(max(0.0, nxt - time.time()))
     return {"published": n, "matched": matched}
+
+
+def call_trigger(req):
+    """{"op": "call", "service": "/mocomp/hold", "seq": n, "wait": w} -> {"success", "message"}"""
+    p = dp(req)
+    name = req["service"]
+    if name not in STATE["services"]:
+        w = DataWriter(p, Topic(p, "rq" + name + "Request", TriggerRequest), qos=qos(True))
+        r = DataReader(p, Topic(p, "rr" + name + "Reply", TriggerResponse), qos=qos(True))
+        STATE["services"][name] = (w, r)
+    w, r = STATE["services"][name]
+    deadline = time.time() + float(req.get("wait", 10))
+    while time.time() < deadline and not (w.get_matched_subscriptions() and r.get_matched_publications()):
+        time.sleep(0.01)
+    guid = list(range(1, 9))
+    seq = int(req.get("seq", 1))
+    w.write(TriggerRequest(guid=guid, seq_high=0, seq_low=seq))
+    while time.time() < deadline:
+        for s in r.take(N=10):
+            if list(s.guid) == guid and s.seq_low == seq:
+                return {"success": bool(s.success), "message": s.message}
+        time.sleep(0.005)
+    return {"error": "no reply"}
 
 
 def handle(req):
@@ -240,6 +293,8 @@ def handle(req):
         return listen(req)
     if op == "publish_head":
         return publish_head(req)
+    if op == "call":
+        return call_trigger(req)
     return {"error": f"unknown op {op!r}"}
 
 

@@ -180,6 +180,7 @@ pub fn collect(
     let c = setup.file.calibrate.clone();
     let arm = setup.arm;
     let q0 = setup.initial_joints()?;
+    setup.needs_igtl_tracker("calibrate collect")?;
     let mut world = World::connect(setup, q0, notice, None)?;
     let client = world.client(setup, &c.device);
     let mut source = client.pose_source();

@@ -106,6 +106,75 @@ pub struct Config {
     pub experiment: ExperimentSection,
     /// `mocomp run`: the clinical session around the loop.
     pub session: SessionSection,
+    /// `mocomp run`: mocomp as a ROS 2 node.
+    pub ros2: Ros2Section,
+}
+
+/// `[ros2]`: `mocomp run` as a ROS 2 node (no ROS installation needed): it publishes
+/// `/joint_states`, `/tf`, `/mocomp/coil_pose`, `/mocomp/head_pose` and `/diagnostics`, and serves
+/// `/mocomp/hold` and `/mocomp/resume` (`std_srvs/Trigger`). `tracker.source = "ros2"` takes the
+/// head's poses from a `geometry_msgs/PoseStamped` topic with or without it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Ros2Section {
+    /// Publish and serve (or: `mocomp run --ros2`).
+    pub enabled: bool,
+    /// The DDS domain (default: `ROS_DOMAIN_ID`, else 0).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub domain_id: Option<u16>,
+    /// The node's name.
+    pub node_name: String,
+    /// Joint states, TF and poses at most this often, Hz (0: every cycle, the robot's rate).
+    pub publish_hz: f64,
+    /// The head's poses for `tracker.source = "ros2"`: a `geometry_msgs/PoseStamped` topic, the
+    /// head marker in the tracker's frame, stamped at acquisition.
+    pub head_topic: String,
+    /// How services map onto DDS: "enhanced" (Fast DDS, ROS 2's default) or "cyclone"
+    /// (`rmw_cyclonedds_cpp`), as the other nodes' DDS.
+    pub service_mapping: mocomp_ros2::node::ServiceMappingName,
+    /// The frame names.
+    pub frames: mocomp_ros2::Frames,
+}
+
+impl Default for Ros2Section {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            domain_id: None,
+            node_name: "mocomp".into(),
+            publish_hz: 0.0,
+            head_topic: "/mocomp/tracker/head".into(),
+            service_mapping: mocomp_ros2::node::ServiceMappingName::Enhanced,
+            frames: mocomp_ros2::Frames::default(),
+        }
+    }
+}
+
+impl Ros2Section {
+    /// The node's settings: the domain from the section, else `ROS_DOMAIN_ID` (which must then
+    /// be a number below 233, DDS's range for it), else 0.
+    pub fn node_config(&self, head: bool) -> Result<mocomp_ros2::Ros2Config, AppError> {
+        let domain_id = match (self.domain_id, std::env::var("ROS_DOMAIN_ID")) {
+            (Some(d), _) => d,
+            (None, Ok(v)) if !v.trim().is_empty() => v
+                .trim()
+                .parse::<u16>()
+                .ok()
+                .filter(|d| *d <= 232)
+                .ok_or_else(|| {
+                    AppError::Config(format!("ROS_DOMAIN_ID={v:?}: must be a number 0 to 232"))
+                })?,
+            _ => 0,
+        };
+        Ok(mocomp_ros2::Ros2Config {
+            domain_id,
+            node_name: self.node_name.clone(),
+            frames: self.frames.clone(),
+            head_topic: head.then(|| self.head_topic.clone()),
+            service_mapping: self.service_mapping,
+            ..mocomp_ros2::Ros2Config::default()
+        })
+    }
 }
 
 /// `[session]`: the clinical session around `mocomp run`'s loop: the targets, the on-target gate
@@ -251,6 +320,8 @@ pub enum TrackerSource {
     /// A simulated depth camera (IR + depth frames) tracked by the paper's pipeline
     /// (`[tracker.camera]`), its poses served over OpenIGTLink on loopback.
     Camera,
+    /// A ROS 2 `geometry_msgs/PoseStamped` topic (`ros2.head_topic`): `mocomp run` only.
+    Ros2,
 }
 
 impl TrackerSource {
@@ -267,6 +338,7 @@ impl std::fmt::Display for TrackerSource {
             Self::Openigtlink => "openigtlink",
             Self::Simulated => "simulated",
             Self::Camera => "camera",
+            Self::Ros2 => "ros2",
         })
     }
 }
@@ -682,6 +754,13 @@ impl Config {
             .validate()
             .map_err(|e| cfg(&e, "tracker.simulated.model."))?;
         Check::non_negative("duration_s", self.duration_s)?;
+        Check::range("ros2.publish_hz", self.ros2.publish_hz, 0.0, 1000.0, false)?;
+        if !self.ros2.head_topic.starts_with('/') {
+            return Err(AppError::Config(format!(
+                "ros2.head_topic {:?}: a topic name starts with /",
+                self.ros2.head_topic
+            )));
+        }
         self.session
             .params()
             .validate()
@@ -766,7 +845,7 @@ impl Config {
             (None, TrackerSource::Simulated | TrackerSource::Camera) => {
                 Ok(pose_const(SIM_HEAD_FROM_COIL).iso())
             }
-            (None, TrackerSource::Openigtlink) => Err(AppError::Config(
+            (None, TrackerSource::Openigtlink | TrackerSource::Ros2) => Err(AppError::Config(
                 "goal.head_from_coil: a real head needs its goal (teach it: mocomp teach-goal)"
                     .into(),
             )),
@@ -834,7 +913,7 @@ impl Config {
 
 /// Keys the experiment does not use (it builds its own scene, calibrates itself and sets its
 /// own goal), as dotted paths; a table stands for every key in it.
-const NOT_FOR_THE_EXPERIMENT: [&str; 16] = [
+const NOT_FOR_THE_EXPERIMENT: [&str; 17] = [
     "duration_s",
     "log_csv",
     "robot.simulate",
@@ -851,6 +930,7 @@ const NOT_FOR_THE_EXPERIMENT: [&str; 16] = [
     "goal",
     "realtime",
     "session",
+    "ros2",
 ];
 
 /// The keys a configuration's `text` sets, to other values than their defaults, that `mocomp
@@ -1001,6 +1081,17 @@ impl Setup {
             arm: Arm::new(model),
             base_from_tracker,
         })
+    }
+
+    /// Refuses `tracker.source = "ros2"` for `job`, which reads the tracker over OpenIGTLink.
+    pub fn needs_igtl_tracker(&self, job: &str) -> Result<(), AppError> {
+        if self.file.tracker.source == TrackerSource::Ros2 {
+            return Err(AppError::Config(format!(
+                "tracker.source = \"ros2\": {job} reads the tracker over OpenIGTLink (only \
+                 `mocomp run` takes the head's poses from ROS 2)"
+            )));
+        }
+        Ok(())
     }
 
     /// The robot's control period, s.

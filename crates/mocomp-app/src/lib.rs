@@ -28,6 +28,7 @@ pub mod listen;
 pub mod live;
 pub mod live_session;
 pub mod pose_lines;
+pub mod ros2;
 pub mod servo_check;
 pub mod session_plan;
 pub mod targets;

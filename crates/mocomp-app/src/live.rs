@@ -22,7 +22,6 @@ use crate::{AppError, Context};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopParams, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, PoseSource};
-use mocomp_igtl::client::IgtlPoseSource;
 use mocomp_ur::{Robot, UrRobot};
 use std::io::Write;
 use std::path::Path;
@@ -615,6 +614,18 @@ pub struct RunReport {
     pub realtime_complete: bool,
     /// The session: pulses, the gate, the drift monitor.
     pub session: SessionReport,
+    /// The ROS 2 node's messages published, and those it could not take in time (`None`:
+    /// no node).
+    pub ros2: Option<Ros2Figures>,
+}
+
+/// What the ROS 2 node did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct Ros2Figures {
+    /// Messages published.
+    pub published: u64,
+    /// Messages the node could not take in time (dropped, never waited for).
+    pub dropped: u64,
 }
 
 impl RunReport {
@@ -696,6 +707,7 @@ impl RunReport {
             realtime: rt.map_or_else(|| "normal scheduling".into(), mocomp_rt::RtReport::describe),
             realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
             session,
+            ros2: None,
         }
     }
 
@@ -723,7 +735,10 @@ impl RunReport {
 /// The live pace: a cycle per new robot state, on the monotonic clock, until stopped.
 struct Live<'a> {
     robot: UrRobot,
-    source: IgtlPoseSource,
+    /// The head's poses: OpenIGTLink, or the ROS 2 node's topic.
+    source: Box<dyn PoseSource>,
+    /// Hold and resume called over ROS 2.
+    ros2_calls: Option<Receiver<mocomp_ros2::node::Call>>,
     clock: &'a dyn Clock,
     controls: &'a Controls,
     /// The loop's end of the parameter channel (`None`: another loop took it).
@@ -781,7 +796,7 @@ impl crate::driver::Pace for Live<'_> {
     }
 
     fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource) {
-        (&mut self.robot, &mut self.source)
+        (&mut self.robot, self.source.as_mut())
     }
 
     fn cycle_done(&mut self, record: CycleRecord) -> Result<(), Self::Error> {
@@ -793,6 +808,10 @@ impl crate::driver::Pace for Live<'_> {
     }
 
     fn requests(&mut self) -> Requests {
+        if let Some(Ok(call)) = self.ros2_calls.as_ref().map(Receiver::try_recv) {
+            self.controls
+                .set_hold(call == mocomp_ros2::node::Call::Hold);
+        }
         let hold = self.controls.hold();
         let changed = (hold != self.held).then_some(hold);
         self.held = hold;
@@ -846,6 +865,19 @@ pub fn run(
         None => None,
     };
     let (tx, rx) = sync_channel::<CycleRecord>(8192);
+    // The ROS 2 node (its DDS participant takes a moment): before the robot is connected. It
+    // publishes what an observer on the logger's thread gives it.
+    let (ros2, ros2_calls) = match crate::ros2::start(setup)? {
+        Some(link) => (Some(link.bridge), Some(link.calls)),
+        None => (None, None),
+    };
+    let observer: Box<dyn Observer> = match &ros2 {
+        Some(bridge) => Box::new(Both(
+            observer,
+            crate::ros2::Ros2Observer::new(setup, Arc::clone(bridge))?,
+        )),
+        None => observer,
+    };
     // The session: its notes go to the logger too, which writes the pulse log (opened now, so a
     // path that cannot be written stops the run before the robot moves).
     let session_setup = SessionSetup::from_setup(setup)?;
@@ -893,7 +925,8 @@ pub fn run(
     if let Some(v) = &world.vision {
         controls.vision.set(Arc::clone(v)).ok();
     }
-    let client = world.client(setup, &file.tracker.device);
+    let ros2_head = file.tracker.source == crate::config::TrackerSource::Ros2;
+    let client = (!ros2_head).then(|| world.client(setup, &file.tracker.device));
     // The session's own OpenIGTLink connection: the drift marker's poses, the pulses the server
     // announces, the gate published back.
     let session_client = (session_setup.marker.is_some() || session_setup.igtl_device.is_some())
@@ -916,7 +949,11 @@ pub fn run(
             .what(|| "robot.zero_force_sensor")?;
         writeln!(progress, "force/torque sensor zeroed").what(|| "writing the progress")?;
     }
-    let source = client.pose_source();
+    let source: Box<dyn PoseSource> = match (&client, &ros2) {
+        (Some(c), _) => Box::new(c.pose_source()),
+        (None, Some(bridge)) => Box::new(bridge.head_source(Arc::clone(&clock))),
+        (None, None) => refuse!("tracker.source = \"ros2\" without the ROS 2 node"),
+    };
     let (session_client, messages) = match session_client {
         Some(c) => {
             let m = c.take_messages();
@@ -980,6 +1017,7 @@ pub fn run(
         params: controls.take_params(),
         goals: controls.take_goals(),
         targets: controls.take_targets(),
+        ros2_calls,
         session: loop_session,
         start_goal,
         held: false,
@@ -1039,11 +1077,10 @@ pub fn run(
     robot.close().ok();
     drop(client);
     drop(session_client);
-    Ok(RunReport::new(
-        &mut s,
-        realtime.as_ref(),
-        &final_mode,
-        stop,
-        session_report,
-    ))
+    let mut report = RunReport::new(&mut s, realtime.as_ref(), &final_mode, stop, session_report);
+    report.ros2 = ros2.map(|b| Ros2Figures {
+        published: b.published(),
+        dropped: b.dropped(),
+    });
+    Ok(report)
 }

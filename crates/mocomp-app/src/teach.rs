@@ -214,6 +214,7 @@ pub fn teach(setup: &Setup, samples: usize, notice: &mut dyn Write) -> Result<Ta
         return Err(AppError::Config("--samples: must be at least 1".into()));
     }
     let q0 = setup.initial_joints()?;
+    setup.needs_igtl_tracker("teach-goal")?;
     let mut world = World::connect(setup, q0, notice, None)?;
     let taught = teach_on(setup, &mut world, samples);
     // Nothing moved: a failed close changes nothing.

@@ -124,6 +124,8 @@ impl World {
             (Some(t), _, _) => t.addr().to_string(),
             (None, Some(c), _) => c.addr().to_string(),
             (None, None, Some(a)) => a.clone(),
+            // The head's poses come over ROS 2 (`mocomp run` takes them from its node).
+            (None, None, None) if file.tracker.source == TrackerSource::Ros2 => String::new(),
             (None, None, None) => {
                 return Err(AppError::Config("tracker.igtl: needed".into()));
             }

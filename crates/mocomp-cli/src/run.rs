@@ -33,6 +33,11 @@ pub struct RunCmd {
     /// Print the summary as one JSON object (figures, holds, protective stops, real time).
     #[arg(long)]
     pub json: bool,
+    /// Be a ROS 2 node (sets `ros2.enabled`): publish joint states, TF, the coil's and the
+    /// head's poses and diagnostics; serve /mocomp/hold and /mocomp/resume. The DDS domain is
+    /// `ros2.domain_id`, else `ROS_DOMAIN_ID`.
+    #[arg(long)]
+    pub ros2: bool,
     /// The operator's console.
     #[command(flatten)]
     pub dashboard: DashboardArgs,
@@ -76,6 +81,9 @@ impl RunCmd {
         }
         if self.log_csv.is_some() {
             setup.file.log_csv.clone_from(&self.log_csv);
+        }
+        if self.ros2 {
+            setup.file.ros2.enabled = true;
         }
         if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated
             && let Some(note) = setup.file.predictor_note()

@@ -100,6 +100,10 @@ pub struct CycleRecord {
     pub q_command: [f64; 6],
     /// Joints measured.
     pub q_actual: [f64; 6],
+    /// Joint speeds measured, rad/s.
+    pub qd_actual: [f64; 6],
+    /// The goal this cycle, `head_from_coil` (the selected target's).
+    pub head_from_coil_goal: Isometry3<f64>,
     /// The goal flange pose computed this cycle, if any.
     pub goal: Option<Isometry3<f64>>,
     /// Estimated head speed, m/s and rad/s.
@@ -150,6 +154,8 @@ impl CycleRecord {
             command_delay_s: f64::NAN,
             q_command,
             q_actual: [f64::NAN; 6],
+            qd_actual: [f64::NAN; 6],
+            head_from_coil_goal: Isometry3::identity(),
             goal: None,
             head_speed: (0.0, 0.0),
             path: None,
@@ -912,6 +918,7 @@ impl Compensator {
         source: &mut S,
     ) -> CycleRecord {
         let mut rec = CycleRecord::new(now, self.mode, self.q_cmd);
+        rec.head_from_coil_goal = self.cfg.head_from_coil_goal;
         rec.command_delay_s = self.command_delay;
         rec.standoff_m = self.standoff;
         // Tracker first: samples are taken even while the robot is faulted.
@@ -921,6 +928,7 @@ impl Compensator {
         let state = robot.state();
         if let Some(s) = state {
             rec.q_actual = s.actual_q;
+            rec.qd_actual = s.actual_qd;
             self.measure_delay(s.acked_seq, s.received_s);
         }
         if let Some(r) = robot_rules(state.as_ref(), now, &self.cfg.params) {

@@ -72,6 +72,19 @@ pub struct Ros2Config {
     pub frames: Frames,
     /// Subscribe to head poses on this topic (`None`: no head source).
     pub head_topic: Option<String>,
+    /// How services map onto DDS topics: ROS 2's DDS implementations differ.
+    pub service_mapping: ServiceMappingName,
+}
+
+/// How ROS 2 services map onto DDS topics, which depends on the peer's DDS.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ServiceMappingName {
+    /// RPC over DDS "Enhanced": Fast DDS (`rmw_fastrtps_cpp`, ROS 2's default).
+    #[default]
+    Enhanced,
+    /// `rmw_cyclonedds_cpp`'s.
+    Cyclone,
 }
 
 /// UR's joint names, as its ROS 2 driver publishes them.
@@ -92,6 +105,7 @@ impl Default for Ros2Config {
             joint_names: UR_JOINTS.map(String::from),
             frames: Frames::default(),
             head_topic: None,
+            service_mapping: ServiceMappingName::default(),
         }
     }
 }
@@ -195,33 +209,47 @@ impl std::fmt::Debug for Ros2Bridge {
     }
 }
 
-/// The newest head pose from the subscribed topic.
-#[derive(Debug, Clone)]
+/// The newest head pose from the subscribed topic, its acquisition time (the header's stamp)
+/// mapped onto the loop's clock when it is read: the sender's clock and this machine's wall
+/// clock are taken as synchronised, as ROS 2 does.
 pub struct HeadSource {
     cell: Arc<LatestCell>,
     seen: u64,
+    clock: Arc<dyn Clock>,
+}
+
+impl std::fmt::Debug for HeadSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HeadSource")
+            .field("seen", &self.seen)
+            .finish_non_exhaustive()
+    }
 }
 
 impl PoseSource for HeadSource {
     fn latest(&mut self) -> Option<PoseSample> {
-        let (v, s) = self.cell.read()?;
+        let (v, mut s) = self.cell.read()?;
         if v == self.seen {
             return None;
         }
         self.seen = v;
+        // The cell holds the stamp in Unix seconds.
+        let age = unix_now() - s.acquired_s;
+        s.acquired_s = self.clock.now_s() - age.max(0.0);
         Some(s)
     }
 }
 
+fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(f64::NAN, |d| d.as_secs_f64())
+}
+
 impl Ros2Bridge {
     /// Creates the node (its DDS participant, publishers, services and the head subscription)
-    /// and starts its thread. `clock`: the loop's, onto which received stamps are mapped (the
-    /// sender's clock and this machine's wall clock taken as synchronised, as ROS 2 does).
-    pub fn start(
-        cfg: &Ros2Config,
-        handler: Option<Handler>,
-        clock: Arc<dyn Clock>,
-    ) -> Result<Self, Ros2Error> {
+    /// and starts its thread.
+    pub fn start(cfg: &Ros2Config, handler: Option<Handler>) -> Result<Self, Ros2Error> {
         let context = Context::with_options(ContextOptions::new().domain_id(cfg.domain_id))
             .map_err(|e| dds("the DDS participant", e))?;
         let node = context
@@ -243,7 +271,7 @@ impl Ros2Bridge {
                 .spawn(move || {
                     // Keep the context alive as long as the node.
                     let _context = context;
-                    io.run(&rx, &stop, &head, clock.as_ref(), &published);
+                    io.run(&rx, &stop, &head, &published);
                 })
                 .map_err(Ros2Error::Thread)?
         };
@@ -276,11 +304,12 @@ impl Ros2Bridge {
         self.published.load(Ordering::Relaxed)
     }
 
-    /// The head poses received on the head topic.
-    pub fn head_source(&self) -> HeadSource {
+    /// The head poses received on the head topic, on `clock` (the loop's).
+    pub fn head_source(&self, clock: Arc<dyn Clock>) -> HeadSource {
         HeadSource {
             cell: Arc::clone(&self.head),
             seen: 0,
+            clock,
         }
     }
 }
@@ -365,7 +394,10 @@ impl NodeIo {
             ] {
                 let server = node
                     .create_server::<TriggerRequest, TriggerResponse>(
-                        ServiceMapping::Enhanced,
+                        match cfg.service_mapping {
+                            ServiceMappingName::Enhanced => ServiceMapping::Enhanced,
+                            ServiceMappingName::Cyclone => ServiceMapping::Cyclone,
+                        },
                         &topic_name(name)?,
                         &ServiceTypeName::new("std_srvs", "Trigger"),
                         reliable.clone(),
@@ -411,7 +443,6 @@ impl NodeIo {
         rx: &Receiver<Out>,
         stop: &AtomicBool,
         head: &LatestCell,
-        clock: &dyn Clock,
         published: &AtomicU64,
     ) {
         while !stop.load(Ordering::Relaxed) {
@@ -427,7 +458,7 @@ impl NodeIo {
                     std::thread::sleep(Duration::from_millis(1));
                 }
             }
-            self.take_head(head, clock);
+            self.take_head(head);
             self.serve();
         }
     }
@@ -515,21 +546,17 @@ impl NodeIo {
         }
     }
 
-    /// The newest head poses: published in the cell with their stamps on the loop's clock.
-    fn take_head(&mut self, cell: &LatestCell, clock: &dyn Clock) {
+    /// The newest head poses, into the cell with their stamps (Unix seconds).
+    fn take_head(&mut self, cell: &LatestCell) {
         let Some(sub) = &self.head_in else { return };
         while let Ok(Some((m, _))) = sub.take() {
             let Ok(pose) = convert::iso(&m.pose) else {
                 // Not a pose: the loop's tracker rules see no new sample (a stale stream holds).
                 continue;
             };
-            let unix_now = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(f64::NAN, |d| d.as_secs_f64());
-            let age = unix_now - convert::seconds(&m.header.stamp);
             cell.publish(&PoseSample {
                 tracker_from_marker: pose,
-                acquired_s: clock.now_s() - age.max(0.0),
+                acquired_s: convert::seconds(&m.header.stamp),
                 valid: true,
                 error_m: f64::NAN,
             });

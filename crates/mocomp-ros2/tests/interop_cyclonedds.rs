@@ -68,7 +68,7 @@ fn cyclone_receives_our_topics_with_their_values_and_rates_and_we_take_its_head_
         head_topic: Some("/mocomp/tracker/head".into()),
         ..Ros2Config::default()
     };
-    let bridge = Arc::new(Ros2Bridge::start(&cfg, None, Arc::clone(&clock)).unwrap());
+    let bridge = Arc::new(Ros2Bridge::start(&cfg, None).unwrap());
     // The loop's side: a cycle every 2 ms (500 Hz, an e-Series), the status every second.
     let running = Arc::new(AtomicBool::new(true));
     let sender = {
@@ -187,7 +187,7 @@ fn cyclone_receives_our_topics_with_their_values_and_rates_and_we_take_its_head_
     // with its stamp on our clock.
     let polling = Arc::new(AtomicBool::new(true));
     let poller = {
-        let (mut source, polling) = (bridge.head_source(), Arc::clone(&polling));
+        let (mut source, polling) = (bridge.head_source(Arc::clone(&clock)), Arc::clone(&polling));
         std::thread::spawn(move || {
             let (mut got, mut last) = (0u32, None);
             while polling.load(Ordering::Relaxed) {

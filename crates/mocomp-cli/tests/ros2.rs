@@ -1,0 +1,212 @@
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
+//! `mocomp run` in a ROS 2 system, against Cyclone DDS (PyPI `cyclonedds`, the DDS under ROS 2's
+//! `rmw_cyclonedds_cpp`) as the other nodes: with `--ros2` Cyclone receives the live loop's joint
+//! states, TF, poses and diagnostics; with `tracker.source = "ros2"` the loop compensates on the
+//! head poses Cyclone publishes. In the test script's network namespace (loopback only); each test
+//! its own DDS domain.
+
+mod common;
+use mocomp_geom::iso_from_ur_pose;
+use mocomp_testkit::{PythonPeer, TempDir, assert_loopback_only, workspace_root};
+use serde_json::{Value, json};
+use std::process::{Child, Command, Stdio};
+
+fn example(dir: &TempDir, host: &str, changes: &[(&str, &str)]) -> String {
+    let mut cfg = std::fs::read_to_string(workspace_root().join("examples/run-sim.toml"))
+        .unwrap()
+        .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
+    for (from, to) in changes {
+        assert!(cfg.contains(from), "the example has no {from:?}");
+        cfg = cfg.replace(from, to);
+    }
+    let path = dir.path("run.toml");
+    std::fs::write(&path, cfg).unwrap();
+    path
+}
+
+fn spawn_run(config: &str, seconds: &str, domain: u16, extra: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_mocomp"))
+        .args([
+            "run",
+            "--config",
+            config,
+            "--seconds",
+            seconds,
+            "--quiet",
+            "--json",
+        ])
+        .args(extra)
+        .env("ROS_DOMAIN_ID", domain.to_string())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn summary(child: Child) -> Value {
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn peer() -> PythonPeer {
+    PythonPeer::start("cyclonedds_peer.py", "cyclonedds", "11.0.1")
+}
+
+#[test]
+fn cyclone_sees_the_live_loop_joint_states_tf_poses_and_diagnostics() {
+    assert_loopback_only();
+    let dir = TempDir::new("mocomp-ros2-run");
+    let cfg = example(&dir, "127.0.0.80", &[]);
+    let mut py = peer();
+    let child = spawn_run(&cfg, "7", 21, &["--ros2"]);
+    let seen = py.request(&json!({"op": "listen", "seconds": 3.0, "wait": 20, "domain": 21}));
+    let v = summary(child);
+    eprintln!(
+        "cyclone saw: counts {} latency {}; mocomp: {}",
+        seen["counts"], seen["latency_ms"], v["ros2"]
+    );
+    // Every cycle of the UR3e's 500 Hz, and the node dropped none.
+    let rate = seen["rates_hz"]["joint_states"].as_f64().unwrap();
+    assert!(rate > 400.0, "{rate} Hz; {seen}");
+    assert_eq!(v["ros2"]["dropped"], 0, "{v}");
+    assert!(v["ros2"]["published"].as_u64().unwrap() > 4 * 2000, "{v}");
+    let last = &seen["last"];
+    let names = last["joint_states"]["name"].as_array().unwrap();
+    assert_eq!(names[0], "shoulder_pan_joint");
+    assert_eq!(
+        last["joint_states"]["position"].as_array().unwrap().len(),
+        6
+    );
+    let frames: Vec<&str> = last["tf"]["transforms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["child_frame_id"].as_str().unwrap())
+        .collect();
+    assert_eq!(frames, ["tool0", "tracker", "head", "coil_goal"]);
+    // The tracker where the calibration puts it, the goal as configured.
+    let tracker = &last["tf"]["transforms"][1]["transform"]["translation"];
+    assert!(
+        (tracker["x"].as_f64().unwrap() - 1.0).abs() < 1e-12,
+        "{tracker}"
+    );
+    let goal = &last["tf"]["transforms"][3]["transform"]["translation"];
+    assert!(
+        (goal["z"].as_f64().unwrap() - 0.113).abs() < 1e-12,
+        "{goal}"
+    );
+    // The coil: the flange's pose moved 5 cm along its axis (the coil's mounting).
+    let coil = &last["coil_pose"]["pose"]["position"];
+    assert!(coil["z"].as_f64().is_some());
+    let diag = &last["diagnostics"]["status"][0];
+    assert_eq!(diag["hardware_id"], "mocomp");
+    let keys: Vec<&str> = diag["values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|kv| kv["key"].as_str().unwrap())
+        .collect();
+    assert!(
+        keys.contains(&"rate_hz") && keys.contains(&"deviation_max_mm"),
+        "{diag}"
+    );
+}
+
+#[test]
+fn hold_and_resume_are_ros_2_services_a_cyclone_node_calls() {
+    assert_loopback_only();
+    let dir = TempDir::new("mocomp-ros2-services");
+    let cfg = example(
+        &dir,
+        "127.0.0.82",
+        &[("kind = \"nods\"", "kind = \"still\"")],
+    );
+    let mut text = std::fs::read_to_string(&cfg).unwrap();
+    text.push_str("\n[ros2]\nenabled = true\nservice_mapping = \"cyclone\"\n");
+    std::fs::write(&cfg, text).unwrap();
+    let mut py = peer();
+    let child = spawn_run(&cfg, "10", 23, &[]);
+    // Once tracking (the approach takes about 3 s), hold; a second later, resume.
+    let seen = py.request(&json!({"op": "listen", "seconds": 3.5, "wait": 20, "domain": 23}));
+    assert!(
+        seen["counts"]["joint_states"].as_u64().unwrap() > 1000,
+        "{seen}"
+    );
+    let held = py.request(
+        &json!({"op": "call", "service": "/mocomp/hold", "seq": 1, "wait": 10, "domain": 23}),
+    );
+    assert_eq!(
+        held,
+        json!({"success": true, "message": "hold requested"}),
+        "{held}"
+    );
+    std::thread::sleep(std::time::Duration::from_secs(1));
+    let resumed = py.request(
+        &json!({"op": "call", "service": "/mocomp/resume", "seq": 2, "wait": 10, "domain": 23}),
+    );
+    assert_eq!(resumed["success"], true, "{resumed}");
+    let v = summary(child);
+    let events: Vec<&str> = v["event_log"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e[1].as_str().unwrap())
+        .collect();
+    let hold = events.iter().position(|e| *e == "Hold(Operator)");
+    assert!(hold.is_some(), "{events:?}");
+    assert!(
+        events[hold.unwrap()..].contains(&"Resume") || events[hold.unwrap()..].contains(&"Reached"),
+        "{events:?}"
+    );
+}
+
+#[test]
+fn the_loop_compensates_on_head_poses_cyclone_publishes() {
+    assert_loopback_only();
+    let dir = TempDir::new("mocomp-ros2-head");
+    // The head's poses come from ROS 2: the simulated robot, no simulated tracker.
+    let cfg = example(
+        &dir,
+        "127.0.0.81",
+        &[("source = \"simulated\"", "source = \"ros2\"")],
+    );
+    // The head where the example's simulated head rests, in the tracker's frame.
+    let base_from_tracker = iso_from_ur_pose(&[1.0, 0.1, 0.9, 2.0019, -1.4693, -0.5718]).unwrap();
+    let base_from_head = iso_from_ur_pose(&[0.30, -0.12, -0.02, 0.0, 0.0, 0.3]).unwrap();
+    let h = base_from_tracker.inverse() * base_from_head;
+    let (t, q) = (h.translation.vector, h.rotation);
+    let mut py = peer();
+    let child = spawn_run(&cfg, "8", 22, &[]);
+    let published = py.request(
+        &json!({"op": "publish_head", "topic": "/mocomp/tracker/head",
+        "rate_hz": 60, "seconds": 7.5, "wait": 20, "domain": 22, "noise_m": 0.0001,
+        "pose": [t.x, t.y, t.z, q.i, q.j, q.k, q.w]}),
+    );
+    let v = summary(child);
+    eprintln!(
+        "published {published}; mocomp: tracking {}% deviation rms {} mm",
+        v["tracking_percent"], v["deviation_rms_mm"]
+    );
+    assert_eq!(published["matched"], true);
+    let events: Vec<&str> = v["event_log"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e[1].as_str().unwrap())
+        .collect();
+    // The planned approach reached the goal on the head Cyclone reports, and the loop tracked it.
+    assert!(events.contains(&"Reached"), "{events:?}");
+    assert!(v["tracking_percent"].as_f64().unwrap() > 20.0, "{v}");
+    assert!(v["deviation_rms_mm"].as_f64().unwrap() < 1.0, "{v}");
+}
