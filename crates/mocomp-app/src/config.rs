@@ -79,6 +79,10 @@ pub struct Config {
     /// `mocomp run`: write every cycle to this CSV file.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub log_csv: Option<String>,
+    /// `mocomp run`: record the session to this MCAP file (ROS 2 profile: the ROS 2 node's
+    /// topics and every cycle record), whether or not `[ros2]` is on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub record_mcap: Option<String>,
     /// The robot.
     pub robot: RobotSection,
     /// The tracker.
@@ -913,9 +917,10 @@ impl Config {
 
 /// Keys the experiment does not use (it builds its own scene, calibrates itself and sets its
 /// own goal), as dotted paths; a table stands for every key in it.
-const NOT_FOR_THE_EXPERIMENT: [&str; 17] = [
+const NOT_FOR_THE_EXPERIMENT: [&str; 18] = [
     "duration_s",
     "log_csv",
+    "record_mcap",
     "robot.simulate",
     "robot.initial_joints_rad",
     "tracker.source",

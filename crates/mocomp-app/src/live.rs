@@ -97,6 +97,8 @@ pub trait Observer: Send {
     fn cycle(&mut self, _record: &CycleRecord, _age_s: f64) {}
     /// What the session did at loop time `t` (a pulse, the gate, the drift monitor), in words.
     fn session(&mut self, _t: f64, _text: &str) {}
+    /// The loop has ended: the last call (a recording is closed here).
+    fn finish(&mut self) {}
 }
 
 /// Tells two observers.
@@ -120,6 +122,10 @@ impl<A: Observer, B: Observer> Observer for Both<A, B> {
         self.0.session(t, text);
         self.1.session(t, text);
     }
+    fn finish(&mut self) {
+        self.0.finish();
+        self.1.finish();
+    }
 }
 
 impl<O: Observer + ?Sized> Observer for Box<O> {
@@ -134,6 +140,9 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     }
     fn session(&mut self, t: f64, text: &str) {
         (**self).session(t, text);
+    }
+    fn finish(&mut self) {
+        (**self).finish();
     }
 }
 
@@ -476,6 +485,7 @@ fn logger(
     }
     // The loop has ended: the notes of its last cycles.
     session.drain(&mut s, observer);
+    observer.finish();
     if let Some(w) = w.as_mut()
         && log_error.is_none()
         && let Err(e) = w.flush()
@@ -617,6 +627,8 @@ pub struct RunReport {
     /// The ROS 2 node's messages published, and those it could not take in time (`None`:
     /// no node).
     pub ros2: Option<Ros2Figures>,
+    /// The MCAP recording (`None`: none asked).
+    pub record: Option<crate::ros2::RecordOutcome>,
 }
 
 /// What the ROS 2 node did.
@@ -708,6 +720,7 @@ impl RunReport {
             realtime_complete: rt.is_some_and(mocomp_rt::RtReport::complete),
             session,
             ros2: None,
+            record: None,
         }
     }
 
@@ -719,6 +732,9 @@ impl RunReport {
         }
         if let Some(e) = &self.session.pulse_log_error {
             return Some(format!("the pulse log is incomplete: {e}"));
+        }
+        if let Some(e) = self.record.as_ref().and_then(|r| r.error.as_ref()) {
+            return Some(format!("the recording is incomplete: {e}"));
         }
         self.log_error.as_ref().map(|e| {
             format!(
@@ -871,13 +887,13 @@ pub fn run(
         Some(link) => (Some(link.bridge), Some(link.calls)),
         None => (None, None),
     };
-    let observer: Box<dyn Observer> = match &ros2 {
-        Some(bridge) => Box::new(Both(
-            observer,
-            crate::ros2::Ros2Observer::new(setup, Arc::clone(bridge))?,
-        )),
-        None => observer,
-    };
+    let (observer, record_slot): (Box<dyn Observer>, _) =
+        if ros2.is_some() || setup.file.record_mcap.is_some() {
+            let (ros, slot) = crate::ros2::RosObserver::new(setup, ros2.clone())?;
+            (Box::new(Both(observer, ros)), slot)
+        } else {
+            (observer, None)
+        };
     // The session: its notes go to the logger too, which writes the pulse log (opened now, so a
     // path that cannot be written stops the run before the robot moves).
     let session_setup = SessionSetup::from_setup(setup)?;
@@ -1078,6 +1094,8 @@ pub fn run(
     drop(client);
     drop(session_client);
     let mut report = RunReport::new(&mut s, realtime.as_ref(), &final_mode, stop, session_report);
+    report.record =
+        record_slot.and_then(|s| s.lock().unwrap_or_else(PoisonError::into_inner).take());
     report.ros2 = ros2.map(|b| Ros2Figures {
         published: b.published(),
         dropped: b.dropped(),

@@ -1,7 +1,8 @@
-//! `mocomp run` as a ROS 2 node (`[ros2]`, `--ros2`): the node ([`mocomp_ros2::Ros2Bridge`]) is
-//! started before the robot connects; an [`Observer`] on the logger's thread turns each cycle
-//! into what the node publishes (never on the loop's thread); the hold and resume services reach
-//! the loop through a channel its pace polls, as the console's buttons do.
+//! `mocomp run` as a ROS 2 node (`[ros2]`, `--ros2`) and its MCAP recording (`record_mcap`,
+//! `--record`): the node ([`mocomp_ros2::Ros2Bridge`]) is started before the robot connects; an
+//! [`Observer`] on the logger's thread turns each cycle into what the node publishes and the
+//! recording stores (never on the loop's thread); the hold and resume services reach the loop
+//! through a channel its pace polls, as the console's buttons do.
 
 use crate::config::{Setup, TrackerSource};
 use crate::live::{Observer, Status, mode_name};
@@ -52,29 +53,97 @@ pub fn start(setup: &Setup) -> Result<Option<Ros2Link>, AppError> {
     }))
 }
 
-/// Publishes each cycle (at most `ros2.publish_hz`) and the status through the node.
-#[derive(Debug)]
-pub struct Ros2Observer {
-    bridge: Arc<Ros2Bridge>,
+/// What a recording left: its messages and why it stopped, if it did.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct RecordOutcome {
+    /// The file.
+    pub path: String,
+    /// Messages written.
+    pub messages: u64,
+    /// Why the recording stopped early or could not be closed (the run then fails).
+    pub error: Option<String>,
+}
+
+/// Where the observer leaves the recording's outcome for the run's report.
+pub type RecordSlot = Arc<std::sync::Mutex<Option<RecordOutcome>>>;
+
+/// On the logger's thread: each cycle to the ROS 2 node (at most `ros2.publish_hz`) and to the
+/// recording (every cycle), the status to both.
+pub struct RosObserver {
+    bridge: Option<Arc<Ros2Bridge>>,
+    recorder: Option<mocomp_record::Recorder<std::io::BufWriter<std::fs::File>>>,
+    record: Option<(RecordSlot, String)>,
+    record_error: Option<String>,
     arm: Arm,
+    joint_names: [String; 6],
+    frames: mocomp_ros2::Frames,
+    node_name: String,
     flange_from_coil: Isometry3<f64>,
     base_from_tracker: Isometry3<f64>,
     min_period_s: f64,
     last_t: f64,
 }
 
-impl Ros2Observer {
-    /// The observer of `setup`'s loop, publishing through `bridge`.
-    pub fn new(setup: &Setup, bridge: Arc<Ros2Bridge>) -> Result<Self, AppError> {
-        let hz = setup.file.ros2.publish_hz;
-        Ok(Self {
-            bridge,
-            arm: setup.arm,
-            flange_from_coil: setup.file.flange_from_coil()?,
-            base_from_tracker: setup.base_from_tracker,
-            min_period_s: if hz > 0.0 { 1.0 / hz } else { 0.0 },
-            last_t: f64::NEG_INFINITY,
-        })
+impl std::fmt::Debug for RosObserver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RosObserver")
+            .field("recording", &self.recorder.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+impl RosObserver {
+    /// The observer of `setup`'s loop: publishing through `bridge`, recording to
+    /// `record_mcap` (the file is created now; its outcome goes to the slot returned).
+    pub fn new(
+        setup: &Setup,
+        bridge: Option<Arc<Ros2Bridge>>,
+    ) -> Result<(Self, Option<RecordSlot>), AppError> {
+        let file = &setup.file;
+        let hz = file.ros2.publish_hz;
+        let (recorder, record) = match &file.record_mcap {
+            Some(p) => {
+                let path = std::path::Path::new(p);
+                let r = mocomp_record::Recorder::create(path)
+                    .what(|| format!("record_mcap {}", path.display()))?;
+                let slot: RecordSlot = Arc::default();
+                (Some(r), Some((slot, p.clone())))
+            }
+            None => (None, None),
+        };
+        let slot = record.as_ref().map(|(s, _)| Arc::clone(s));
+        Ok((
+            Self {
+                bridge,
+                recorder,
+                record,
+                record_error: None,
+                arm: setup.arm,
+                joint_names: mocomp_ros2::node::UR_JOINTS.map(String::from),
+                frames: file.ros2.frames.clone(),
+                node_name: file.ros2.node_name.clone(),
+                flange_from_coil: file.flange_from_coil()?,
+                base_from_tracker: setup.base_from_tracker,
+                min_period_s: if hz > 0.0 { 1.0 / hz } else { 0.0 },
+                last_t: f64::NEG_INFINITY,
+            },
+            slot,
+        ))
+    }
+
+    fn recording(
+        &mut self,
+        f: impl FnOnce(
+            &mut mocomp_record::Recorder<std::io::BufWriter<std::fs::File>>,
+        ) -> Result<(), mocomp_record::RecordError>,
+    ) {
+        if let Some(r) = self.recorder.as_mut()
+            && let Err(e) = f(r)
+        {
+            // A recording that cannot be written stops; the run reports it and fails.
+            self.record_error = Some(e.to_string());
+            self.recorder = None;
+        }
     }
 }
 
@@ -84,7 +153,15 @@ fn unix_now() -> f64 {
         .map_or(f64::NAN, |d| d.as_secs_f64())
 }
 
-impl Observer for Ros2Observer {
+fn unix_ns(s: f64) -> u64 {
+    if s.is_finite() && s > 0.0 {
+        (s * 1e9) as u64
+    } else {
+        0
+    }
+}
+
+impl Observer for RosObserver {
     fn event(&mut self, _t: f64, _event: &Event) {}
 
     fn status(&mut self, s: &Status) {
@@ -94,7 +171,7 @@ impl Observer for Ros2Observer {
             Mode::Faulted(_) => 2,
         };
         let f = |x: f64| format!("{x:.3}");
-        self.bridge.send(Out::Status(mocomp_ros2::Status {
+        let status = mocomp_ros2::Status {
             stamp_unix_s: unix_now(),
             level,
             message: mode_name(&s.mode),
@@ -105,23 +182,26 @@ impl Observer for Ros2Observer {
                 ("sample_age_ms".into(), f(s.sample_age_s * 1e3)),
                 ("command_delay_ms".into(), f(s.command_delay_s * 1e3)),
             ],
-        }));
+        };
+        let node_name = self.node_name.clone();
+        let t_ns = unix_ns(status.stamp_unix_s);
+        self.recording(|r| r.status(t_ns, &status.message(&node_name)));
+        if let Some(b) = &self.bridge {
+            b.send(Out::Status(status));
+        }
     }
 
     fn cycle(&mut self, r: &CycleRecord, age_s: f64) {
-        if r.t - self.last_t < self.min_period_s * 0.999
-            || !r.q_actual.iter().all(|q| q.is_finite())
-        {
+        if !r.q_actual.iter().all(|q| q.is_finite()) {
             return;
         }
-        self.last_t = r.t;
         let age = if age_s.is_finite() {
             age_s.max(0.0)
         } else {
             0.0
         };
         let base_from_flange = self.arm.fk_flange(&r.q_actual);
-        self.bridge.send(Out::Cycle(Box::new(Snapshot {
+        let snapshot = Snapshot {
             stamp_unix_s: unix_now() - age,
             q: r.q_actual,
             qd: r.qd_actual,
@@ -130,6 +210,54 @@ impl Observer for Ros2Observer {
             base_from_tracker: self.base_from_tracker,
             tracker_from_head: r.head_now,
             head_from_coil_goal: r.head_from_coil_goal,
-        })));
+        };
+        if self.recorder.is_some() {
+            let messages =
+                mocomp_ros2::CycleMessages::of(&snapshot, &self.joint_names, &self.frames);
+            let record = mocomp_record::CycleRecordMsg {
+                t_s: r.t,
+                mode: mode_name(&r.mode),
+                event: r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
+                sample_age_s: r.sample_age_s,
+                horizon_s: r.horizon_s,
+                command_delay_s: r.command_delay_s,
+                head_speed_m_s: r.head_speed.0,
+                head_speed_rad_s: r.head_speed.1,
+                deviation_m: r.deviation.0,
+                deviation_rad: r.deviation.1,
+                coil_error_m: r.coil_error.0,
+                q_command: r.q_command,
+                q_actual: r.q_actual,
+                contact_force_n: r.contact_force_n,
+                compute_ns: r.compute_ns,
+            };
+            let t_ns = unix_ns(snapshot.stamp_unix_s);
+            self.recording(|w| w.cycle(t_ns, Some(&messages), &record));
+        }
+        if let Some(b) = &self.bridge
+            && r.t - self.last_t >= self.min_period_s * 0.999
+        {
+            self.last_t = r.t;
+            b.send(Out::Cycle(Box::new(snapshot)));
+        }
+    }
+
+    fn finish(&mut self) {
+        let Some((slot, path)) = &self.record else {
+            return;
+        };
+        let mut outcome = RecordOutcome {
+            path: path.clone(),
+            messages: self.recorder.as_ref().map_or(0, |r| r.messages()),
+            error: self.record_error.take(),
+        };
+        if let Some(r) = self.recorder.take()
+            && let Err(e) = r.finish()
+        {
+            outcome.error = Some(e.to_string());
+        }
+        *slot
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(outcome);
     }
 }

@@ -38,6 +38,10 @@ pub struct RunCmd {
     /// `ros2.domain_id`, else `ROS_DOMAIN_ID`.
     #[arg(long)]
     pub ros2: bool,
+    /// Record the session to this MCAP file (overrides `record_mcap`): the ROS 2 topics and
+    /// every cycle record, CDR with the ROS 2 profile (Foxglove, `ros2 bag`).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<String>,
     /// The operator's console.
     #[command(flatten)]
     pub dashboard: DashboardArgs,
@@ -84,6 +88,9 @@ impl RunCmd {
         }
         if self.ros2 {
             setup.file.ros2.enabled = true;
+        }
+        if self.record.is_some() {
+            setup.file.record_mcap.clone_from(&self.record);
         }
         if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated
             && let Some(note) = setup.file.predictor_note()

@@ -5,6 +5,8 @@
 //!   structs in ROS 2's field order, their CDR (the wire format of DDS and of MCAP recordings) and
 //!   their `.msg` definitions.
 //! - [`convert`]: poses and times into those messages. Pure.
+//! - [`cycle`]: what a cycle and the status become in ROS 2 (the node's and a recording's
+//!   messages, built in one place). Pure.
 //! - [`node`]: the node, on its own thread: it publishes what the loop sends it, serves hold and
 //!   resume, and takes head poses from a topic.
 //!
@@ -13,7 +15,9 @@
 //! mapping, so any ROS 2 node (Cyclone DDS, Fast DDS) sees mocomp as one of its own.
 
 pub mod convert;
+pub mod cycle;
 pub mod msg;
 pub mod node;
 
-pub use node::{Frames, Out, Ros2Bridge, Ros2Config, Ros2Error, Snapshot, Status};
+pub use cycle::{CycleMessages, Frames, Snapshot, Status};
+pub use node::{Out, Ros2Bridge, Ros2Config, Ros2Error};

@@ -14,11 +14,11 @@
 //! the poses and the head topic best-effort (sensor data); diagnostics reliable.
 
 use crate::convert;
+use crate::cycle::{CycleMessages, Frames, Snapshot, Status};
 use crate::msg::{
-    DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue, PoseStamped, RosMessage,
-    TfMessage, TransformStamped, TriggerRequest, TriggerResponse,
+    DiagnosticArray, JointState, PoseStamped, RosMessage, TfMessage, TriggerRequest,
+    TriggerResponse,
 };
-use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, LatestCell, PoseSample, PoseSource};
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, QosProfile,
@@ -30,34 +30,6 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
 use std::thread::JoinHandle;
 use std::time::Duration;
-
-/// The frame names (`tf` and the headers).
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Frames {
-    /// The robot's base. [`base`, as the UR ROS 2 driver]
-    pub base: String,
-    /// Its flange. [`tool0`]
-    pub flange: String,
-    /// The tracker. [`tracker`]
-    pub tracker: String,
-    /// The head marker. [`head`]
-    pub head: String,
-    /// The coil's goal on the head. [`coil_goal`]
-    pub coil_goal: String,
-}
-
-impl Default for Frames {
-    fn default() -> Self {
-        Self {
-            base: "base".into(),
-            flange: "tool0".into(),
-            tracker: "tracker".into(),
-            head: "head".into(),
-            coil_goal: "coil_goal".into(),
-        }
-    }
-}
 
 /// The node's settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -108,40 +80,6 @@ impl Default for Ros2Config {
             service_mapping: ServiceMappingName::default(),
         }
     }
-}
-
-/// One cycle, as the node publishes it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Snapshot {
-    /// When the robot's state was received, s since the Unix epoch.
-    pub stamp_unix_s: f64,
-    /// Measured joints, rad.
-    pub q: [f64; 6],
-    /// Measured joint speeds, rad/s.
-    pub qd: [f64; 6],
-    /// base_from_flange (FK of the measured joints).
-    pub base_from_flange: Isometry3<f64>,
-    /// base_from_coil, measured.
-    pub base_from_coil: Isometry3<f64>,
-    /// The calibration's base_from_tracker.
-    pub base_from_tracker: Isometry3<f64>,
-    /// The head estimated for the cycle's time, when known.
-    pub tracker_from_head: Option<Isometry3<f64>>,
-    /// The goal, head_from_coil.
-    pub head_from_coil_goal: Isometry3<f64>,
-}
-
-/// The loop's status, once a second (`/diagnostics`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Status {
-    /// s since the Unix epoch.
-    pub stamp_unix_s: f64,
-    /// 0 OK (tracking), 1 WARN (approaching, retreating, held), 2 ERROR (faulted).
-    pub level: u8,
-    /// The mode and its reason, in words.
-    pub message: String,
-    /// Figures: key, value.
-    pub values: Vec<(String, String)>,
 }
 
 /// What the node is sent.
@@ -463,86 +401,24 @@ impl NodeIo {
         }
     }
 
-    fn header(&self, stamp_unix_s: f64, frame: &str) -> Header {
-        Header {
-            stamp: convert::time(stamp_unix_s),
-            frame_id: frame.to_string(),
-        }
-    }
-
     /// Publishes one item; returns how many messages went out.
     fn publish(&self, out: &Out) -> u64 {
-        let f = &self.cfg.frames;
         match out {
-            Out::Cycle(s) => {
-                let stamp = s.stamp_unix_s;
-                let joints = JointState {
-                    header: self.header(stamp, ""),
-                    name: self.cfg.joint_names.to_vec(),
-                    position: s.q.to_vec(),
-                    velocity: s.qd.to_vec(),
-                    effort: Vec::new(),
-                };
-                let tf_of = |parent: &str, child: &str, iso: &Isometry3<f64>| TransformStamped {
-                    header: self.header(stamp, parent),
-                    child_frame_id: child.to_string(),
-                    transform: convert::transform(iso),
-                };
-                let mut transforms = vec![
-                    tf_of(&f.base, &f.flange, &s.base_from_flange),
-                    tf_of(&f.base, &f.tracker, &s.base_from_tracker),
-                ];
-                if let Some(h) = &s.tracker_from_head {
-                    transforms.push(tf_of(&f.tracker, &f.head, h));
-                }
-                transforms.push(tf_of(&f.head, &f.coil_goal, &s.head_from_coil_goal));
-                let mut n = 0;
-                n += u64::from(self.joints.publish(joints).is_ok());
-                n += u64::from(self.tf.publish(TfMessage { transforms }).is_ok());
-                n += u64::from(
-                    self.coil
-                        .publish(PoseStamped {
-                            header: self.header(stamp, &f.base),
-                            pose: convert::pose(&s.base_from_coil),
-                        })
-                        .is_ok(),
-                );
-                if let Some(h) = &s.tracker_from_head {
-                    n += u64::from(
-                        self.head
-                            .publish(PoseStamped {
-                                header: self.header(stamp, &f.base),
-                                pose: convert::pose(&(s.base_from_tracker * h)),
-                            })
-                            .is_ok(),
-                    );
+            Out::Cycle(snapshot) => {
+                let m = CycleMessages::of(snapshot, &self.cfg.joint_names, &self.cfg.frames);
+                let mut n = u64::from(self.joints.publish(m.joints).is_ok());
+                n += u64::from(self.tf.publish(m.tf).is_ok());
+                n += u64::from(self.coil.publish(m.coil).is_ok());
+                if let Some(head) = m.head {
+                    n += u64::from(self.head.publish(head).is_ok());
                 }
                 n
             }
-            Out::Status(st) => {
-                let status = DiagnosticStatus {
-                    level: st.level,
-                    name: format!("{}: compensation loop", self.cfg.node_name),
-                    message: st.message.clone(),
-                    hardware_id: self.cfg.node_name.clone(),
-                    values: st
-                        .values
-                        .iter()
-                        .map(|(k, v)| KeyValue {
-                            key: k.clone(),
-                            value: v.clone(),
-                        })
-                        .collect(),
-                };
-                u64::from(
-                    self.diagnostics
-                        .publish(DiagnosticArray {
-                            header: self.header(st.stamp_unix_s, ""),
-                            status: vec![status],
-                        })
-                        .is_ok(),
-                )
-            }
+            Out::Status(st) => u64::from(
+                self.diagnostics
+                    .publish(st.message(&self.cfg.node_name))
+                    .is_ok(),
+            ),
         }
     }
 

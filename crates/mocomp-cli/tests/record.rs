@@ -1,0 +1,90 @@
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
+//! `mocomp run --record FILE.mcap`: the live session recorded as MCAP with the ROS 2 profile,
+//! read back by the PyPI `mcap` reader with `mcap-ros2-support` (which decodes each message
+//! with the `.msg` schema the file carries): every message decoded, the counts and values those
+//! of the run.
+
+mod common;
+use common::{assert_success, mocomp};
+use mocomp_testkit::{PythonPeer, TempDir, workspace_root};
+use serde_json::json;
+
+#[test]
+fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
+    let dir = TempDir::new("mocomp-record");
+    let cfg = std::fs::read_to_string(workspace_root().join("examples/run-sim.toml"))
+        .unwrap()
+        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.83\"");
+    let path = dir.path("run.toml");
+    std::fs::write(&path, cfg).unwrap();
+    let mcap = dir.path("run.mcap");
+    let csv = dir.path("run.csv");
+    let out = mocomp(&[
+        "run",
+        "--config",
+        &path,
+        "--seconds",
+        "4",
+        "--record",
+        &mcap,
+        "--log-csv",
+        &csv,
+        "--quiet",
+        "--json",
+    ]);
+    assert_success(&out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let cycles = v["cycles"].as_u64().unwrap();
+    assert!(v["record"]["error"].is_null(), "{v}");
+    let mut py = PythonPeer::start("mcap_peer.py", "mcap-ros2-support", "0.6.0");
+    let r = py.request(&json!({"op": "read", "path": mcap}));
+    eprintln!("recorded: {} (run: {cycles} cycles)", r["counts"]);
+    assert_eq!(r["profile"], "ros2");
+    assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
+    // Every cycle's record, and every cycle's ROS 2 messages (the arm's state was measured from
+    // the first cycle on).
+    let count = |t: &str| r["counts"][t].as_u64().unwrap_or(0);
+    assert_eq!(count("/mocomp/cycle"), cycles);
+    for t in ["/joint_states", "/tf", "/mocomp/coil_pose"] {
+        assert_eq!(count(t), cycles, "{t}");
+    }
+    assert!(count("/mocomp/head_pose") > cycles / 2);
+    assert!((3..=5).contains(&count("/diagnostics")), "{}", r["counts"]);
+    assert_eq!(r["schemas"]["/joint_states"], "sensor_msgs/msg/JointState");
+    assert_eq!(r["schemas"]["/mocomp/cycle"], "mocomp_msgs/msg/CycleRecord");
+    assert_eq!(v["record"]["messages"].as_u64().unwrap(), {
+        let c = r["counts"].as_object().unwrap();
+        c.values().map(|n| n.as_u64().unwrap()).sum::<u64>()
+    });
+    // The cycle records are the CSV's, row for row.
+    let mut reader = csv::Reader::from_path(&csv).unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let cycle_t: Vec<f64> = r["cycle_t"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect();
+    assert_eq!(cycle_t.len(), rows.len());
+    for (t, row) in cycle_t.iter().zip(&rows) {
+        let csv_t: f64 = row[0].parse().unwrap();
+        assert!((t - csv_t).abs() < 1e-6, "{t} vs {csv_t}");
+    }
+    let last = &r["last"]["/mocomp/cycle"];
+    let q_csv: Vec<f64> = (18..24)
+        .map(|i| rows.last().unwrap()[i].parse().unwrap())
+        .collect();
+    for (a, b) in last["q_actual"].as_array().unwrap().iter().zip(&q_csv) {
+        assert!((a.as_f64().unwrap() - b).abs() < 1e-5, "{last}");
+    }
+    let js = &r["last"]["/joint_states"];
+    assert_eq!(js["name"][0], "shoulder_pan_joint");
+    let tf = &r["last"]["/tf"]["transforms"];
+    assert_eq!(tf[0]["child_frame_id"], "tool0");
+    assert!(r["last"]["/diagnostics"]["status"][0]["message"].is_string());
+}
