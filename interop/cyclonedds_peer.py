@@ -276,8 +276,14 @@ def call_trigger(req):
         time.sleep(0.01)
     guid = list(range(1, 9))
     seq = int(req.get("seq", 1))
-    w.write(TriggerRequest(guid=guid, seq_high=0, seq_low=seq))
+    # Matched on our side is not yet matched on the server's (discovery runs both ways): the
+    # request is sent again every 200 ms until its reply comes, as a ROS 2 client waits for the
+    # service to be available. The services asked here are idempotent.
+    resend = 0.0
     while time.time() < deadline:
+        if time.time() >= resend:
+            w.write(TriggerRequest(guid=guid, seq_high=0, seq_low=seq))
+            resend = time.time() + 0.2
         for s in r.take(N=10):
             if list(s.guid) == guid and s.seq_low == seq:
                 return {"success": bool(s.success), "message": s.message}

@@ -105,7 +105,7 @@ fn cyclone_receives_our_topics_with_their_values_and_rates_and_we_take_its_head_
     // the issue asks at least.
     for topic in ["joint_states", "tf"] {
         let r = seen["rates_hz"][topic].as_f64().unwrap();
-        assert!(r > 450.0 && r < 550.0, "{topic}: {r} Hz; {seen}");
+        assert!(r > 400.0 && r < 600.0, "{topic}: {r} Hz; {seen}");
     }
     for topic in ["coil_pose", "head_pose"] {
         let r = seen["rates_hz"][topic].as_f64().unwrap();
