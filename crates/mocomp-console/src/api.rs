@@ -19,6 +19,9 @@
 //! | `GET /ws` | reading | the status, 25 times a second, as JSON text messages |
 //!
 //! "Reading" needs the token unless the console listens on loopback ([`crate::auth`]). Every
+//! POST takes its body (up to [`MAX_BODY`]) even where it means nothing: a body left unread
+//! makes the HTTP server close the connection after its response, and a client that reuses the
+//! connection meanwhile gets no answer. Every
 //! request must name this console as its host; a browser's request from another origin is
 //! refused. Bodies are limited to [`MAX_BODY`] before they are read.
 
@@ -294,15 +297,15 @@ fn set_hold(api: &Api, headers: &HeaderMap, hold: bool) -> Response {
     axum::Json(json!({ "operator_hold": hold })).into_response()
 }
 
-async fn hold(State(api): State<Api>, headers: HeaderMap) -> Response {
+async fn hold(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
     set_hold(&api, &headers, true)
 }
 
-async fn resume(State(api): State<Api>, headers: HeaderMap) -> Response {
+async fn resume(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
     set_hold(&api, &headers, false)
 }
 
-async fn stop(State(api): State<Api>, headers: HeaderMap) -> Response {
+async fn stop(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
     if let Err(r) = api.may_change(&headers) {
         return r;
     }
@@ -362,15 +365,15 @@ fn set_freedrive(api: &Api, headers: &HeaderMap, on: bool) -> Response {
     }
 }
 
-async fn freedrive(State(api): State<Api>, headers: HeaderMap) -> Response {
+async fn freedrive(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
     set_freedrive(&api, &headers, true)
 }
 
-async fn handback(State(api): State<Api>, headers: HeaderMap) -> Response {
+async fn handback(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
     set_freedrive(&api, &headers, false)
 }
 
-async fn calibrate(State(api): State<Api>, headers: HeaderMap) -> Response {
+async fn calibrate(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
     if let Err(r) = api.may_change(&headers) {
         return r;
     }
@@ -389,7 +392,7 @@ async fn calibrate(State(api): State<Api>, headers: HeaderMap) -> Response {
     axum::Json(json!({ "started": true })).into_response()
 }
 
-async fn teach(State(api): State<Api>, headers: HeaderMap) -> Response {
+async fn teach(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
     if let Err(r) = api.may_change(&headers) {
         return r;
     }
