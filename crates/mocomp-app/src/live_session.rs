@@ -84,6 +84,18 @@ impl SessionSetup {
         })
     }
 
+    /// Whether `[session]` asks for anything: targets, the gate's output or its OpenIGTLink
+    /// device, pulses, a pulse log, the drift monitor. Without, the gate is still judged (the
+    /// loop does it for nothing) but not reported.
+    pub fn active(&self) -> bool {
+        !self.targets.is_empty()
+            || self.params.gate_output.is_some()
+            || self.params.pulse_input.is_some()
+            || self.igtl_device.is_some()
+            || self.pulse_log.is_some()
+            || self.marker.is_some()
+    }
+
     /// The target's name (`-` for the configuration's goal).
     pub fn name(&self, index: Option<usize>) -> &str {
         index
@@ -146,6 +158,8 @@ pub struct LoopSession {
     /// Pulse times announced over OpenIGTLink.
     pulses: Option<Receiver<f64>>,
     gate_level: bool,
+    /// Whether the gate's changes are reported ([`SessionSetup::active`]).
+    report_gate: bool,
     notes: SyncSender<Note>,
     /// Notes the logger could not take.
     pub dropped: u64,
@@ -179,6 +193,7 @@ impl LoopSession {
             history: JointHistory::default(),
             pulses,
             gate_level: false,
+            report_gate: s.active(),
             notes,
             dropped: 0,
         }
@@ -228,7 +243,7 @@ impl LoopSession {
         let step = self
             .session
             .cycle(rec, state.as_ref().map(|s| s.digital_inputs));
-        if let Some(e) = step.gate_event {
+        if let Some(e) = step.gate_event.filter(|_| self.report_gate) {
             self.note(Note::Gate(rec.t, e, self.target));
         }
         if let Some(p) = step.pulse {
