@@ -59,6 +59,16 @@ fn summary(child: Child) -> Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// The run's events, in words.
+fn event_names(v: &Value) -> Vec<&str> {
+    v["event_log"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e[1].as_str().unwrap())
+        .collect()
+}
+
 fn peer() -> PythonPeer {
     PythonPeer::start("cyclonedds_peer.py", "cyclonedds", "11.0.1")
 }
@@ -157,12 +167,7 @@ fn hold_and_resume_are_ros_2_services_a_cyclone_node_calls() {
     );
     assert_eq!(resumed["success"], true, "{resumed}");
     let v = summary(child);
-    let events: Vec<&str> = v["event_log"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e[1].as_str().unwrap())
-        .collect();
+    let events = event_names(&v);
     let hold = events.iter().position(|e| *e == "Hold(Operator)");
     assert!(hold.is_some(), "{events:?}");
     assert!(
@@ -199,12 +204,7 @@ fn the_loop_compensates_on_head_poses_cyclone_publishes() {
         v["tracking_percent"], v["deviation_rms_mm"]
     );
     assert_eq!(published["matched"], true);
-    let events: Vec<&str> = v["event_log"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e[1].as_str().unwrap())
-        .collect();
+    let events = event_names(&v);
     // The planned approach reached the goal on the head Cyclone reports, and the loop tracked it.
     assert!(events.contains(&"Reached"), "{events:?}");
     assert!(v["tracking_percent"].as_f64().unwrap() > 20.0, "{v}");
