@@ -10,18 +10,14 @@
 //! of the run.
 
 mod common;
-use common::{assert_success, mocomp};
-use mocomp_testkit::{PythonPeer, TempDir, workspace_root};
+use common::{assert_success, example_changed, mocomp};
+use mocomp_testkit::{PythonPeer, TempDir};
 use serde_json::json;
 
 #[test]
 fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     let dir = TempDir::new("mocomp-record");
-    let cfg = std::fs::read_to_string(workspace_root().join("examples/run-sim.toml"))
-        .unwrap()
-        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.83\"");
-    let path = dir.path("run.toml");
-    std::fs::write(&path, cfg).unwrap();
+    let path = example_changed(&dir, "127.0.0.83", &[]);
     let mcap = dir.path("run.mcap");
     let csv = dir.path("run.csv");
     let out = mocomp(&[

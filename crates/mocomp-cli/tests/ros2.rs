@@ -11,23 +11,11 @@
 //! its own DDS domain.
 
 mod common;
+use common::example_changed as example;
 use mocomp_geom::iso_from_ur_pose;
-use mocomp_testkit::{PythonPeer, TempDir, assert_loopback_only, workspace_root};
+use mocomp_testkit::{PythonPeer, TempDir, assert_loopback_only};
 use serde_json::{Value, json};
 use std::process::{Child, Command, Stdio};
-
-fn example(dir: &TempDir, host: &str, changes: &[(&str, &str)]) -> String {
-    let mut cfg = std::fs::read_to_string(workspace_root().join("examples/run-sim.toml"))
-        .unwrap()
-        .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
-    for (from, to) in changes {
-        assert!(cfg.contains(from), "the example has no {from:?}");
-        cfg = cfg.replace(from, to);
-    }
-    let path = dir.path("run.toml");
-    std::fs::write(&path, cfg).unwrap();
-    path
-}
 
 fn spawn_run(config: &str, seconds: &str, domain: u16, extra: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_mocomp"))

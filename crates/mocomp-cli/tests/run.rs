@@ -4,29 +4,12 @@
 //! configurations are refused with the key named.
 
 mod common;
-use common::{assert_success, mocomp};
-use mocomp_testkit::{TempDir, workspace_root};
+use common::{assert_success, example, example_changed, mocomp};
+use mocomp_testkit::TempDir;
 
-fn example() -> String {
-    std::fs::read_to_string(workspace_root().join("examples/run-sim.toml")).unwrap()
-}
-
-/// Writes the example configuration with its simulated robot on `host` (each test its own
-/// loopback address, so tests in parallel do not share the UR ports); returns its path.
+/// The example configuration with its simulated robot on `host`; its path.
 fn example_at(dir: &TempDir, host: &str) -> String {
     example_changed(dir, host, &[])
-}
-
-/// [`example_at`], with each `(key = old, key = new)` line replaced.
-fn example_changed(dir: &TempDir, host: &str, changes: &[(&str, &str)]) -> String {
-    let path = dir.path("run.toml");
-    let mut cfg = example().replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
-    for (from, to) in changes {
-        assert!(cfg.contains(from), "the example has no {from:?}");
-        cfg = cfg.replace(from, to);
-    }
-    std::fs::write(&path, cfg).unwrap();
-    path
 }
 
 #[test]

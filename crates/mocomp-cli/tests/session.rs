@@ -12,29 +12,22 @@
 //! flange marker, and the loop holds.
 
 mod common;
-use common::{assert_success, mocomp};
-use mocomp_testkit::{TempDir, workspace_root};
+use common::{assert_success, example_changed, mocomp};
+use mocomp_testkit::TempDir;
 
 /// The example configuration on `host`, the head nodding gently (a seated patient's, about
 /// 8 mm/s), with `session` appended and each `(old, new)` line replaced.
 fn config(dir: &TempDir, host: &str, session: &str, changes: &[(&str, &str)]) -> String {
-    let mut cfg = std::fs::read_to_string(workspace_root().join("examples/run-sim.toml"))
-        .unwrap()
-        .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
-    for (from, to) in [
+    let mut all = vec![
         ("sway_m = 0.02 ", "sway_m = 0.004 "),
         ("turn_rad = 0.15 ", "turn_rad = 0.03 "),
         ("nod_rad = 0.08 ", "nod_rad = 0.02 "),
         ("frequency_hz = 0.6366 ", "frequency_hz = 0.3 "),
-    ]
-    .iter()
-    .chain(changes)
-    {
-        assert!(cfg.contains(from), "the example has no {from:?}");
-        cfg = cfg.replace(from, to);
-    }
+    ];
+    all.extend_from_slice(changes);
+    let path = example_changed(dir, host, &all);
+    let mut cfg = std::fs::read_to_string(&path).unwrap();
     cfg.push_str(session);
-    let path = dir.path("run.toml");
     std::fs::write(&path, cfg).unwrap();
     path
 }
