@@ -90,7 +90,8 @@ impl Controller for PaperPipeline {
                 self.newest = Some(s);
             }
         }
-        let q_now = robot.state().map(|s| s.actual_q);
+        let state = robot.state().map(|s| (s.actual_q, s.actual_qd));
+        let q_now = state.map(|s| s.0);
         if t + 1e-9 >= self.next_loop_s {
             self.next_loop_s += self.cfg.period_s;
             if let (Some(s), Some(q)) = (self.newest, q_now) {
@@ -141,6 +142,13 @@ impl Controller for PaperPipeline {
         self.was_faulted = fault.is_some();
         rec.sample_age_s = self.newest.map_or(f64::NAN, |s| now - s.acquired_s);
         rec.horizon_s = self.last_horizon_s;
+        // What the pipeline knows, for the record: the arm as measured, its goal, and the head
+        // as its newest sample has it (it predicts nothing).
+        if let Some((q, qd)) = state {
+            (rec.q_actual, rec.qd_actual) = (q, qd);
+        }
+        rec.head_from_coil_goal = self.head_from_coil_goal;
+        rec.head_now = self.newest.map(|s| s.tracker_from_marker);
         rec
     }
 }
@@ -183,10 +191,18 @@ mod tests {
             poses.now = t;
             robot.tick(t);
             let before = robot.seq;
+            let measured = robot.state().unwrap().actual_q;
             let rec = p.cycle(t, &mut robot, &mut poses);
             if robot.seq != before {
                 moves.push((t, rec.horizon_s));
             }
+            // The record has the arm as measured and the head as the newest sample has it.
+            assert_eq!(rec.q_actual, measured);
+            assert_eq!(rec.head_from_coil_goal, head_from_coil_goal());
+            let head = rec.head_now.unwrap();
+            assert!(
+                (head.translation.vector - tracker_from_head.translation.vector).norm() < 1e-12
+            );
         }
         // A 10 Hz loop from t = 1.0 s, each move 80 ms after its tick: 1.08, 1.18, 1.28, 1.38.
         let times: Vec<f64> = moves
