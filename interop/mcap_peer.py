@@ -5,8 +5,11 @@ Requests (one JSON line each):
   {"op": "version"}        -> {"version": "0.6.0"}  (mcap-ros2-support)
   {"op": "read", "path": p} -> {"profile": str, "counts": {topic: n}, "schemas": {topic: name},
                                "first": {topic: message as JSON}, "last": {...},
-                               "cycle_t": [t_s of every /mocomp/cycle message], "undecoded": n}
-Every message is decoded; one that does not decode counts in "undecoded".
+                               "cycle_t": [t_s of every /mocomp/cycle message],
+                               "cycle_controller": [its controller],
+                               "in_time_order": bool (log times never go back), "undecoded": n}
+Messages are read in the order the file has them (not sorted by time). Every message is decoded;
+one that does not decode counts in "undecoded".
 """
 
 from importlib import metadata as md
@@ -30,13 +33,15 @@ def to_json(x):
 
 
 def read(path):
-    counts, schemas, first, last, cycle_t = {}, {}, {}, {}, []
-    undecoded = 0
+    counts, schemas, first, last, cycle_t, cycle_controller = {}, {}, {}, {}, [], []
+    undecoded, previous, in_time_order = 0, 0, True
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         profile = reader.get_header().profile
-        for schema, channel, message, decoded in reader.iter_decoded_messages():
+        for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
             t = channel.topic
+            in_time_order = in_time_order and message.log_time >= previous
+            previous = message.log_time
             counts[t] = counts.get(t, 0) + 1
             schemas[t] = schema.name
             if decoded is None:
@@ -47,8 +52,10 @@ def read(path):
             last[t] = j
             if t == "/mocomp/cycle":
                 cycle_t.append(decoded.t_s)
+                cycle_controller.append(decoded.controller)
     return {"profile": profile, "counts": counts, "schemas": schemas, "first": first,
-            "last": last, "cycle_t": cycle_t, "undecoded": undecoded}
+            "last": last, "cycle_t": cycle_t, "cycle_controller": cycle_controller,
+            "in_time_order": in_time_order, "undecoded": undecoded}
 
 
 def handle(req):

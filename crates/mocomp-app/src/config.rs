@@ -917,10 +917,10 @@ impl Config {
 
 /// Keys the experiment does not use (it builds its own scene, calibrates itself and sets its
 /// own goal), as dotted paths; a table stands for every key in it.
-const NOT_FOR_THE_EXPERIMENT: [&str; 18] = [
+/// (`record_mcap`, `ros2.node_name` and `ros2.frames` name the demo's recording.)
+const NOT_FOR_THE_EXPERIMENT: [&str; 21] = [
     "duration_s",
     "log_csv",
-    "record_mcap",
     "robot.simulate",
     "robot.initial_joints_rad",
     "tracker.source",
@@ -935,7 +935,11 @@ const NOT_FOR_THE_EXPERIMENT: [&str; 18] = [
     "goal",
     "realtime",
     "session",
-    "ros2",
+    "ros2.enabled",
+    "ros2.domain_id",
+    "ros2.publish_hz",
+    "ros2.head_topic",
+    "ros2.service_mapping",
 ];
 
 /// The keys a configuration's `text` sets, to other values than their defaults, that `mocomp

@@ -801,14 +801,16 @@ pub enum Phase {
     Compensating(Controller),
 }
 
-/// A front end watching the experiment as it runs (`mocomp demo --dashboard`): each controller's
-/// run is paced in real time (one second of the stepped clock per second of the wall clock; the
-/// record is the same as unpaced, the lockstep decides it), its cycles are told to an observer,
-/// and the operator's hold and stop reach it.
+/// A front end watching the experiment as it runs (`mocomp demo --dashboard`, `--record`): each
+/// controller's cycles are told to an observer, and the operator's hold and stop reach it; for a
+/// console each run is paced in real time (one second of the stepped clock per second of the
+/// wall clock; the record is the same as unpaced, the lockstep decides it).
 pub struct Watch<'a> {
     /// The operator's requests: hold and resume (the `mocomp` controller's; the paper's pipeline
     /// has none), and stop (the run ends; the experiment then ends early).
     pub controls: &'a Controls,
+    /// Paced in real time (a person watches), or as fast as the lockstep goes (a recording).
+    pub real_time: bool,
     /// Makes the observer of one controller's run, given the loop configuration the experiment
     /// calibrated (its frames place the scene).
     pub observer: &'a mut dyn FnMut(Controller, &LoopConfig) -> Box<dyn Observer>,
@@ -820,11 +822,12 @@ impl std::fmt::Debug for Watch<'_> {
     }
 }
 
-/// One run's watching: its observer, the wall clock it is paced by, the hold passed on.
+/// One run's watching: its observer, the wall clock it is paced by (if it is), the hold passed
+/// on.
 struct Watching<'a> {
     controls: &'a Controls,
     observer: Box<dyn Observer>,
-    wall0: Instant,
+    wall0: Option<Instant>,
     held: bool,
 }
 
@@ -1444,7 +1447,7 @@ impl Rig {
         let watching = watch.map(|w| Watching {
             controls: w.controls,
             observer: (w.observer)(controller, &loop_cfg),
-            wall0: Instant::now(),
+            wall0: w.real_time.then(Instant::now),
             held: false,
         });
         let t0 = self.clock.now_s();
@@ -1506,7 +1509,12 @@ impl Rig {
             pulses: Vec::new(),
             withheld: 0,
         };
-        crate::driver::drive(ctl.as_mut(), &mut pace)?;
+        let driven = crate::driver::drive(ctl.as_mut(), &mut pace);
+        if let Some(w) = pace.watching.as_mut() {
+            // The run is over (or failed): a recording closes its part.
+            w.observer.finish();
+        }
+        driven?;
         if pace.gate_level
             && let Some(bit) = pace.session.params().gate_output
         {
@@ -1643,10 +1651,12 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
                 return Ok(None);
             }
             // Paced in real time: the tick is due when as much wall time has passed.
-            let due = watching.wall0
-                + Duration::from_secs_f64((self.world.clock.now_s() - self.t0).max(0.0));
-            if let Some(wait) = due.checked_duration_since(Instant::now()) {
-                std::thread::sleep(wait);
+            if let Some(wall0) = watching.wall0 {
+                let due =
+                    wall0 + Duration::from_secs_f64((self.world.clock.now_s() - self.t0).max(0.0));
+                if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                    std::thread::sleep(wait);
+                }
             }
         }
         let w = &mut *self.world;

@@ -21,6 +21,7 @@ pub mod camera;
 pub mod collect;
 pub mod config;
 pub mod config_file;
+pub mod demo_record;
 pub mod driver;
 pub mod experiment;
 pub mod frames;

@@ -67,6 +67,94 @@ pub struct RecordOutcome {
 /// Where the observer leaves the recording's outcome for the run's report.
 pub type RecordSlot = Arc<std::sync::Mutex<Option<RecordOutcome>>>;
 
+/// What places a cycle's robot in the world: the arm, the coil on its flange and the
+/// calibration (a cycle's record carries the joints and the head; the rest is the setup's).
+#[derive(Debug, Clone, Copy)]
+pub struct Rig {
+    /// The arm's kinematics.
+    pub arm: Arm,
+    /// The coil on the flange.
+    pub flange_from_coil: Isometry3<f64>,
+    /// The calibration's tracker in the base.
+    pub base_from_tracker: Isometry3<f64>,
+}
+
+impl Rig {
+    /// The cycle `r` as the node publishes it, stamped `stamp_unix_s` (`None` before the arm's
+    /// state was measured).
+    pub fn snapshot(&self, r: &CycleRecord, stamp_unix_s: f64) -> Option<Snapshot> {
+        if !r.q_actual.iter().all(|q| q.is_finite()) {
+            return None;
+        }
+        let base_from_flange = self.arm.fk_flange(&r.q_actual);
+        Some(Snapshot {
+            stamp_unix_s,
+            q: r.q_actual,
+            qd: r.qd_actual,
+            base_from_flange,
+            base_from_coil: base_from_flange * self.flange_from_coil,
+            base_from_tracker: self.base_from_tracker,
+            tracker_from_head: r.head_now,
+            head_from_coil_goal: r.head_from_coil_goal,
+        })
+    }
+}
+
+/// The cycle record `r` of `controller`'s loop as the recording stores it.
+pub fn cycle_record_msg(r: &CycleRecord, controller: &str) -> mocomp_record::CycleRecordMsg {
+    mocomp_record::CycleRecordMsg {
+        t_s: r.t,
+        controller: controller.to_string(),
+        mode: mode_name(&r.mode),
+        event: r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
+        sample_age_s: r.sample_age_s,
+        horizon_s: r.horizon_s,
+        command_delay_s: r.command_delay_s,
+        head_speed_m_s: r.head_speed.0,
+        head_speed_rad_s: r.head_speed.1,
+        deviation_m: r.deviation.0,
+        deviation_rad: r.deviation.1,
+        coil_error_m: r.coil_error.0,
+        q_command: r.q_command,
+        q_actual: r.q_actual,
+        contact_force_n: r.contact_force_n,
+        compute_ns: r.compute_ns,
+    }
+}
+
+/// The loop's status as `/diagnostics` says it: OK while tracking, WARN while approaching,
+/// held or retreating, ERROR when faulted; the figures in ms and mm.
+pub fn diagnostic(s: &Status, stamp_unix_s: f64, controller: &str) -> mocomp_ros2::Status {
+    let level = match s.mode {
+        Mode::Tracking => 0,
+        Mode::Approaching | Mode::Holding(_) | Mode::Retreating(_) => 1,
+        Mode::Faulted(_) => 2,
+    };
+    let f = |x: f64| format!("{x:.3}");
+    mocomp_ros2::Status {
+        stamp_unix_s,
+        level,
+        message: mode_name(&s.mode),
+        values: vec![
+            ("controller".into(), controller.to_string()),
+            ("rate_hz".into(), format!("{:.0}", s.rate_hz)),
+            ("deviation_max_mm".into(), f(s.deviation_max_m * 1e3)),
+            ("horizon_ms".into(), f(s.horizon_s * 1e3)),
+            ("sample_age_ms".into(), f(s.sample_age_s * 1e3)),
+            ("command_delay_ms".into(), f(s.command_delay_s * 1e3)),
+        ],
+    }
+}
+
+/// ns since the Unix epoch (0 for a time that is not one).
+pub fn unix_ns(s: f64) -> u64 {
+    if s.is_finite() && s > 0.0 {
+        (s * 1e9) as u64
+    } else {
+        0
+    }
+}
+
 /// On the logger's thread: each cycle to the ROS 2 node (at most `ros2.publish_hz`) and to the
 /// recording (every cycle), the status to both.
 pub struct RosObserver {
@@ -74,12 +162,10 @@ pub struct RosObserver {
     recorder: Option<mocomp_record::Recorder<std::io::BufWriter<std::fs::File>>>,
     record: Option<(RecordSlot, String)>,
     record_error: Option<String>,
-    arm: Arm,
+    rig: Rig,
     joint_names: [String; 6],
     frames: mocomp_ros2::Frames,
     node_name: String,
-    flange_from_coil: Isometry3<f64>,
-    base_from_tracker: Isometry3<f64>,
     min_period_s: f64,
     last_t: f64,
 }
@@ -91,6 +177,9 @@ impl std::fmt::Debug for RosObserver {
             .finish_non_exhaustive()
     }
 }
+
+/// The live loop's controller, as the records and the diagnostics name it.
+const LIVE_CONTROLLER: &str = "mocomp";
 
 impl RosObserver {
     /// The observer of `setup`'s loop: publishing through `bridge`, recording to
@@ -118,12 +207,14 @@ impl RosObserver {
                 recorder,
                 record,
                 record_error: None,
-                arm: setup.arm,
+                rig: Rig {
+                    arm: setup.arm,
+                    flange_from_coil: file.flange_from_coil()?,
+                    base_from_tracker: setup.base_from_tracker,
+                },
                 joint_names: mocomp_ros2::node::UR_JOINTS.map(String::from),
                 frames: file.ros2.frames.clone(),
                 node_name: file.ros2.node_name.clone(),
-                flange_from_coil: file.flange_from_coil()?,
-                base_from_tracker: setup.base_from_tracker,
                 min_period_s: if hz > 0.0 { 1.0 / hz } else { 0.0 },
                 last_t: f64::NEG_INFINITY,
             },
@@ -153,36 +244,11 @@ fn unix_now() -> f64 {
         .map_or(f64::NAN, |d| d.as_secs_f64())
 }
 
-fn unix_ns(s: f64) -> u64 {
-    if s.is_finite() && s > 0.0 {
-        (s * 1e9) as u64
-    } else {
-        0
-    }
-}
-
 impl Observer for RosObserver {
     fn event(&mut self, _t: f64, _event: &Event) {}
 
     fn status(&mut self, s: &Status) {
-        let level = match s.mode {
-            Mode::Tracking => 0,
-            Mode::Approaching | Mode::Holding(_) | Mode::Retreating(_) => 1,
-            Mode::Faulted(_) => 2,
-        };
-        let f = |x: f64| format!("{x:.3}");
-        let status = mocomp_ros2::Status {
-            stamp_unix_s: unix_now(),
-            level,
-            message: mode_name(&s.mode),
-            values: vec![
-                ("rate_hz".into(), format!("{:.0}", s.rate_hz)),
-                ("deviation_max_mm".into(), f(s.deviation_max_m * 1e3)),
-                ("horizon_ms".into(), f(s.horizon_s * 1e3)),
-                ("sample_age_ms".into(), f(s.sample_age_s * 1e3)),
-                ("command_delay_ms".into(), f(s.command_delay_s * 1e3)),
-            ],
-        };
+        let status = diagnostic(s, unix_now(), LIVE_CONTROLLER);
         let node_name = self.node_name.clone();
         let t_ns = unix_ns(status.stamp_unix_s);
         self.recording(|r| r.status(t_ns, &status.message(&node_name)));
@@ -192,45 +258,18 @@ impl Observer for RosObserver {
     }
 
     fn cycle(&mut self, r: &CycleRecord, age_s: f64) {
-        if !r.q_actual.iter().all(|q| q.is_finite()) {
-            return;
-        }
         let age = if age_s.is_finite() {
             age_s.max(0.0)
         } else {
             0.0
         };
-        let base_from_flange = self.arm.fk_flange(&r.q_actual);
-        let snapshot = Snapshot {
-            stamp_unix_s: unix_now() - age,
-            q: r.q_actual,
-            qd: r.qd_actual,
-            base_from_flange,
-            base_from_coil: base_from_flange * self.flange_from_coil,
-            base_from_tracker: self.base_from_tracker,
-            tracker_from_head: r.head_now,
-            head_from_coil_goal: r.head_from_coil_goal,
+        let Some(snapshot) = self.rig.snapshot(r, unix_now() - age) else {
+            return;
         };
         if self.recorder.is_some() {
             let messages =
                 mocomp_ros2::CycleMessages::of(&snapshot, &self.joint_names, &self.frames);
-            let record = mocomp_record::CycleRecordMsg {
-                t_s: r.t,
-                mode: mode_name(&r.mode),
-                event: r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
-                sample_age_s: r.sample_age_s,
-                horizon_s: r.horizon_s,
-                command_delay_s: r.command_delay_s,
-                head_speed_m_s: r.head_speed.0,
-                head_speed_rad_s: r.head_speed.1,
-                deviation_m: r.deviation.0,
-                deviation_rad: r.deviation.1,
-                coil_error_m: r.coil_error.0,
-                q_command: r.q_command,
-                q_actual: r.q_actual,
-                contact_force_n: r.contact_force_n,
-                compute_ns: r.compute_ns,
-            };
+            let record = cycle_record_msg(r, LIVE_CONTROLLER);
             let t_ns = unix_ns(snapshot.stamp_unix_s);
             self.recording(|w| w.cycle(t_ns, Some(&messages), &record));
         }

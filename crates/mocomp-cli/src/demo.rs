@@ -13,8 +13,9 @@ use clap::Args;
 use mocomp_app::AppError;
 use mocomp_app::config::Setup;
 use mocomp_app::config::{Config, unused_by_experiment};
+use mocomp_app::demo_record::DemoRecording;
 use mocomp_app::experiment::{Controller, ExperimentConfig, Phase, Watch, run_experiment_watched};
-use mocomp_app::live::{Controls, Observer, Silent};
+use mocomp_app::live::{Both, Controls, Observer, Silent};
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
 use mocomp_kin::Arm;
 use mocomp_kin::Model;
@@ -110,6 +111,11 @@ pub struct DemoCmd {
     /// The `paper` controller's delay from sample to command, ms [80].
     #[arg(long, value_name = "MS")]
     pub paper_delay_ms: Option<f64>,
+    /// Record both runs to this MCAP file (overrides `record_mcap`): the topics `mocomp run
+    /// --record` records and every cycle record, naming its controller, one run after the
+    /// other on the experiment's clock (Foxglove, `ros2 bag`).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<String>,
     /// On the scalp: the goal moved along the coil's axis until it touches; mocomp holds
     /// `loop.contact_force_n` (3 N) by its admittance, the paper's controller holds the pose.
     #[arg(long)]
@@ -175,6 +181,9 @@ impl DemoCmd {
         }
         if self.contact {
             x.contact = true;
+        }
+        if self.record.is_some() {
+            cfg.record_mcap.clone_from(&self.record);
         }
         if let Some(m) = self.coil_robot {
             cfg.robot.model = m;
@@ -270,16 +279,29 @@ impl DemoCmd {
         if let Some(c) = &console {
             c.phase("placing the robots");
         }
+        let recording = match &config.record_mcap {
+            Some(path) => Some(DemoRecording::create(
+                path,
+                config.ros2.frames.clone(),
+                config.ros2.node_name.clone(),
+            )?),
+            None => None,
+        };
         let arm = Arm::new(exp.coil_robot);
         let mut observer = |c: Controller, loop_cfg: &mocomp_control::LoopConfig| {
-            let o: Box<dyn Observer> = match &console {
+            let shown: Box<dyn Observer> = match &console {
                 Some(console) => Box::new(console.experiment_observer(c.name(), arm, loop_cfg)),
                 None => Box::new(Silent),
             };
-            o
+            match &recording {
+                Some(r) => Box::new(Both(shown, r.observer(c, arm, loop_cfg))) as Box<dyn Observer>,
+                None => shown,
+            }
         };
+        let watched = console.is_some() || recording.is_some();
         let mut watch = Watch {
             controls: &controls,
+            real_time: console.is_some(),
             observer: &mut observer,
         };
         let outcome = run_experiment_watched(
@@ -300,8 +322,11 @@ impl DemoCmd {
                 bar.set_prefix(name);
                 bar.set_position((f * 1000.0) as u64);
             },
-            console.is_some().then_some(&mut watch),
-        )?;
+            watched.then_some(&mut watch),
+        );
+        // The recording is closed whatever became of the experiment: what it holds is kept.
+        let record = recording.map(DemoRecording::finish);
+        let outcome = outcome?;
         bar.finish_and_clear();
         if controls.stop_requested() {
             return Err(AppError::Refused(
@@ -312,7 +337,11 @@ impl DemoCmd {
         // The configuration it ran with goes beside the record: `--config` with it repeats the run.
         let w = mocomp_report::demo::write(&outcome, &exp, &file, &self.out)?;
         if self.json {
-            writeln!(out, "{}", serde_json::to_string(&w.summary)?)?;
+            let mut v = serde_json::to_value(&w.summary)?;
+            if let (Some(r), Some(o)) = (&record, v.as_object_mut()) {
+                o.insert("record".into(), serde_json::to_value(r)?);
+            }
+            writeln!(out, "{v}")?;
         } else {
             write!(out, "{}", w.markdown)?;
             writeln!(
@@ -330,6 +359,12 @@ impl DemoCmd {
                     .join(", "),
                 self.out.display()
             )?;
+            if let Some(r) = &record {
+                writeln!(out, "recorded {} messages to {}", r.messages, r.path)?;
+            }
+        }
+        if let Some(e) = record.and_then(|r| r.error.map(|e| (r.path, e))) {
+            anyhow::bail!("the recording {} is incomplete: {}", e.0, e.1);
         }
         Ok(())
     }

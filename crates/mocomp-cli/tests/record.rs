@@ -84,3 +84,101 @@ fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     assert_eq!(tf[0]["child_frame_id"], "tool0");
     assert!(r["last"]["/diagnostics"]["status"][0]["message"].is_string());
 }
+
+#[test]
+fn a_recorded_demo_holds_both_runs_in_order_each_cycle_naming_its_controller() {
+    let dir = TempDir::new("mocomp-record-demo");
+    let mcap = dir.path("demo.mcap");
+    let out_dir = dir.path("out");
+    let seconds = 4.0;
+    let out = mocomp(&[
+        "demo",
+        "--seconds",
+        &seconds.to_string(),
+        "--record",
+        &mcap,
+        "--out",
+        &out_dir,
+        "--coil-host",
+        "127.0.0.84",
+        "--head-host",
+        "127.0.0.85",
+        "--quiet",
+        "--json",
+    ]);
+    assert_success(&out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["record"]["error"].is_null(), "{v}");
+    let mut py = PythonPeer::start("mcap_peer.py", "mcap-ros2-support", "0.6.0");
+    let r = py.request(&json!({"op": "read", "path": mcap}));
+    eprintln!("recorded: {}", r["counts"]);
+    assert_eq!(r["profile"], "ros2");
+    assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
+    assert_eq!(r["in_time_order"], true);
+    // Every tick of both runs, as the demo's CSV has them: the paper's run, then mocomp's.
+    let mut reader = csv::Reader::from_path(format!("{out_dir}/demo.csv")).unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let controllers: Vec<&str> = r["cycle_controller"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    let csv_controllers: Vec<&str> = rows.iter().map(|row| &row[0]).collect();
+    assert_eq!(controllers, csv_controllers);
+    assert_eq!(controllers.first(), Some(&"paper"));
+    assert_eq!(controllers.last(), Some(&"mocomp"));
+    // Each record's clock is the CSV's time in its run, shifted by the run's start.
+    let cycle_t: Vec<f64> = r["cycle_t"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect();
+    for name in ["paper", "mocomp"] {
+        let ts: Vec<(f64, f64)> = cycle_t
+            .iter()
+            .zip(&rows)
+            .filter(|(_, row)| &row[0] == name)
+            .map(|(t, row)| (*t, row[1].parse::<f64>().unwrap()))
+            .collect();
+        let shift = ts[0].0 - ts[0].1;
+        for (t, csv_t) in &ts {
+            assert!((t - csv_t - shift).abs() < 1e-6, "{name}: {t} vs {csv_t}");
+        }
+    }
+    // Both runs' arms and heads, from the first cycle (the robot is measured before it).
+    let count = |t: &str| r["counts"][t].as_u64().unwrap_or(0);
+    let cycles = rows.len() as u64;
+    for t in ["/mocomp/cycle", "/joint_states", "/tf", "/mocomp/coil_pose"] {
+        assert_eq!(count(t), cycles, "{t}");
+    }
+    assert!(count("/mocomp/head_pose") > cycles * 9 / 10);
+    // The status once a second of each run, naming its controller.
+    let per_run = seconds as u64;
+    assert!(
+        (2 * (per_run - 1)..=2 * per_run).contains(&count("/diagnostics")),
+        "{}",
+        r["counts"]
+    );
+    let named = |which: &str| {
+        let values = r[which]["/diagnostics"]["status"][0]["values"].clone();
+        values
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|kv| kv["key"] == "controller")
+            .map(|kv| kv["value"].clone())
+            .unwrap()
+    };
+    assert_eq!(named("first"), "paper");
+    assert_eq!(named("last"), "mocomp");
+    // The last joint state is the last cycle's measured arm.
+    let q_js = r["last"]["/joint_states"]["position"].as_array().unwrap();
+    let q_rec = r["last"]["/mocomp/cycle"]["q_actual"].as_array().unwrap();
+    assert_eq!(q_js, q_rec);
+    assert_eq!(v["record"]["messages"].as_u64().unwrap(), {
+        let c = r["counts"].as_object().unwrap();
+        c.values().map(|n| n.as_u64().unwrap()).sum::<u64>()
+    });
+}

@@ -16,6 +16,9 @@ use std::path::Path;
 pub struct CycleRecordMsg {
     /// Loop time, s.
     pub t_s: f64,
+    /// Which controller ran the cycle: `mocomp`, or `paper` (the paper's pipeline, in
+    /// `mocomp demo`).
+    pub controller: String,
     /// The mode after the cycle (`tracking`, `holding (Operator)`, …).
     pub mode: String,
     /// The cycle's event, if any.
@@ -52,7 +55,7 @@ impl RosMessage for CycleRecordMsg {
         package: "mocomp_msgs",
         name: "CycleRecord",
     };
-    const DEFINITION: &'static str = "float64 t_s\nstring mode\nstring event\nfloat64 sample_age_s\nfloat64 horizon_s\nfloat64 command_delay_s\nfloat64 head_speed_m_s\nfloat64 head_speed_rad_s\nfloat64 deviation_m\nfloat64 deviation_rad\nfloat64 coil_error_m\nfloat64[6] q_command\nfloat64[6] q_actual\nfloat64 contact_force_n\nuint64 compute_ns\n";
+    const DEFINITION: &'static str = "float64 t_s\nstring controller\nstring mode\nstring event\nfloat64 sample_age_s\nfloat64 horizon_s\nfloat64 command_delay_s\nfloat64 head_speed_m_s\nfloat64 head_speed_rad_s\nfloat64 deviation_m\nfloat64 deviation_rad\nfloat64 coil_error_m\nfloat64[6] q_command\nfloat64[6] q_actual\nfloat64 contact_force_n\nuint64 compute_ns\n";
 }
 
 /// Why a recording could not be written.
@@ -225,6 +228,7 @@ mod tests {
         for k in 0..10u64 {
             let rec = CycleRecordMsg {
                 t_s: k as f64 * 0.002,
+                controller: "paper".into(),
                 mode: "tracking".into(),
                 q_actual: snapshot.q,
                 compute_ns: k,
@@ -253,7 +257,10 @@ mod tests {
             }
             if msg.channel.topic == "/mocomp/cycle" {
                 let c: CycleRecordMsg = from_cdr(&msg.data).unwrap();
-                assert_eq!(c.mode, "tracking");
+                assert_eq!(
+                    (c.controller.as_str(), c.mode.as_str()),
+                    ("paper", "tracking")
+                );
                 assert_eq!(
                     msg.log_time,
                     1_700_000_000_000_000_000 + c.compute_ns * 2_000_000
