@@ -79,7 +79,7 @@ pub struct Config {
     /// `mocomp run`: write every cycle to this CSV file.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub log_csv: Option<String>,
-    /// `mocomp run`: record the session to this MCAP file (ROS 2 profile: the ROS 2 node's
+    /// `mocomp run` and `mocomp demo`: record the session to this MCAP file (ROS 2 profile: the ROS 2 node's
     /// topics and every cycle record), whether or not `[ros2]` is on.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub record_mcap: Option<String>,
