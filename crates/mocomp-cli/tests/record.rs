@@ -14,6 +14,27 @@ use common::{assert_success, example_changed, mocomp};
 use mocomp_testkit::{PythonPeer, TempDir};
 use serde_json::json;
 
+/// The command's JSON summary (its recording without an error) and the recording as the ROS 2
+/// MCAP reader decodes it (every message decoded, the count the summary says written).
+fn read_back(out: &std::process::Output, mcap: &str) -> (serde_json::Value, serde_json::Value) {
+    assert_success(out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["record"]["error"].is_null(), "{v}");
+    let mut py = PythonPeer::start("mcap_peer.py", "mcap-ros2-support", "0.6.0");
+    let r = py.request(&json!({"op": "read", "path": mcap}));
+    eprintln!("recorded: {}", r["counts"]);
+    assert_eq!(r["profile"], "ros2");
+    assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
+    let total: u64 = r["counts"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|n| n.as_u64().unwrap())
+        .sum();
+    assert_eq!(v["record"]["messages"].as_u64().unwrap(), total);
+    (v, r)
+}
+
 #[test]
 fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     let dir = TempDir::new("mocomp-record");
@@ -33,15 +54,8 @@ fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
         "--quiet",
         "--json",
     ]);
-    assert_success(&out);
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (v, r) = read_back(&out, &mcap);
     let cycles = v["cycles"].as_u64().unwrap();
-    assert!(v["record"]["error"].is_null(), "{v}");
-    let mut py = PythonPeer::start("mcap_peer.py", "mcap-ros2-support", "0.6.0");
-    let r = py.request(&json!({"op": "read", "path": mcap}));
-    eprintln!("recorded: {} (run: {cycles} cycles)", r["counts"]);
-    assert_eq!(r["profile"], "ros2");
-    assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
     // Every cycle's record, and every cycle's ROS 2 messages (the arm's state was measured from
     // the first cycle on).
     let count = |t: &str| r["counts"][t].as_u64().unwrap_or(0);
@@ -53,10 +67,6 @@ fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     assert!((3..=5).contains(&count("/diagnostics")), "{}", r["counts"]);
     assert_eq!(r["schemas"]["/joint_states"], "sensor_msgs/msg/JointState");
     assert_eq!(r["schemas"]["/mocomp/cycle"], "mocomp_msgs/msg/CycleRecord");
-    assert_eq!(v["record"]["messages"].as_u64().unwrap(), {
-        let c = r["counts"].as_object().unwrap();
-        c.values().map(|n| n.as_u64().unwrap()).sum::<u64>()
-    });
     // The cycle records are the CSV's, row for row.
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
@@ -106,14 +116,7 @@ fn a_recorded_demo_holds_both_runs_in_order_each_cycle_naming_its_controller() {
         "--quiet",
         "--json",
     ]);
-    assert_success(&out);
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert!(v["record"]["error"].is_null(), "{v}");
-    let mut py = PythonPeer::start("mcap_peer.py", "mcap-ros2-support", "0.6.0");
-    let r = py.request(&json!({"op": "read", "path": mcap}));
-    eprintln!("recorded: {}", r["counts"]);
-    assert_eq!(r["profile"], "ros2");
-    assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
+    let (_, r) = read_back(&out, &mcap);
     assert_eq!(r["in_time_order"], true);
     // Every tick of both runs, as the demo's CSV has them: the paper's run, then mocomp's.
     let mut reader = csv::Reader::from_path(format!("{out_dir}/demo.csv")).unwrap();
@@ -177,8 +180,4 @@ fn a_recorded_demo_holds_both_runs_in_order_each_cycle_naming_its_controller() {
     let q_js = r["last"]["/joint_states"]["position"].as_array().unwrap();
     let q_rec = r["last"]["/mocomp/cycle"]["q_actual"].as_array().unwrap();
     assert_eq!(q_js, q_rec);
-    assert_eq!(v["record"]["messages"].as_u64().unwrap(), {
-        let c = r["counts"].as_object().unwrap();
-        c.values().map(|n| n.as_u64().unwrap()).sum::<u64>()
-    });
 }
