@@ -35,6 +35,22 @@ fn read_back(out: &std::process::Output, mcap: &str) -> (serde_json::Value, serd
     (v, r)
 }
 
+/// The rows of a CSV file.
+fn csv_rows(path: &str) -> Vec<csv::StringRecord> {
+    let mut reader = csv::Reader::from_path(path).unwrap();
+    reader.records().map(Result::unwrap).collect()
+}
+
+/// The `/mocomp/cycle` records' loop times.
+fn cycle_times(r: &serde_json::Value) -> Vec<f64> {
+    r["cycle_t"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect()
+}
+
 #[test]
 fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     let dir = TempDir::new("mocomp-record");
@@ -68,14 +84,8 @@ fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     assert_eq!(r["schemas"]["/joint_states"], "sensor_msgs/msg/JointState");
     assert_eq!(r["schemas"]["/mocomp/cycle"], "mocomp_msgs/msg/CycleRecord");
     // The cycle records are the CSV's, row for row.
-    let mut reader = csv::Reader::from_path(&csv).unwrap();
-    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
-    let cycle_t: Vec<f64> = r["cycle_t"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| t.as_f64().unwrap())
-        .collect();
+    let rows = csv_rows(&csv);
+    let cycle_t = cycle_times(&r);
     assert_eq!(cycle_t.len(), rows.len());
     for (t, row) in cycle_t.iter().zip(&rows) {
         let csv_t: f64 = row[0].parse().unwrap();
@@ -119,8 +129,7 @@ fn a_recorded_demo_holds_both_runs_in_order_each_cycle_naming_its_controller() {
     let (_, r) = read_back(&out, &mcap);
     assert_eq!(r["in_time_order"], true);
     // Every tick of both runs, as the demo's CSV has them: the paper's run, then mocomp's.
-    let mut reader = csv::Reader::from_path(format!("{out_dir}/demo.csv")).unwrap();
-    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let rows = csv_rows(&format!("{out_dir}/demo.csv"));
     let controllers: Vec<&str> = r["cycle_controller"]
         .as_array()
         .unwrap()
@@ -132,12 +141,7 @@ fn a_recorded_demo_holds_both_runs_in_order_each_cycle_naming_its_controller() {
     assert_eq!(controllers.first(), Some(&"paper"));
     assert_eq!(controllers.last(), Some(&"mocomp"));
     // Each record's clock is the CSV's time in its run, shifted by the run's start.
-    let cycle_t: Vec<f64> = r["cycle_t"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|t| t.as_f64().unwrap())
-        .collect();
+    let cycle_t = cycle_times(&r);
     for name in ["paper", "mocomp"] {
         let ts: Vec<(f64, f64)> = cycle_t
             .iter()
