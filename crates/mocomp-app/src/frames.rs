@@ -199,16 +199,8 @@ pub fn render_dir(
         std::fs::write(&path, text).what(|| format!("{}: cannot write", path.display()))
     };
     put("truth.jsonl", truth)?;
-    let k = intrinsics;
-    let centre = match k.pixel_centre {
-        mocomp_vision::intrinsics::PixelCentre::Integer => "integer",
-        mocomp_vision::intrinsics::PixelCentre::Half => "half",
-    };
-    put(
-        "intrinsics.toml",
-        format!(
-            "width = {}\nheight = {}\nfx = {:?}\nfy = {:?}\ncx = {:?}\ncy = {:?}\nk1 = {:?}\nk2 = {:?}\nk3 = {:?}\np1 = {:?}\np2 = {:?}\npixel_centre = \"{centre}\"\n",
-            k.width, k.height, k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.k3, k.p1, k.p2
-        ),
-    )
+    // Every coefficient, the rational ones included, as `Intrinsics` reads it back.
+    let text =
+        toml::to_string(intrinsics).map_err(|e| AppError::Config(format!("intrinsics: {e}")))?;
+    put("intrinsics.toml", text)
 }
