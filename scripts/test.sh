@@ -15,6 +15,14 @@ fi
 say "installing interop peers (requirements-interop.txt)"
 .venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-interop.txt
 export MOCOMP_PYTHON="$PWD/.venv/bin/python"
+# The Azure Kinect SDK and pyk4a (built against NumPy 1, which the other peers cannot share).
+if [ ! -x .venv-k4a/bin/python ]; then
+  say "creating .venv-k4a with $($PYTHON --version)"
+  "$PYTHON" -m venv .venv-k4a
+fi
+say "installing the Azure Kinect SDK and pyk4a (requirements-k4a.txt)"
+.venv-k4a/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-k4a.txt
+export MOCOMP_K4A_PYTHON="$PWD/.venv-k4a/bin/python"
 
 # 2. Debian packages: the C++ OpenIGTLink library and its example sources (interop peer), the
 #    browser the console's tests drive (Chromium and its WebDriver), and `ip` for the tests'

@@ -27,6 +27,37 @@ pub fn workspace_root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// The Python of the Azure Kinect peer's venv.
+fn k4a_python() -> PathBuf {
+    std::env::var_os("MOCOMP_K4A_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace_root().join(".venv-k4a/bin/python"))
+}
+
+/// The Azure Kinect SDK's libraries (libk4a, libk4arecord 1.4) that the PyPI wheel
+/// `pyk4a-bundle` ships, in the test venv `.venv-k4a` (or `MOCOMP_K4A_SDK_DIR`). Panics, with
+/// install instructions, when they are not there: a test that needs the SDK fails without it.
+pub fn k4a_sdk_dir() -> PathBuf {
+    if let Some(d) = std::env::var_os("MOCOMP_K4A_SDK_DIR") {
+        return PathBuf::from(d);
+    }
+    let lib = workspace_root().join(".venv-k4a/lib");
+    let found = std::fs::read_dir(&lib).ok().and_then(|entries| {
+        entries
+            .filter_map(Result::ok)
+            .map(|e| e.path().join("site-packages/pyk4a_bundle.libs"))
+            .find(|p| p.is_dir())
+    });
+    found.unwrap_or_else(|| {
+        panic!(
+            "the Azure Kinect SDK is missing: no pyk4a_bundle.libs under {}; install it with \
+             `scripts/test.sh` (creates .venv-k4a), or `python3 -m venv .venv-k4a && \
+             .venv-k4a/bin/pip install -r requirements-k4a.txt` in the workspace root",
+            lib.display()
+        )
+    })
+}
+
 /// How to install the interop peers.
 pub const INSTALL_HINT: &str = "install them with `scripts/test.sh` (creates .venv), or \
      `python3 -m venv .venv && .venv/bin/pip install -r requirements-interop.txt` in the \
@@ -45,11 +76,21 @@ impl PythonPeer {
     /// Starts `interop/<helper>` and checks it answers `{"op": "version"}` with `version`.
     /// Panics, with install instructions, when Python or the peer package is missing.
     pub fn start(helper: &str, peer: &str, version: &str) -> PythonPeer {
-        let root = workspace_root();
         let python = std::env::var_os("MOCOMP_PYTHON")
             .map(PathBuf::from)
-            .unwrap_or_else(|| root.join(".venv/bin/python"));
-        let mut child = Command::new(&python)
+            .unwrap_or_else(|| workspace_root().join(".venv/bin/python"));
+        Self::start_with(&python, helper, peer, version)
+    }
+
+    /// [`PythonPeer::start`] in the Azure Kinect peer's own venv (`.venv-k4a`, or
+    /// `MOCOMP_K4A_PYTHON`): `pyk4a-bundle` is built against NumPy 1, the other peers need 2.
+    pub fn start_k4a(helper: &str, peer: &str, version: &str) -> PythonPeer {
+        Self::start_with(&k4a_python(), helper, peer, version)
+    }
+
+    fn start_with(python: &std::path::Path, helper: &str, peer: &str, version: &str) -> PythonPeer {
+        let root = workspace_root();
+        let mut child = Command::new(python)
             .arg(root.join("interop").join(helper))
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
