@@ -47,6 +47,21 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
     {
         return Some(Blame::Input);
     }
+    // A camera: the SDK missing, a recording or a mode that will not do are the user's to fix;
+    // a camera that is not there or stops is the run's.
+    if let Some(e) = e.downcast_ref::<mocomp_k4a::K4aError>() {
+        use mocomp_k4a::K4aError as K;
+        return Some(match e {
+            K::SdkMissing { .. }
+            | K::Recording { .. }
+            | K::Damaged { .. }
+            | K::BadImage { .. }
+            | K::Calibration(_)
+            | K::Mode(_)
+            | K::BadArgument(_) => Blame::Input,
+            K::Call { .. } | K::NoDevice(_) | K::DeviceLost => Blame::Run,
+        });
+    }
     if e.is::<mocomp_ursim::SimError>() {
         return Some(Blame::Run);
     }

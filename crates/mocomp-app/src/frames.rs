@@ -102,19 +102,30 @@ pub fn track_dir(
         }
         let frame = Frame::new(ir.width, ir.height, &ir.data, &depth.data)
             .what(|| ir_path.display().to_string())?;
-        let result = tracker
-            .process(&frame)
-            .what(|| ir_path.display().to_string())?;
-        if let Some(d) = overlay_dir {
-            let img = overlay(&frame, tracker.scan_area(), &result);
-            let path = d.join(format!("{name}_overlay.png"));
-            let png = encode_rgb_png(img.width, img.height, &img.data, name)
-                .what(|| format!("{}: cannot encode", path.display()))?;
-            std::fs::write(&path, png).what(|| format!("{}: cannot write", path.display()))?;
-        }
+        let result = track_frame(name, &frame, tracker, overlay_dir)
+            .map_err(|e| AppError::failed(ir_path.display().to_string(), e))?;
         each(name, &result)?;
     }
     Ok(frames.len())
+}
+
+/// Tracks one frame named `name`, writing its overlay (`<name>_overlay.png`) into
+/// `overlay_dir` when given: the step every frame source shares.
+pub fn track_frame(
+    name: &str,
+    frame: &Frame<'_>,
+    tracker: &mut Tracker,
+    overlay_dir: Option<&Path>,
+) -> Result<FrameResult, AppError> {
+    let result = tracker.process(frame).what(|| name.to_string())?;
+    if let Some(d) = overlay_dir {
+        let img = overlay(frame, tracker.scan_area(), &result);
+        let path = d.join(format!("{name}_overlay.png"));
+        let png = encode_rgb_png(img.width, img.height, &img.data, name)
+            .what(|| format!("{}: cannot encode", path.display()))?;
+        std::fs::write(&path, png).what(|| format!("{}: cannot write", path.display()))?;
+    }
+    Ok(result)
 }
 
 /// A transform as the rows of a 4×4 matrix with translation in mm (the JSON files' form).
@@ -144,12 +155,14 @@ struct TruthJson<'a> {
 }
 
 /// Writes synthetic frames of `geometry` seen by a camera with `intrinsics` into `dir`, with
-/// `truth.jsonl` (the true pose and visible fiducials of each) and `intrinsics.toml`.
+/// `truth.jsonl` (the true pose and visible fiducials of each) and `intrinsics.toml`; and the same
+/// frames into `recording` when given.
 pub fn render_dir(
     dir: &Path,
     geometry: &MarkerGeometry,
     intrinsics: &Intrinsics,
     o: &RenderOptionsDir,
+    mut recording: Option<&mut crate::k4a::RecordingSink>,
 ) -> Result<(), AppError> {
     if let Some(h) = o.hide
         && (h == 0 || h > geometry.len())
@@ -179,6 +192,9 @@ pub fn render_dir(
             r.hidden = vec![h - 1];
         }
         let img = render(geometry, &r);
+        if let Some(rec) = recording.as_mut() {
+            rec.write(&img.ir, &img.depth)?;
+        }
         for (suffix, data) in [("ir", &img.ir), ("depth", &img.depth)] {
             let path = dir.join(format!("{name}_{suffix}.png"));
             let png = encode_gray16_png(img.width, img.height, data, &name)

@@ -25,6 +25,7 @@ pub mod demo_record;
 pub mod driver;
 pub mod experiment;
 pub mod frames;
+pub mod k4a;
 pub mod listen;
 pub mod live;
 pub mod live_session;

@@ -128,3 +128,29 @@ mod tests {
         assert_eq!(model("UR10e").unwrap(), Model::Ur10e);
     }
 }
+
+/// An Azure Kinect depth mode, as the command line names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DepthModeArg {
+    /// 320×288, narrow field of view, 2×2 binned.
+    NfovBinned,
+    /// 640×576, narrow field of view.
+    NfovUnbinned,
+    /// 512×512, wide field of view, 2×2 binned.
+    WfovBinned,
+    /// 1024×1024, wide field of view (at most 15 frames a second).
+    WfovUnbinned,
+}
+
+impl DepthModeArg {
+    /// The SDK's mode.
+    pub fn mode(self) -> mocomp_k4a::DepthMode {
+        use mocomp_k4a::DepthMode as M;
+        match self {
+            Self::NfovBinned => M::NfovBinned,
+            Self::NfovUnbinned => M::NfovUnbinned,
+            Self::WfovBinned => M::WfovBinned,
+            Self::WfovUnbinned => M::WfovUnbinned,
+        }
+    }
+}

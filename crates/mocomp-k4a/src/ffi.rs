@@ -156,6 +156,8 @@ pub struct Api {
     pub device_start_cameras: unsafe extern "C" fn(Handle, *const DeviceConfiguration) -> K4aResult,
     pub device_stop_cameras: unsafe extern "C" fn(Handle),
     pub device_get_capture: unsafe extern "C" fn(Handle, *mut Handle, i32) -> WaitResult,
+    pub calibration_get_from_raw:
+        unsafe extern "C" fn(*mut c_char, usize, c_int, c_int, *mut Calibration) -> K4aResult,
     // Captures and images.
     pub capture_create: unsafe extern "C" fn(*mut Handle) -> K4aResult,
     pub capture_release: unsafe extern "C" fn(Handle),
@@ -261,6 +263,7 @@ impl Api {
             device_start_cameras: sym!(k, "k4a_device_start_cameras"),
             device_stop_cameras: sym!(k, "k4a_device_stop_cameras"),
             device_get_capture: sym!(k, "k4a_device_get_capture"),
+            calibration_get_from_raw: sym!(k, "k4a_calibration_get_from_raw"),
             capture_create: sym!(k, "k4a_capture_create"),
             capture_release: sym!(k, "k4a_capture_release"),
             capture_get_ir_image: sym!(k, "k4a_capture_get_ir_image"),

@@ -90,6 +90,38 @@ impl Sdk {
     }
 }
 
+impl Sdk {
+    /// The depth camera's intrinsics in `mode` from a raw calibration (the JSON a device stores
+    /// and a recording attaches as `calibration.json`), as the SDK computes them per mode.
+    pub fn intrinsics_from_raw(
+        &self,
+        raw: &[u8],
+        mode: crate::modes::DepthMode,
+    ) -> Result<mocomp_vision::Intrinsics, K4aError> {
+        // The SDK parses a NUL-terminated copy (it takes a mutable pointer).
+        let mut buf = raw.to_vec();
+        buf.push(0);
+        let mut c = ffi::Calibration::default();
+        // SAFETY: `buf` holds `len` bytes including the NUL; `c` is a `k4a_calibration_t` the
+        // SDK fills; colour off (0).
+        let r = unsafe {
+            (self.api.calibration_get_from_raw)(
+                buf.as_mut_ptr().cast::<c_char>(),
+                buf.len(),
+                mode.raw(),
+                0,
+                &raw mut c,
+            )
+        };
+        if r != ffi::SUCCEEDED {
+            return Err(K4aError::Calibration(
+                "the SDK cannot read it as a device calibration (calibration.json)".into(),
+            ));
+        }
+        crate::calibration::intrinsics(&c.depth_camera)
+    }
+}
+
 /// A C string of `s`, refused when it holds a NUL.
 fn c_string(s: &str, what: &str) -> Result<CString, K4aError> {
     CString::new(s).map_err(|_| K4aError::BadArgument(format!("{what} {s:?} contains a NUL byte")))

@@ -160,6 +160,21 @@ fn recordings_we_write_with_the_sdks_recorder_read_back_in_pyk4a_pixel_for_pixel
     let ours = Playback::open(&sdk(), &path).unwrap();
     let real = Playback::open(&sdk(), &data("recording.mkv")).unwrap();
     assert_eq!(ours.intrinsics().unwrap(), real.intrinsics().unwrap());
+    // And as the SDK computes them from the raw calibration for the mode.
+    let from_raw = sdk()
+        .intrinsics_from_raw(&calibration, DepthMode::NfovUnbinned)
+        .unwrap();
+    assert_eq!(from_raw, real.intrinsics().unwrap());
+    let binned = sdk()
+        .intrinsics_from_raw(&calibration, DepthMode::NfovBinned)
+        .unwrap();
+    assert_eq!((binned.width, binned.height), (320, 288));
+    assert!((binned.fx * 2.0 - from_raw.fx).abs() < 1e-3, "{binned:?}");
+    assert!(
+        sdk()
+            .intrinsics_from_raw(b"{}", DepthMode::NfovUnbinned)
+            .is_err()
+    );
     assert_eq!(ours.info().fps, 30);
     // Our pixels went in as they came out.
     let mut p = Playback::open(&sdk(), &path).unwrap();

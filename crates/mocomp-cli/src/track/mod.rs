@@ -1,11 +1,12 @@
 //! `mocomp track`: fiducial tracking in a directory of IR + depth frames
-//! ([`mocomp_app::frames`]), one line per frame; `track render` writes such a directory.
+//! ([`mocomp_app::frames`]) or an Azure Kinect recording ([`mocomp_app::k4a`]), one line per
+//! frame; `track render` writes such a directory (and recording).
 
 mod render;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use mocomp_app::frames;
+use mocomp_app::{frames, k4a};
 use mocomp_geom::units::m_to_mm;
 use mocomp_vision::{FrameResult, TrackParams, Tracker};
 use serde::Serialize;
@@ -15,6 +16,9 @@ use std::path::PathBuf;
 #[derive(Serialize)]
 struct FrameJson<'a> {
     frame: &'a str,
+    /// A recording's capture: its device timestamp, µs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    device_usec: Option<u64>,
     found: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     tracker_from_marker: Option<[[f64; 4]; 4]>,
@@ -25,17 +29,27 @@ struct FrameJson<'a> {
     blobs: usize,
 }
 
-/// Fiducial tracking in IR + depth frames (directories of 16-bit PNG pairs).
+/// Fiducial tracking in IR + depth frames (directories of 16-bit PNG pairs, or an Azure Kinect
+/// recording).
 #[derive(Debug, Clone, Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct TrackCmd {
     #[command(subcommand)]
     command: Option<TrackCommand>,
     /// Directory of <name>_ir.png / <name>_depth.png pairs (16-bit; depth in mm, 0 = none).
-    #[arg(long, value_name = "DIR", required = true)]
+    #[arg(long, value_name = "DIR", required_unless_present = "recording")]
     frames: Option<PathBuf>,
-    /// Camera intrinsics (TOML: width, height, fx, fy, cx, cy, k1, k2, k3, p1, p2, pixel_centre).
-    #[arg(long, value_name = "FILE", required = true)]
+    /// An Azure Kinect recording (.mkv with IR and depth), played through the Azure Kinect SDK;
+    /// its own calibration gives the intrinsics.
+    #[arg(long, value_name = "FILE.mkv", conflicts_with = "frames")]
+    recording: Option<PathBuf>,
+    /// The Azure Kinect SDK's directory (libk4a, libk4arecord); default: MOCOMP_K4A_SDK_DIR,
+    /// else the system's library path.
+    #[arg(long, value_name = "DIR")]
+    k4a_sdk: Option<PathBuf>,
+    /// Camera intrinsics (TOML: width, height, fx, fy, cx, cy, k1…k6, p1, p2, pixel_centre);
+    /// with a recording, instead of its calibration.
+    #[arg(long, value_name = "FILE", required_unless_present = "recording")]
     intrinsics: Option<PathBuf>,
     /// Marker geometry: .toml (points_mm), Atracsys .ini or NDI .rom.
     #[arg(long, value_name = "FILE", required = true)]
@@ -62,16 +76,9 @@ impl TrackCmd {
         if let Some(TrackCommand::Render(r)) = self.command {
             return r.run(out);
         }
-        let (Some(dir), Some(intrinsics), Some(geometry)) =
-            (&self.frames, &self.intrinsics, &self.geometry)
-        else {
-            return Err(crate::UsageError(
-                "track needs --frames, --intrinsics and --geometry".into(),
-            )
-            .into());
+        let Some(geometry_path) = &self.geometry else {
+            return Err(crate::UsageError("track needs --geometry".into()).into());
         };
-        let intrinsics = frames::read_intrinsics(intrinsics)?;
-        let geometry_path = geometry;
         let geometry = frames::read_geometry(geometry_path)?;
         let params = match &self.params {
             Some(p) => frames::read_params(p)?,
@@ -81,30 +88,76 @@ impl TrackCmd {
         for w in &report.warnings {
             eprintln!("warning: {}: {w}", geometry_path.display());
         }
-        let mut tracker = Tracker::new(intrinsics, params, geometry)?;
+        let given = self
+            .intrinsics
+            .as_deref()
+            .map(frames::read_intrinsics)
+            .transpose()?;
         let mut found = 0usize;
         let json = self.json;
-        let count = frames::track_dir(
-            dir,
-            &mut tracker,
-            self.overlay.as_deref(),
-            &mut |name, result| {
-                found += usize::from(result.detection.is_some());
-                print(&mut *out, name, result, json)
-                    .map_err(|e| mocomp_app::AppError::failed("writing the output", e))
-            },
-        )?;
+        let (count, tail) = if let Some(path) = &self.recording {
+            let sdk = k4a::load_sdk(self.k4a_sdk.as_deref())?;
+            let mut playback = k4a::open_recording(&sdk, path)?;
+            let intrinsics = match given {
+                Some(k) => k,
+                None => playback
+                    .intrinsics()
+                    .map_err(|e| mocomp_app::AppError::failed("--recording", e))?,
+            };
+            let mut tracker = Tracker::new(intrinsics, params, geometry)?;
+            let n = k4a::track_recording(
+                &mut playback,
+                &mut tracker,
+                self.overlay.as_deref(),
+                &mut |t| {
+                    found += usize::from(t.result.detection.is_some());
+                    print(&mut *out, t.name, Some(t.device_usec), t.result, json)
+                        .map_err(|e| mocomp_app::AppError::failed("writing the output", e))
+                },
+            )?;
+            let tail = format!(
+                " ({} dropped by their timestamps, {} without IR or depth)",
+                n.dropped, n.incomplete
+            );
+            (n.tracked, tail)
+        } else {
+            let (Some(dir), Some(intrinsics)) = (&self.frames, given) else {
+                return Err(crate::UsageError(
+                    "track needs --frames and --intrinsics, or --recording".into(),
+                )
+                .into());
+            };
+            let mut tracker = Tracker::new(intrinsics, params, geometry)?;
+            let n = frames::track_dir(
+                dir,
+                &mut tracker,
+                self.overlay.as_deref(),
+                &mut |name, result| {
+                    found += usize::from(result.detection.is_some());
+                    print(&mut *out, name, None, result, json)
+                        .map_err(|e| mocomp_app::AppError::failed("writing the output", e))
+                },
+            )?;
+            (n, String::new())
+        };
         if !json {
-            writeln!(out, "found the marker in {found} of {count} frames")?;
+            writeln!(out, "found the marker in {found} of {count} frames{tail}")?;
         }
         Ok(())
     }
 }
 
-fn print(out: &mut dyn Write, name: &str, result: &FrameResult, json: bool) -> std::io::Result<()> {
+fn print(
+    out: &mut dyn Write,
+    name: &str,
+    device_usec: Option<u64>,
+    result: &FrameResult,
+    json: bool,
+) -> std::io::Result<()> {
     if json {
         let j = FrameJson {
             frame: name,
+            device_usec,
             found: result.detection.is_some(),
             tracker_from_marker: result
                 .detection

@@ -1,0 +1,241 @@
+//! `mocomp track --recording`: rendered markers written as an Azure Kinect recording by the SDK's
+//! own recorder (a real device's calibration attached: 640×576, rational lens), played back
+//! through the SDK and tracked end to end: the same poses as from the same frames as PNGs, to
+//! the bit, and within the PNG path's accuracy of the truth. A missing SDK, a missing or cut
+//! recording are one clear line and exit 2.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
+
+mod common;
+use common::{assert_success, mocomp};
+
+use mocomp_geom::nalgebra::Matrix4;
+use mocomp_geom::{iso_from_matrix_mm, rotation_error, translation_error};
+use mocomp_testkit::{TempDir, k4a_sdk_dir};
+use serde_json::Value;
+
+const GEOMETRY: &str =
+    "name = \"8700449\"\npoints_mm = [[0,0,0],[0,47.38,28.99],[0,0,89.1],[0,-35.36,35.36]]\n";
+
+fn calibration() -> String {
+    format!(
+        "{}/../mocomp-k4a/tests/data/azure-kinect/calibration.json",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+fn sdk() -> String {
+    k4a_sdk_dir().display().to_string()
+}
+
+fn pose(v: &Value) -> mocomp_geom::nalgebra::Isometry3<f64> {
+    let m = Matrix4::from_fn(|r, c| v[r][c].as_f64().unwrap());
+    iso_from_matrix_mm(&m, 1e-6).unwrap()
+}
+
+fn lines(out: &std::process::Output) -> Vec<Value> {
+    assert_success(out);
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn a_recording_of_rendered_markers_tracks_as_its_frames_do() {
+    let d = TempDir::new("k4a-track");
+    std::fs::write(d.path("g.toml"), GEOMETRY).unwrap();
+    let (frames, mkv, sdk) = (d.path("frames"), d.path("markers.mkv"), sdk());
+    let count = 30;
+    let out = mocomp(&[
+        "track",
+        "render",
+        "--out",
+        &frames,
+        "--geometry",
+        &d.path("g.toml"),
+        "--count",
+        &count.to_string(),
+        "--distractors",
+        "--recording",
+        &mkv,
+        "--k4a-calibration",
+        &calibration(),
+        "--k4a-sdk",
+        &sdk,
+    ]);
+    assert_success(&out);
+    let from_png = lines(&mocomp(&[
+        "track",
+        "--frames",
+        &frames,
+        "--intrinsics",
+        &d.path("frames/intrinsics.toml"),
+        "--geometry",
+        &d.path("g.toml"),
+        "--json",
+    ]));
+    let from_mkv = lines(&mocomp(&[
+        "track",
+        "--recording",
+        &mkv,
+        "--geometry",
+        &d.path("g.toml"),
+        "--k4a-sdk",
+        &sdk,
+        "--overlay",
+        &d.path("overlay"),
+        "--json",
+    ]));
+    let truth: Vec<Value> = std::fs::read_to_string(d.path("frames/truth.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(from_mkv.len(), count);
+    assert_eq!(from_png.len(), count);
+    let (mut found, mut worst_mm, mut worst_deg) = (0, 0.0f64, 0.0f64);
+    for (k, ((m, p), t)) in from_mkv.iter().zip(&from_png).zip(&truth).enumerate() {
+        // Played back through the SDK, each capture is its frame: the same outcome to the bit.
+        let mut m_same = m.clone();
+        m_same.as_object_mut().unwrap().remove("device_usec");
+        assert_eq!(&m_same, p, "capture {k}");
+        // Its device timestamp, a period (30 frames a second) after the last.
+        assert_eq!(
+            m["device_usec"].as_u64().unwrap(),
+            1_000_000 + k as u64 * 33_333
+        );
+        if m["found"] == true {
+            found += 1;
+            let (a, b) = (
+                pose(&m["tracker_from_marker"]),
+                pose(&t["tracker_from_marker"]),
+            );
+            worst_mm = worst_mm.max(translation_error(&a, &b) * 1e3);
+            worst_deg = worst_deg.max(rotation_error(&a, &b).to_degrees());
+        }
+    }
+    eprintln!(
+        "640×576 recording: found {found} of {count}, worst {worst_mm:.2} mm, {worst_deg:.2}°"
+    );
+    // The PNG path's accuracy (tests/track.rs), on the Azure Kinect's lens.
+    assert!(found >= count * 5 / 6, "found {found} of {count}");
+    assert!(
+        worst_mm < 3.0 && worst_deg < 2.0,
+        "{worst_mm} mm, {worst_deg}°"
+    );
+    assert!(std::path::Path::new(&d.path("overlay/0000_overlay.png")).exists());
+    // The text form says what the recording held.
+    let out = mocomp(&[
+        "track",
+        "--recording",
+        &mkv,
+        "--geometry",
+        &d.path("g.toml"),
+        "--k4a-sdk",
+        &sdk,
+    ]);
+    assert_success(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains(&format!(
+            "found the marker in {found} of {count} frames (0 dropped"
+        )),
+        "{text}"
+    );
+}
+
+/// Exit 2 and one line containing each of `needles`.
+fn refused(out: &std::process::Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    // The SDK logs its own complaints on stderr (timestamped lines); ours is the last line.
+    let ours: Vec<&str> = err.lines().filter(|l| !l.starts_with("[20")).collect();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(ours.len(), 1, "{err}");
+    for n in needles {
+        assert!(ours[0].contains(n), "{:?} should name {n:?}", ours[0]);
+    }
+}
+
+#[test]
+fn missing_sdks_and_bad_recordings_are_one_clear_line() {
+    let d = TempDir::new("k4a-bad");
+    std::fs::write(d.path("g.toml"), GEOMETRY).unwrap();
+    let g = d.path("g.toml");
+    let sdk = sdk();
+    // No SDK where it is said to be: how to install it.
+    let out = mocomp(&[
+        "track",
+        "--recording",
+        &d.path("x.mkv"),
+        "--geometry",
+        &g,
+        "--k4a-sdk",
+        &d.path("nowhere"),
+    ]);
+    refused(&out, &["Azure Kinect SDK", "pyk4a-bundle"]);
+    // A recording that is not there, or not one.
+    let out = mocomp(&[
+        "track",
+        "--recording",
+        &d.path("missing.mkv"),
+        "--geometry",
+        &g,
+        "--k4a-sdk",
+        &sdk,
+    ]);
+    refused(&out, &["missing.mkv"]);
+    std::fs::write(d.path("text.mkv"), "not a recording").unwrap();
+    let out = mocomp(&[
+        "track",
+        "--recording",
+        &d.path("text.mkv"),
+        "--geometry",
+        &g,
+        "--k4a-sdk",
+        &sdk,
+    ]);
+    refused(&out, &["text.mkv", "Azure Kinect recording"]);
+    // One cut short.
+    let whole = std::fs::read(format!(
+        "{}/../mocomp-k4a/tests/data/azure-kinect/recording.mkv",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    std::fs::write(d.path("cut.mkv"), &whole[..whole.len() / 2]).unwrap();
+    let out = mocomp(&[
+        "track",
+        "--recording",
+        &d.path("cut.mkv"),
+        "--geometry",
+        &g,
+        "--k4a-sdk",
+        &sdk,
+    ]);
+    refused(&out, &["cut.mkv", "cut short"]);
+    // A real device's recording without markers: tracked, found in none.
+    let real = format!(
+        "{}/../mocomp-k4a/tests/data/azure-kinect/recording.mkv",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let out = mocomp(&[
+        "track",
+        "--recording",
+        &real,
+        "--geometry",
+        &g,
+        "--k4a-sdk",
+        &sdk,
+    ]);
+    assert_success(&out);
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("found the marker in 0 of 1 frames"),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
