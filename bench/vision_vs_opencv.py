@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """One IR + depth frame through the fiducial pipeline: mocomp (Rust) against the same steps built
-from OpenCV and numpy, on the same rendered 512x424 frames.
+from OpenCV and numpy, on the same rendered frames: 512x424 (a Kinect v2), or 640x576 with
+--azure-kinect (an Azure Kinect DK's NFOV unbinned mode and its factory calibration, a rational
+lens, rendered through the Azure Kinect SDK from .venv-k4a or MOCOMP_K4A_SDK_DIR).
 
-    .venv/bin/python bench/vision_vs_opencv.py [--frames 40] [--rounds 30]
+    .venv/bin/python bench/vision_vs_opencv.py [--frames 40] [--rounds 30] [--azure-kinect]
 
 Frames come from `mocomp track render --distractors` (sun spots, reflections, a hand every fifth
 frame). Both sides load the PNGs first and time only the per-frame work, on one core:
@@ -37,8 +39,23 @@ def read_intrinsics(path):
     f = {k: float(v) for k, v in vals.items() if k != "pixel_centre"}
     off = 0.5 if vals.get("pixel_centre") == "half" else 0.0
     k = np.array([[f["fx"], 0, f["cx"] - off], [0, f["fy"], f["cy"] - off], [0, 0, 1]])
-    dist = np.array([f["k1"], f["k2"], f["p1"], f["p2"], f["k3"]])
-    return k, dist
+    # OpenCV's 8-coefficient (rational) model; 5 when the lens has no rational terms.
+    g = lambda name: f.get(name, 0.0)
+    dist = np.array([g("k1"), g("k2"), g("p1"), g("p2"), g("k3"), g("k4"), g("k5"), g("k6")])
+    if not dist[5:].any():
+        dist = dist[:5]
+    return k, dist, int(f["width"]), int(f["height"])
+
+
+def k4a_sdk_dir():
+    if os.environ.get("MOCOMP_K4A_SDK_DIR"):
+        return os.environ["MOCOMP_K4A_SDK_DIR"]
+    import glob
+    found = glob.glob(os.path.join(ROOT, ".venv-k4a/lib/python*/site-packages/pyk4a_bundle.libs"))
+    if not found:
+        raise SystemExit("--azure-kinect needs the Azure Kinect SDK: run scripts/test.sh (creates "
+                         ".venv-k4a) or set MOCOMP_K4A_SDK_DIR")
+    return found[0]
 
 
 def kabsch(p, q):
@@ -121,6 +138,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--rounds", type=int, default=30)
+    ap.add_argument("--azure-kinect", action="store_true",
+                    help="640x576 frames with an Azure Kinect's calibration")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     subprocess.run(["cargo", "build", "--quiet", "--release", "-p", "mocomp-cli", "-p", "mocomp-vision",
@@ -129,12 +148,16 @@ def main():
         geom = os.path.join(d, "g.toml")
         open(geom, "w").write(GEOMETRY)
         frames = os.path.join(d, "frames")
-        subprocess.run([os.path.join(ROOT, "target/release/mocomp"), "track", "render", "--out", frames,
-                        "--geometry", geom, "--count", str(args.frames), "--distractors", "--seed", "7"],
-                       check=True, capture_output=True)
+        render = [os.path.join(ROOT, "target/release/mocomp"), "track", "render", "--out", frames,
+                  "--geometry", geom, "--count", str(args.frames), "--distractors", "--seed", "7"]
+        if args.azure_kinect:
+            render += ["--k4a-calibration",
+                       os.path.join(ROOT, "crates/mocomp-k4a/tests/data/azure-kinect/calibration.json"),
+                       "--k4a-sdk", k4a_sdk_dir()]
+        subprocess.run(render, check=True, capture_output=True)
         ours = json.loads(subprocess.run([os.path.join(ROOT, "target/release/examples/vision_bench"), frames, geom,
                                           str(args.rounds)], check=True, capture_output=True, text=True).stdout)
-        k, dist = read_intrinsics(os.path.join(frames, "intrinsics.toml"))
+        k, dist, width, height = read_intrinsics(os.path.join(frames, "intrinsics.toml"))
         model = np.array([[0, 0, 0], [0, 47.38, 28.99], [0, 0, 89.1], [0, -35.36, 35.36]]) / 1000.0
         dm = np.linalg.norm(model[:, None] - model[None], axis=2)
         theirs, labelling, agree, found = [], [], 0, 0
@@ -158,7 +181,8 @@ def main():
                 agree += int(np.linalg.norm(t_ours - res[1]) < 1e-3)
     ours_us = statistics.median(f["us"] for f in ours["frames"])
     theirs_us = statistics.median(theirs)
-    print(f"{args.frames} rendered 512x424 frames with distractors, median of {args.rounds} runs per frame, one core")
+    print(f"{args.frames} rendered {width}x{height} frames with distractors, median of {args.rounds} runs per frame, "
+          f"one core ({len(dist)} distortion coefficients)")
     print(f"mocomp (Rust)       {ours_us:9.1f} us per frame")
     cc_us = statistics.median(labelling)
     print(f"OpenCV + numpy      {theirs_us:9.1f} us per frame")
