@@ -297,6 +297,8 @@ pub struct TrackerSection {
     pub simulated: SimTrackerSection,
     /// The simulated depth camera (source "camera").
     pub camera: CameraSection,
+    /// An Azure Kinect, live or a recording (source "k4a").
+    pub k4a: K4aSection,
 }
 
 impl Default for TrackerSection {
@@ -309,6 +311,7 @@ impl Default for TrackerSection {
             fixed_latency_s: 0.0,
             simulated: SimTrackerSection::default(),
             camera: CameraSection::default(),
+            k4a: K4aSection::default(),
         }
     }
 }
@@ -326,6 +329,9 @@ pub enum TrackerSource {
     Camera,
     /// A ROS 2 `geometry_msgs/PoseStamped` topic (`ros2.head_topic`): `mocomp run` only.
     Ros2,
+    /// An Azure Kinect (a device, or a recording played back) tracked by the paper's pipeline
+    /// (`[tracker.k4a]`), its poses served over OpenIGTLink on loopback.
+    K4a,
 }
 
 impl TrackerSource {
@@ -343,6 +349,7 @@ impl std::fmt::Display for TrackerSource {
             Self::Simulated => "simulated",
             Self::Camera => "camera",
             Self::Ros2 => "ros2",
+            Self::K4a => "k4a",
         })
     }
 }
@@ -422,6 +429,70 @@ impl Default for CameraSection {
             seed: 1,
             sun_spots: 0,
             reflections: 0,
+            geometry: None,
+            params: mocomp_vision::TrackParams::default(),
+        }
+    }
+}
+
+/// How a recording is played for `tracker.source = "k4a"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlaybackPace {
+    /// Each capture when its timestamp comes, as the camera delivered it.
+    #[default]
+    RealTime,
+    /// As fast as the SDK reads and the pipeline tracks.
+    Fast,
+}
+
+/// `[tracker.k4a]`: an Azure Kinect DK (or an Orbbec Femto through Orbbec's k4a-compatible
+/// library) tracked by the paper's pipeline, through the Azure Kinect SDK loaded at run time:
+/// a device (by serial) or a recording (`.mkv`). Each frame is stamped with its exposure on
+/// this host's clock (the device's timestamps mapped by the fastest arrivals, less
+/// `least_delay_s`); dropped frames, an unplugged device and a recording's end are named in the
+/// run's notes, and the loop holds on the stale tracker that follows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct K4aSection {
+    /// The SDK's directory (libk4a, libk4arecord 1.4; e.g. pyk4a-bundle's `pyk4a_bundle.libs`);
+    /// default: `MOCOMP_K4A_SDK_DIR`, else the system's library path.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sdk_dir: Option<String>,
+    /// The device's serial number (default: the only one connected).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub serial: Option<String>,
+    /// Play this recording instead of a device (relative to the configuration file).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recording: Option<String>,
+    /// How a recording is played: "real_time" or "fast".
+    pub playback: PlaybackPace,
+    /// The device's depth mode.
+    pub depth_mode: mocomp_k4a::DepthMode,
+    /// The device's frames per second: 5, 15 or 30.
+    pub fps: u32,
+    /// From the middle of a frame's exposure to the fastest the host receives it, s (the part of
+    /// the latency a host cannot see; the camera's datasheet or a flash test gives it).
+    pub least_delay_s: f64,
+    /// The head marker's fiducials (.toml with points_mm, Atracsys .ini, NDI .rom; relative to
+    /// the configuration file); default: the NDI 8700449 geometry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<String>,
+    /// The pipeline's steps 2–7 (as `mocomp track --params`); changeable while the loop runs.
+    pub params: mocomp_vision::TrackParams,
+}
+
+impl Default for K4aSection {
+    /// NFOV unbinned at 30 frames a second.
+    fn default() -> Self {
+        Self {
+            sdk_dir: None,
+            serial: None,
+            recording: None,
+            playback: PlaybackPace::RealTime,
+            depth_mode: mocomp_k4a::DepthMode::NfovUnbinned,
+            fps: 30,
+            least_delay_s: 0.0,
             geometry: None,
             params: mocomp_vision::TrackParams::default(),
         }
@@ -750,6 +821,30 @@ impl Config {
         cam.params
             .validate("tracker.camera.params")
             .map_err(|e| AppError::Config(e.to_string()))?;
+        let k = &self.tracker.k4a;
+        if !matches!(k.fps, 5 | 15 | 30) || k.fps > k.depth_mode.max_fps() {
+            return Err(AppError::Config(format!(
+                "tracker.k4a.fps = {}: the camera runs at 5, 15 or 30 frames a second ({:?}: at most {})",
+                k.fps,
+                k.depth_mode,
+                k.depth_mode.max_fps()
+            )));
+        }
+        if !k.depth_mode.has_depth() {
+            return Err(AppError::Config(
+                "tracker.k4a.depth_mode = \"passive_ir\": the pipeline needs depth".into(),
+            ));
+        }
+        Check::range(
+            "tracker.k4a.least_delay_s",
+            k.least_delay_s,
+            0.0,
+            1.0,
+            false,
+        )?;
+        k.params
+            .validate("tracker.k4a.params")
+            .map_err(|e| AppError::Config(e.to_string()))?;
         let s = &self.tracker.simulated;
         s.motion
             .validate()
@@ -849,10 +944,12 @@ impl Config {
             (None, TrackerSource::Simulated | TrackerSource::Camera) => {
                 Ok(pose_const(SIM_HEAD_FROM_COIL).iso())
             }
-            (None, TrackerSource::Openigtlink | TrackerSource::Ros2) => Err(AppError::Config(
-                "goal.head_from_coil: a real head needs its goal (teach it: mocomp teach-goal)"
-                    .into(),
-            )),
+            (None, TrackerSource::Openigtlink | TrackerSource::Ros2 | TrackerSource::K4a) => {
+                Err(AppError::Config(
+                    "goal.head_from_coil: a real head needs its goal (teach it: mocomp teach-goal)"
+                        .into(),
+                ))
+            }
         }
     }
 

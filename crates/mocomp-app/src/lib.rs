@@ -18,6 +18,8 @@ pub mod baseline;
 pub mod blame;
 pub mod calibration;
 pub mod camera;
+pub mod camera_k4a;
+pub mod camera_sim;
 pub mod collect;
 pub mod config;
 pub mod config_file;

@@ -629,6 +629,8 @@ pub struct RunReport {
     pub ros2: Option<Ros2Figures>,
     /// The MCAP recording (`None`: none asked).
     pub record: Option<crate::ros2::RecordOutcome>,
+    /// The depth camera's figures (`None`: the tracker is not a depth camera).
+    pub camera: Option<crate::camera::CameraReport>,
 }
 
 /// What the ROS 2 node did.
@@ -721,6 +723,7 @@ impl RunReport {
             session,
             ros2: None,
             record: None,
+            camera: None,
         }
     }
 
@@ -936,6 +939,9 @@ pub fn run(
         writeln!(progress, "warning: {w}").what(|| "writing the progress")?;
     }
     let clock = Arc::clone(&world.clock);
+    if let Some(c) = &world.camera {
+        c.notify(notes_tx.clone(), Arc::clone(&clock));
+    }
     // Set once, here: it cannot have been set before.
     loop_clock.set(Arc::clone(&clock)).ok();
     if let Some(v) = &world.vision {
@@ -1100,5 +1106,9 @@ pub fn run(
         published: b.published(),
         dropped: b.dropped(),
     });
+    report.camera = world
+        .camera
+        .as_ref()
+        .map(crate::camera::CameraServer::report);
     Ok(report)
 }

@@ -144,6 +144,8 @@ pub enum Note {
     Selected(f64, usize),
     /// The gate output could not be set (the robot refused the write).
     OutputFailed(f64),
+    /// The depth camera's news at loop time `.0`: frames dropped, its end.
+    Camera(f64, crate::camera::CameraNote),
 }
 
 /// The session on the loop's thread.
@@ -455,6 +457,7 @@ impl SessionLog {
             }
             Note::Selected(_, i) => format!("target {} selected", self.name(Some(i))),
             Note::OutputFailed(_) => "the gate output could not be set".into(),
+            Note::Camera(_, n) => n.to_string(),
         }
     }
 
@@ -471,7 +474,11 @@ impl SessionLog {
 /// The time of a note on the loop's clock.
 pub fn note_time(n: &Note) -> f64 {
     match *n {
-        Note::Gate(t, ..) | Note::Drift(t, _) | Note::Selected(t, _) | Note::OutputFailed(t) => t,
+        Note::Gate(t, ..)
+        | Note::Drift(t, _)
+        | Note::Selected(t, _)
+        | Note::OutputFailed(t)
+        | Note::Camera(t, _) => t,
         Note::Pulse(p, _) => p.t_s,
     }
 }

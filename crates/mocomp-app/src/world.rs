@@ -35,7 +35,8 @@ pub struct World {
     // Dropped after the robot client (field order): the simulators.
     _stimulator: Option<Stimulator>,
     tracker: Option<Arc<TrackerServer>>,
-    camera: Option<CameraServer>,
+    /// The depth camera (sources "camera" and "k4a").
+    pub(crate) camera: Option<CameraServer>,
     sim: Option<Arc<Sim>>,
 }
 
@@ -111,14 +112,22 @@ impl World {
             ),
             _ => None,
         };
-        let (camera, vision) = if file.tracker.source == TrackerSource::Camera {
-            let link = VisionLink::new(file.tracker.camera.params);
-            (
-                Some(CameraServer::start(setup, Arc::clone(&link))?),
-                Some(link),
-            )
-        } else {
-            (None, None)
+        let (camera, vision) = match file.tracker.source {
+            TrackerSource::Camera => {
+                let link = VisionLink::new(file.tracker.camera.params);
+                (
+                    Some(crate::camera_sim::start(setup, Arc::clone(&link))?),
+                    Some(link),
+                )
+            }
+            TrackerSource::K4a => {
+                let link = VisionLink::new(file.tracker.k4a.params);
+                (
+                    Some(crate::camera_k4a::start(setup, Arc::clone(&link))?),
+                    Some(link),
+                )
+            }
+            _ => (None, None),
         };
         let tracker_addr = match (&tracker, &camera, &file.tracker.igtl) {
             (Some(t), _, _) => t.addr().to_string(),

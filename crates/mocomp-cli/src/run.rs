@@ -199,6 +199,16 @@ fn print(out: &mut dyn Write, r: &RunReport, log: Option<&str>) -> std::io::Resu
             }
         )?;
     }
+    if let Some(c) = &r.camera {
+        writeln!(
+            out,
+            "  depth camera      {} frames, marker in {}; {} dropped, {} incomplete; acquisition to pose {:.1} ms median, {:.1} ms p99",
+            c.frames, c.found, c.dropped, c.incomplete, c.latency_median_ms, c.latency_p99_ms
+        )?;
+        if let (Some(e), Some(d)) = (&c.ended, &c.ended_detail) {
+            writeln!(out, "    ended: {e} ({d})")?;
+        }
+    }
     writeln!(out, "  events            {}", r.events)?;
     for (t, e) in &r.event_log {
         writeln!(out, "    {t:9.3} s  {e}")?;
