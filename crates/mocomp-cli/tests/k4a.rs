@@ -131,15 +131,7 @@ fn a_recording_of_rendered_markers_tracks_as_its_frames_do() {
     );
     assert!(std::path::Path::new(&d.path("overlay/0000_overlay.png")).exists());
     // The text form says what the recording held.
-    let out = mocomp(&[
-        "track",
-        "--recording",
-        &mkv,
-        "--geometry",
-        &d.path("g.toml"),
-        "--k4a-sdk",
-        &sdk,
-    ]);
+    let out = track(&mkv, &d.path("g.toml"), &sdk);
     assert_success(&out);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -162,6 +154,27 @@ fn refused(out: &std::process::Output, needles: &[&str]) {
     }
 }
 
+/// `mocomp track --recording path --geometry g --k4a-sdk sdk`.
+fn track(path: &str, g: &str, sdk: &str) -> std::process::Output {
+    mocomp(&[
+        "track",
+        "--recording",
+        path,
+        "--geometry",
+        g,
+        "--k4a-sdk",
+        sdk,
+    ])
+}
+
+/// The real device's recording in mocomp-k4a's test data.
+fn real_recording() -> String {
+    format!(
+        "{}/../mocomp-k4a/tests/data/azure-kinect/recording.mkv",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
 #[test]
 fn missing_sdks_and_bad_recordings_are_one_clear_line() {
     let d = TempDir::new("k4a-bad");
@@ -169,69 +182,22 @@ fn missing_sdks_and_bad_recordings_are_one_clear_line() {
     let g = d.path("g.toml");
     let sdk = sdk();
     // No SDK where it is said to be: how to install it.
-    let out = mocomp(&[
-        "track",
-        "--recording",
-        &d.path("x.mkv"),
-        "--geometry",
-        &g,
-        "--k4a-sdk",
-        &d.path("nowhere"),
-    ]);
+    let out = track(&d.path("x.mkv"), &g, &d.path("nowhere"));
     refused(&out, &["Azure Kinect SDK", "pyk4a-bundle"]);
     // A recording that is not there, or not one.
-    let out = mocomp(&[
-        "track",
-        "--recording",
-        &d.path("missing.mkv"),
-        "--geometry",
-        &g,
-        "--k4a-sdk",
-        &sdk,
-    ]);
-    refused(&out, &["missing.mkv"]);
+    refused(&track(&d.path("missing.mkv"), &g, &sdk), &["missing.mkv"]);
     std::fs::write(d.path("text.mkv"), "not a recording").unwrap();
-    let out = mocomp(&[
-        "track",
-        "--recording",
-        &d.path("text.mkv"),
-        "--geometry",
-        &g,
-        "--k4a-sdk",
-        &sdk,
-    ]);
+    let out = track(&d.path("text.mkv"), &g, &sdk);
     refused(&out, &["text.mkv", "Azure Kinect recording"]);
     // One cut short.
-    let whole = std::fs::read(format!(
-        "{}/../mocomp-k4a/tests/data/azure-kinect/recording.mkv",
-        env!("CARGO_MANIFEST_DIR")
-    ))
-    .unwrap();
+    let whole = std::fs::read(real_recording()).unwrap();
     std::fs::write(d.path("cut.mkv"), &whole[..whole.len() / 2]).unwrap();
-    let out = mocomp(&[
-        "track",
-        "--recording",
-        &d.path("cut.mkv"),
-        "--geometry",
-        &g,
-        "--k4a-sdk",
-        &sdk,
-    ]);
-    refused(&out, &["cut.mkv", "cut short"]);
-    // A real device's recording without markers: tracked, found in none.
-    let real = format!(
-        "{}/../mocomp-k4a/tests/data/azure-kinect/recording.mkv",
-        env!("CARGO_MANIFEST_DIR")
+    refused(
+        &track(&d.path("cut.mkv"), &g, &sdk),
+        &["cut.mkv", "cut short"],
     );
-    let out = mocomp(&[
-        "track",
-        "--recording",
-        &real,
-        "--geometry",
-        &g,
-        "--k4a-sdk",
-        &sdk,
-    ]);
+    // A real device's recording without markers: tracked, found in none.
+    let out = track(&real_recording(), &g, &sdk);
     assert_success(&out);
     assert!(
         String::from_utf8_lossy(&out.stdout).contains("found the marker in 0 of 1 frames"),

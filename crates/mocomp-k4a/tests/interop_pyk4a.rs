@@ -140,12 +140,17 @@ fn pattern(k: u64) -> (Vec<u16>, Vec<u16>) {
     (ir, depth)
 }
 
+/// A recording at `path`, 640×576 at 30 frames a second, the real device's calibration attached.
+fn recorder(path: &str) -> Recorder {
+    let calibration = std::fs::read(data("calibration.json")).unwrap();
+    Recorder::create(&sdk(), path, DepthMode::NfovUnbinned, 30, &calibration).unwrap()
+}
+
 #[test]
 fn recordings_we_write_with_the_sdks_recorder_read_back_in_pyk4a_pixel_for_pixel() {
     let dir = TempDir::new("mocomp-k4a-record");
     let path = dir.path("pattern.mkv");
-    let calibration = std::fs::read(data("calibration.json")).unwrap();
-    let mut r = Recorder::create(&sdk(), &path, DepthMode::NfovUnbinned, 30, &calibration).unwrap();
+    let mut r = recorder(&path);
     let frames = 12u64;
     for k in 0..frames {
         let (ir, depth) = pattern(k);
@@ -157,6 +162,7 @@ fn recordings_we_write_with_the_sdks_recorder_read_back_in_pyk4a_pixel_for_pixel
     let theirs = peer().request(&json!({"op": "read", "path": path}));
     assert_eq!(same_captures(&path, &theirs), frames as usize);
     // The calibration attached is the device's, per mode, as the real recording's.
+    let calibration = std::fs::read(data("calibration.json")).unwrap();
     let ours = Playback::open(&sdk(), &path).unwrap();
     let real = Playback::open(&sdk(), &data("recording.mkv")).unwrap();
     assert_eq!(ours.intrinsics().unwrap(), real.intrinsics().unwrap());
@@ -212,8 +218,7 @@ fn without_a_camera_opening_one_is_a_named_error() {
 fn truncated_and_damaged_recordings_are_named_errors_not_crashes() {
     let dir = TempDir::new("mocomp-k4a-damaged");
     let path = dir.path("whole.mkv");
-    let calibration = std::fs::read(data("calibration.json")).unwrap();
-    let mut r = Recorder::create(&sdk(), &path, DepthMode::NfovUnbinned, 30, &calibration).unwrap();
+    let mut r = recorder(&path);
     for k in 0..8 {
         let (ir, depth) = pattern(k);
         r.write(&ir, &depth, 1_000_000 + k * 33_333).unwrap();
