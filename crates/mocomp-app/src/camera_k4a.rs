@@ -134,6 +134,29 @@ impl Feed for Live {
     }
 }
 
+/// A recording played as a feed, at `pace`: each frame stamped from the first capture's time
+/// on, dropped frames counted by the timestamps, its end (or damage) the feed's end.
+pub fn recording_feed(
+    sdk: &Arc<mocomp_k4a::Sdk>,
+    path: &std::path::Path,
+    pace: PlaybackPace,
+) -> Result<Box<dyn Feed>, AppError> {
+    let name = path.display().to_string();
+    let what = || format!("tracker.k4a.recording {name}");
+    let playback = Playback::open(sdk, &name).what(what)?;
+    playback.check_trackable().what(what)?;
+    let intrinsics = playback.intrinsics().what(what)?;
+    let fps = playback.info().fps;
+    Ok(Box::new(Played {
+        playback,
+        intrinsics,
+        pace,
+        gaps: Gaps::new(fps),
+        epoch: None,
+        first_usec: 0,
+    }))
+}
+
 /// Starts the Azure Kinect of `setup` (`[tracker.k4a]`: a recording, or a device) sharing
 /// `link`, serving the head marker (`tracker.device`) on a free loopback port.
 pub fn start(setup: &Setup, link: Arc<VisionLink>) -> Result<CameraServer, AppError> {
@@ -147,27 +170,7 @@ pub fn start(setup: &Setup, link: Arc<VisionLink>) -> Result<CameraServer, AppEr
     let sdk_dir = k.sdk_dir.as_ref().map(|d| setup.dir.join(d));
     let sdk = crate::k4a::load_sdk(sdk_dir.as_deref())?;
     let feed: Box<dyn Feed> = match &k.recording {
-        Some(r) => {
-            let path = setup.dir.join(r);
-            let name = path.display().to_string();
-            let playback =
-                Playback::open(&sdk, &name).what(|| format!("tracker.k4a.recording {name}"))?;
-            playback
-                .check_trackable()
-                .what(|| format!("tracker.k4a.recording {name}"))?;
-            let intrinsics = playback
-                .intrinsics()
-                .what(|| format!("tracker.k4a.recording {name}"))?;
-            let fps = playback.info().fps;
-            Box::new(Played {
-                playback,
-                intrinsics,
-                pace: k.playback,
-                gaps: Gaps::new(fps),
-                epoch: None,
-                first_usec: 0,
-            })
-        }
+        Some(r) => recording_feed(&sdk, &setup.dir.join(r), k.playback)?,
         None => {
             let mut device = Device::open(&sdk, k.serial.as_deref()).what(|| "tracker.k4a")?;
             let intrinsics = device
