@@ -10,7 +10,7 @@ use serde_json::{Map, Value};
 
 /// The sections whose keys may change while the loop runs: the loop's parameters, and the
 /// camera pipeline's.
-pub const LIVE_SECTIONS: [&str; 2] = ["loop", "tracker.camera.params"];
+pub const LIVE_SECTIONS: [&str; 3] = ["loop", "tracker.camera.params", "tracker.k4a.params"];
 
 /// A change refused: the key (`loop.speed_fraction`, or the section when the whole change is
 /// malformed) and why.
@@ -79,8 +79,8 @@ pub fn apply(current: &Config, patch: &Value) -> Result<Tuned, Refusal> {
     }) {
         return Err(Refusal::new(
             k.clone(),
-            "cannot change while the loop runs (only [loop] and [tracker.camera.params] keys \
-             can); change it in the configuration file and restart",
+            "cannot change while the loop runs (only [loop], [tracker.camera.params] and \
+             [tracker.k4a.params] keys can); change it in the configuration file and restart",
         ));
     }
     // Only the live sections are taken over: the rest of `current` stays as it was loaded (a
@@ -88,6 +88,7 @@ pub fn apply(current: &Config, patch: &Value) -> Result<Tuned, Refusal> {
     let mut config = current.clone();
     config.params = parsed.params;
     config.tracker.camera.params = parsed.tracker.camera.params;
+    config.tracker.k4a.params = parsed.tracker.k4a.params;
     config.check().map_err(|e| {
         let message = e.to_string();
         // The checks name their key first (`loop.speed_fraction = 2: must be …`).
@@ -219,6 +220,19 @@ mod tests {
         )
         .unwrap();
         assert_eq!(back.config.tracker.camera.params.scan_area, None);
+        // The Azure Kinect's pipeline is live as well.
+        let t = apply(
+            &c,
+            &json!({"tracker": {"k4a": {"params": {"ir_threshold": 25000}}}}),
+        )
+        .unwrap();
+        assert_eq!(t.config.tracker.k4a.params.ir_threshold, 25000);
+        assert_eq!(
+            t.changed,
+            vec!["tracker.k4a.params.ir_threshold".to_string()]
+        );
+        let r = apply(&c, &json!({"tracker": {"k4a": {"fps": 15}}})).unwrap_err();
+        assert_eq!(r.key, "tracker.k4a.fps");
         // The camera's other keys are not live.
         let r = apply(&c, &json!({"tracker": {"camera": {"rate_hz": 15.0}}})).unwrap_err();
         assert_eq!(r.key, "tracker.camera.rate_hz");

@@ -332,12 +332,18 @@ async function teach() {
 
 // ---- tuning ---------------------------------------------------------------------------------
 
-// The two forms: the loop's parameters, and the camera pipeline's. Each field's id is its
-// prefix and key; its error is shown beside it.
+// The two forms: the loop's parameters, and the camera pipeline's (the simulated camera's
+// [tracker.camera.params], or an Azure Kinect's [tracker.k4a.params]: whichever the session's
+// tracker is). Each field's id is its prefix and key; its error is shown beside it.
 const FORMS = {
   loop: { form: "params", input: "param-", error: "error-", result: "params-result", key: "loop." },
   camera: { form: "cam-params", input: "cam-", error: "cam-error-", result: "camera-result", key: "tracker.camera.params." },
 };
+
+// The camera section of the configuration in use: "k4a" for an Azure Kinect, else "camera".
+function cameraSection() {
+  return state.config && state.config.tracker.source === "k4a" ? "k4a" : "camera";
+}
 
 function show(value) {
   if (value === null || value === undefined) return "";
@@ -380,7 +386,7 @@ async function applyForm(which) {
   const result = $(f.result);
   result.className = ""; result.textContent = "";
   if (!Object.keys(changed).length) { result.textContent = "nothing changed"; return; }
-  const body = which === "loop" ? { loop: changed } : { tracker: { camera: { params: changed } } };
+  const body = which === "loop" ? { loop: changed } : { tracker: { [cameraSection()]: { params: changed } } };
   const r = await api("POST", "/api/params", body);
   if (r.ok) {
     result.className = "ok";
@@ -405,7 +411,8 @@ async function loadConfig() {
   state.config = r.data.config;
   $("auth").hidden = r.data.authorized;
   buildForm("loop", r.data.config.loop);
-  buildForm("camera", r.data.config.tracker.camera.params);
+  FORMS.camera.key = "tracker." + cameraSection() + ".params.";
+  buildForm("camera", r.data.config.tracker[cameraSection()].params);
 }
 
 // ---- the calibration collection -------------------------------------------------------------

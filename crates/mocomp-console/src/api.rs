@@ -227,18 +227,32 @@ async fn params(State(api): State<Api>, headers: HeaderMap, body: Bytes) -> Resp
                 .into_response();
         }
     };
+    // The camera's section is the tracker's: the simulated camera's, or the Azure Kinect's.
+    let (section, params) = match tuned.config.tracker.source {
+        mocomp_app::config::TrackerSource::K4a => {
+            ("tracker.k4a.params", tuned.config.tracker.k4a.params)
+        }
+        _ => ("tracker.camera.params", tuned.config.tracker.camera.params),
+    };
     let camera_changed = tuned
         .changed
         .iter()
-        .any(|k| k.starts_with("tracker.camera.params."));
+        .any(|k| k.starts_with("tracker.camera.params.") || k.starts_with("tracker.k4a.params."));
     let vision = api.shared.controls.vision();
-    if camera_changed && vision.is_none() {
+    let other = tuned
+        .changed
+        .iter()
+        .find(|k| k.starts_with("tracker.") && !k.starts_with(&format!("{section}.")));
+    if camera_changed && (vision.is_none() || other.is_some()) {
+        let source = tuned.config.tracker.source;
+        let error = if vision.is_none() {
+            format!("this session has no camera (tracker.source is \"{source}\")")
+        } else {
+            format!("this session's camera is [{section}] (tracker.source \"{source}\")")
+        };
         return (
             StatusCode::CONFLICT,
-            axum::Json(json!({
-                "key": "tracker.camera.params",
-                "error": "this session has no camera (tracker.source is not \"camera\")",
-            })),
+            axum::Json(json!({ "key": other.map_or(section, String::as_str), "error": error })),
         )
             .into_response();
     }
@@ -249,7 +263,7 @@ async fn params(State(api): State<Api>, headers: HeaderMap, body: Bytes) -> Resp
     }
     if camera_changed
         && let Some(v) = vision
-        && let Err(e) = v.set_params(tuned.config.tracker.camera.params)
+        && let Err(e) = v.set_params(params)
     {
         // Checked by the tuning already: this cannot refuse what it accepted.
         return refuse(StatusCode::BAD_REQUEST, &e.to_string());
