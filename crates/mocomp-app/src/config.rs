@@ -1015,7 +1015,7 @@ impl Config {
 /// Keys the experiment does not use (it builds its own scene, calibrates itself and sets its
 /// own goal), as dotted paths; a table stands for every key in it.
 /// (`record_mcap`, `ros2.node_name` and `ros2.frames` name the demo's recording.)
-const NOT_FOR_THE_EXPERIMENT: [&str; 21] = [
+const NOT_FOR_THE_EXPERIMENT: [&str; 22] = [
     "duration_s",
     "log_csv",
     "robot.simulate",
@@ -1023,6 +1023,7 @@ const NOT_FOR_THE_EXPERIMENT: [&str; 21] = [
     "tracker.source",
     "tracker.igtl",
     "tracker.device",
+    "tracker.k4a",
     "tracker.timestamps",
     "tracker.fixed_latency_s",
     "tracker.simulated.base_from_head",
