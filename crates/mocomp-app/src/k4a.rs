@@ -120,8 +120,12 @@ impl RecordingSink {
             .what(|| format!("--k4a-calibration {}", calibration.display()))?;
         // As `--out`: the directory is made when it is not there.
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .what(|| format!("--recording {}: cannot create its directory", path.display()))?;
+            std::fs::create_dir_all(dir).what(|| {
+                format!(
+                    "--recording {}: cannot create its directory",
+                    path.display()
+                )
+            })?;
         }
         let recorder = Recorder::create(sdk, &path.display().to_string(), mode, fps, &raw)
             .what(|| format!("--recording {}", path.display()))?;

@@ -50,7 +50,8 @@ fn lines(out: &std::process::Output) -> Vec<Value> {
 fn a_recording_of_rendered_markers_tracks_as_its_frames_do() {
     let d = TempDir::new("k4a-track");
     std::fs::write(d.path("g.toml"), GEOMETRY).unwrap();
-    let (frames, mkv, sdk) = (d.path("frames"), d.path("markers.mkv"), sdk());
+    // The recording's directory is made, as --out's is.
+    let (frames, mkv, sdk) = (d.path("frames"), d.path("recordings/markers.mkv"), sdk());
     let count = 30;
     let out = mocomp(&[
         "track",
