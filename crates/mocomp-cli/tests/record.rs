@@ -10,7 +10,7 @@
 //! of the run.
 
 mod common;
-use common::{assert_success, example_changed, mocomp};
+use common::{assert_success, example_changed, mocomp, run_args};
 use mocomp_testkit::{PythonPeer, TempDir};
 use serde_json::json;
 
@@ -57,19 +57,11 @@ fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     let path = example_changed(&dir, "127.0.0.83", &[]);
     let mcap = dir.path("run.mcap");
     let csv = dir.path("run.csv");
-    let out = mocomp(&[
-        "run",
-        "--config",
+    let out = mocomp(&run_args(
         &path,
-        "--seconds",
         "4",
-        "--record",
-        &mcap,
-        "--log-csv",
-        &csv,
-        "--quiet",
-        "--json",
-    ]);
+        &["--record", &mcap, "--log-csv", &csv],
+    ));
     let (v, r) = read_back(&out, &mcap);
     let cycles = v["cycles"].as_u64().unwrap();
     // Every cycle's record, and every cycle's ROS 2 messages (the arm's state was measured from

@@ -12,6 +12,7 @@
 
 mod common;
 use common::example_changed as example;
+use common::run_args;
 use mocomp_geom::iso_from_ur_pose;
 use mocomp_testkit::{PythonPeer, TempDir, assert_loopback_only};
 use serde_json::{Value, json};
@@ -19,16 +20,7 @@ use std::process::{Child, Command, Stdio};
 
 fn spawn_run(config: &str, seconds: &str, domain: u16, extra: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args([
-            "run",
-            "--config",
-            config,
-            "--seconds",
-            seconds,
-            "--quiet",
-            "--json",
-        ])
-        .args(extra)
+        .args(run_args(config, seconds, extra))
         .env("ROS_DOMAIN_ID", domain.to_string())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -4,7 +4,7 @@
 //! configurations are refused with the key named.
 
 mod common;
-use common::{assert_success, example, example_changed, mocomp};
+use common::{assert_success, example, example_changed, mocomp, run_args};
 use mocomp_testkit::TempDir;
 
 /// The example configuration with its simulated robot on `host`; its path.
@@ -17,17 +17,7 @@ fn the_example_config_compensates_on_the_simulated_robot() {
     let dir = TempDir::new("mocomp-run");
     let path = example_at(&dir, "127.0.0.41");
     let csv = dir.path("run.csv");
-    let out = mocomp(&[
-        "run",
-        "--config",
-        &path,
-        "--seconds",
-        "6",
-        "--log-csv",
-        &csv,
-        "--quiet",
-        "--json",
-    ]);
+    let out = mocomp(&run_args(&path, "6", &["--log-csv", &csv]));
     assert_success(&out);
     // Standard output is the summary alone, one JSON object.
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -146,17 +136,7 @@ fn a_log_that_cannot_be_written_fails_the_run_after_the_robot_is_stopped() {
     let dir = TempDir::new("mocomp-run-full");
     let path = example_at(&dir, "127.0.0.46");
     // /dev/full: every write fails with "no space left on device", like a full disk.
-    let out = mocomp(&[
-        "run",
-        "--config",
-        &path,
-        "--seconds",
-        "1",
-        "--log-csv",
-        "/dev/full",
-        "--quiet",
-        "--json",
-    ]);
+    let out = mocomp(&run_args(&path, "1", &["--log-csv", "/dev/full"]));
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
@@ -275,15 +255,7 @@ fn the_run_replays_a_recorded_motion_relative_to_its_config() {
         .replace("host = \"127.0.0.2\"", "host = \"127.0.0.45\"");
     let path = dir.path("run.toml");
     std::fs::write(&path, &cfg).unwrap();
-    let out = mocomp(&[
-        "run",
-        "--config",
-        &path,
-        "--seconds",
-        "1",
-        "--quiet",
-        "--json",
-    ]);
+    let out = mocomp(&run_args(&path, "1", &[]));
     assert_success(&out);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(v["cycles"].as_u64().unwrap() > 300, "{v}");

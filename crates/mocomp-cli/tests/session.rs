@@ -12,7 +12,7 @@
 //! flange marker, and the loop holds.
 
 mod common;
-use common::{assert_success, example_changed, mocomp};
+use common::{assert_success, example_changed, mocomp, run_args};
 use mocomp_testkit::TempDir;
 
 /// The example configuration on `host`, the head nodding gently (a seated patient's, about
@@ -48,15 +48,7 @@ fn targets(dir: &TempDir, config: &str) -> String {
 }
 
 fn run(config: &str, seconds: &str) -> serde_json::Value {
-    let out = mocomp(&[
-        "run",
-        "--config",
-        config,
-        "--seconds",
-        seconds,
-        "--quiet",
-        "--json",
-    ]);
+    let out = mocomp(&run_args(config, seconds, &[]));
     assert_success(&out);
     serde_json::from_slice(&out.stdout).unwrap()
 }

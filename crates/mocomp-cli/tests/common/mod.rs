@@ -40,3 +40,18 @@ pub fn assert_success(out: &Output) {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// The arguments of `mocomp run --config CONFIG --seconds SECONDS --quiet --json`, then `extra`.
+pub fn run_args<'a>(config: &'a str, seconds: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
+        "run",
+        "--config",
+        config,
+        "--seconds",
+        seconds,
+        "--quiet",
+        "--json",
+    ];
+    args.extend_from_slice(extra);
+    args
+}
