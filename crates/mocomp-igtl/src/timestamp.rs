@@ -89,6 +89,8 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(mocomp_testkit::proptest_config(256, 13))]
+
         #[test]
         fn nanos_round_trip_within_a_nanosecond(ns in 1u128..4_000_000_000_000_000_000u128) {
             let t = Timestamp::from_unix_nanos(ns);

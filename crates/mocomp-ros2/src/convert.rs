@@ -102,6 +102,8 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        #![proptest_config(mocomp_testkit::proptest_config(256, 14))]
+
         #[test]
         fn a_pose_survives_the_message(
             x in -2.0..2.0f64, y in -2.0..2.0f64, z in -2.0..2.0f64,
