@@ -335,24 +335,69 @@ fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> Result<TrackerServer, 
     TrackerServer::start("127.0.0.1:0", s.model, markers).what(|| "the simulated tracker")
 }
 
-/// Starts a real-time simulated controller of `model` on the standard ports of `host` (for
-/// `mocomp ursim` and `robot --ursim`). It stands for the controller's own computer, so its
-/// threads run at `SCHED_FIFO` (the default simulator priority) where the operating system
-/// allows: they inherit it from the calling thread, which is left at that priority. Returns it
-/// with a warning when the priority was refused.
+/// Starts a simulated controller of `model` on the standard ports of `host` (for `mocomp ursim`
+/// and `robot --ursim`), at the options' joints. It stands for the controller's own computer, so
+/// its threads run at the options' `SCHED_FIFO` priority (and CPU) where the operating system
+/// allows: they inherit them from the calling thread, which is left so. Returns it with a
+/// warning naming what was refused; joints outside the limits are a configuration error.
 pub fn start_simulator(
     model: mocomp_kin::Model,
     host: std::net::IpAddr,
+    options: &SimulatorOptions,
 ) -> Result<(Sim, Option<String>), AppError> {
-    let rt = mocomp_rt::RtConfig::default();
-    let warning = mocomp_rt::set_fifo(rt.simulator_priority)
-        .err()
-        .map(|e| format!("the simulated controller runs without real-time scheduling: {e}"));
-    let sim = Sim::start(SimConfig::new(ControllerConfig::new(model), host)).what(|| {
+    let mut warnings = Vec::new();
+    if let Some(cpu) = options.cpu
+        && let Err(e) = mocomp_rt::pin_to_cpu(cpu)
+    {
+        warnings.push(format!("not pinned to CPU {cpu}: {e}"));
+    }
+    if let Some(priority) = options.priority
+        && let Err(e) = mocomp_rt::set_fifo(priority)
+    {
+        warnings.push(format!(
+            "no real-time scheduling (SCHED_FIFO {priority}): {e}"
+        ));
+    }
+    let mut controller = ControllerConfig::new(model);
+    if let Some(q) = options.initial_q {
+        let arm = mocomp_kin::Arm::new(model);
+        if !arm.limits().contains(&q, 0.0) {
+            return Err(AppError::Config(format!(
+                "initial joints {q:?}: outside the {model}'s joint limits"
+            )));
+        }
+        controller.initial_q = q;
+    }
+    let sim = Sim::start(SimConfig::new(controller, host)).what(|| {
         format!(
             "starting the simulated {model} on {host} (each simulator needs its own loopback \
              address: 127.0.0.2, 127.0.0.3, …)"
         )
     })?;
+    let warning = (!warnings.is_empty())
+        .then(|| format!("the simulated controller runs with {}", warnings.join("; ")));
     Ok((sim, warning))
+}
+
+/// How a stand-alone simulated controller starts: as a real one would, at its own pose and
+/// priority.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulatorOptions {
+    /// The arm's joints at power-on (default: the simulator's working pose).
+    pub initial_q: Option<[f64; 6]>,
+    /// `SCHED_FIFO` priority of its threads (`None`: normal scheduling).
+    pub priority: Option<u8>,
+    /// Pin its threads to this CPU.
+    pub cpu: Option<usize>,
+}
+
+impl Default for SimulatorOptions {
+    /// The working pose, at the configured simulators' FIFO priority, unpinned.
+    fn default() -> Self {
+        Self {
+            initial_q: None,
+            priority: Some(mocomp_rt::RtConfig::default().simulator_priority),
+            cpu: None,
+        }
+    }
 }

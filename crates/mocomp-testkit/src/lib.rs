@@ -5,6 +5,8 @@
 //!   install it, never a skip.
 //! - [`SplitMix64`]: a tiny seeded generator for tests that must not depend on a RNG crate's
 //!   version.
+//! - [`controller`]: `mocomp ursim` in a process of its own, as a real controller is (its own
+//!   start pose and priority), with its event log, and stalls injected by stopping the process.
 //! - [`mem`]: an in-memory robot (wherever it was commanded) and a scripted pose source, for the
 //!   loop's rules and filter without sockets.
 //! - [`TempDir`]: a scratch directory removed when dropped; [`listening_port`] (the port a child
@@ -15,6 +17,7 @@
 //! taken in between. Servers bind port 0 (or an address of their own) and report what they got.
 #![allow(clippy::panic)] // test support: failures are panics with a message
 
+pub mod controller;
 pub mod mem;
 
 use serde_json::Value;

@@ -93,7 +93,11 @@ impl Robot for MemRobot {
         Ok(self.seq)
     }
     fn stop(&mut self, _: f64) -> Result<i32, UrError> {
+        // A command of its own, taken at once (a test that plays a slow controller sets
+        // `state.acked_seq` back).
         self.stops += 1;
+        self.seq += 1;
+        self.state.acked_seq = self.seq;
         Ok(self.seq)
     }
     fn keep_alive(&mut self) -> Result<(), UrError> {

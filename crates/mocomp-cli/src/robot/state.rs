@@ -40,7 +40,7 @@ impl StateCmd {
     pub fn run(self, out: &mut dyn Write) -> Result<()> {
         let _sim = self
             .ursim
-            .map(|m| crate::ursim::start(m, self.host))
+            .map(|m| crate::ursim::start(m, self.host, &Default::default()))
             .transpose()?;
         print(out, self.host, self.json)
     }

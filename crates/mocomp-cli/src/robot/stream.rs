@@ -56,7 +56,7 @@ impl StreamCmd {
         }
         let _sim = self
             .ursim
-            .then(|| crate::ursim::start(self.model, self.host))
+            .then(|| crate::ursim::start(self.model, self.host, &Default::default()))
             .transpose()?;
         let o = StreamOptions {
             seconds: self.seconds,
