@@ -199,7 +199,7 @@ impl StatusJson {
 pub struct EventJson {
     /// Loop time, s.
     pub t: f64,
-    /// hold, retreat, resume, reached, outlier, coasting; session (a pulse, the gate, the drift
+    /// hold, retreat, resume, reached, outlier, coasting, transit; session (a pulse, the gate, the drift
     /// monitor: the text says which).
     pub kind: &'static str,
     /// The rule that fired, if any.
@@ -217,6 +217,7 @@ impl EventJson {
             Event::Reached => ("reached", None),
             Event::Outlier(..) => ("outlier", None),
             Event::Coasting(..) => ("coasting", None),
+            Event::Transit(..) => ("transit", None),
         };
         Self {
             t,

@@ -14,11 +14,12 @@ use crate::predict::PosePredictor;
 use crate::safety::{backed_off, required_clearance, standoff_for};
 pub use crate::supervisor::Reason;
 use crate::supervisor::{
-    Reaction, TrackerInputs, TrackerVerdict, reaction, robot_rules, tracker_rules,
+    Reaction, TrackerInputs, TrackerVerdict, TransitRefusal, reaction, robot_rules, tracker_rules,
 };
+use crate::transit::{JointPath, profile_step};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use mocomp_geom::{PoseSample, PoseSource};
-use mocomp_kin::{Arm, Selection};
+use mocomp_kin::{Arm, BranchPolicy, Metric, Selection};
 use mocomp_ur::Robot;
 
 /// What the loop is doing.
@@ -79,6 +80,21 @@ pub enum Event {
     Reached,
     /// A tracker dropout began; the loop coasts on the prediction (the newest sample's age, s).
     Coasting(f64),
+    /// The loop resumed by a joint-space move to the goal's approach axis (a start far from the
+    /// head, or on another IK branch): the largest joint's travel, rad.
+    Transit(f64),
+}
+
+/// The way to the goal the loop follows while approaching.
+// Not boxed: a plan is made inside the cycle, and the cycle allocates nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Plan {
+    /// Retreat, shell and approach in the head frame, on the current IK branch.
+    Shell(ShellPath),
+    /// A joint-space move in the base frame to the goal's approach axis, `transit_distance_m`
+    /// back from the goal (possibly on another branch); a shell path follows it.
+    Transit(JointPath),
 }
 
 /// One cycle, for the log.
@@ -191,6 +207,13 @@ const STANDOFF_LANDING_M_S2: f64 = 1.0;
 const TOUCH_N: f64 = 0.5;
 /// Corrections of one command by the safety filter (each re-solves IK and the limits).
 const FILTER_PASSES: usize = 2;
+/// A joint-space transit is checked against the head at samples this far apart (the largest
+/// joint's travel), rad: 2 cm at a 0.4 m lever.
+const TRANSIT_CHECK_RAD: f64 = 0.05;
+/// A transit's profile waits while the command lags it by more than this (largest joint), rad.
+const TRANSIT_LAG_RAD: f64 = 0.02;
+/// A transit has arrived when the command is this close to its end (largest joint), rad.
+const TRANSIT_ARRIVED_RAD: f64 = 1e-4;
 
 /// The compensation loop's state.
 #[derive(Debug, Clone)]
@@ -211,11 +234,17 @@ pub struct Compensator {
     mode: Mode,
     clear_since: Option<f64>,
     stop_sent: bool,
+    /// The sequence number of the stop sent for a fault, until the controller has taken it.
+    stop_seq: Option<i32>,
+    /// A servo command has been sent (`q_cmd` is a setpoint the controller may hold).
+    servo_sent: bool,
     command_delay: f64,
     acks: [(i32, f64); ACK_RING],
     ack_head: usize,
     ack_len: usize,
-    path: Option<ShellPath>,
+    /// The planned way to the goal while approaching.
+    path: Option<Plan>,
+    /// Progress along it: m of shell path, or rad of the transit's largest joint.
     sigma: f64,
     sigma_dot: f64,
     replan: bool,
@@ -292,6 +321,8 @@ impl Compensator {
             mode: Mode::Holding(Reason::NoTracker),
             clear_since: None,
             stop_sent: false,
+            stop_seq: None,
+            servo_sent: false,
             acks: [(0, 0.0); ACK_RING],
             ack_head: 0,
             ack_len: 0,
@@ -575,15 +606,20 @@ impl Compensator {
     /// Rate- and acceleration-limits the command towards `desired`, joint by joint, so that each
     /// joint can still stop at `desired` within its acceleration, relative to the target's own
     /// motion: a moving target is followed at its speed (feed-forward), not approached as if it
-    /// stood still, which would lag it by the braking distance. The step is over the controller
-    /// time since the previous command (`self.dt`): a late cycle moves as far as the time that
-    /// really passed and no further, so the controller never sees a setpoint faster than the
-    /// limits (URControl's C204A3), and a cycle with no controller time passed moves nothing.
+    /// stood still, which would lag it by the braking distance. The target's speed is over the
+    /// controller time since the previous command (`self.dt`); the step itself is never longer
+    /// than one controller period's: the controller judges a setpoint against its previous one,
+    /// which it may have taken only one period ago however long this state took to come (a
+    /// controller that stalled and caught up, a network that held the previous command back),
+    /// so after any gap the command goes on from the last setpoint within the per-cycle limit
+    /// (URControl's C204A3) and makes up the lost time over the following cycles. A cycle with
+    /// no controller time passed moves nothing.
     fn limit(&mut self, desired: &[f64; 6], speed_fraction: f64) -> [f64; 6] {
-        let dt = self.dt;
-        if dt <= 0.0 {
+        if self.dt <= 0.0 {
             return self.q_cmd;
         }
+        let target_dt = self.dt;
+        let dt = self.dt.min(self.period);
         let a = self.cfg.params.max_joint_accel_rad_s2;
         let mut q = self.q_cmd;
         let mut v = self.v_cmd;
@@ -593,7 +629,7 @@ impl Compensator {
             // The target's speed, from its last two values; a jump (a new mode, a retreat) is
             // not a speed to keep.
             let v_target = previous
-                .map(|p| (desired[j] - p[j]) / dt)
+                .map(|p| (desired[j] - p[j]) / target_dt)
                 .filter(|v| v.abs() <= vmax)
                 .unwrap_or(0.0);
             let delta = desired[j] - self.q_cmd[j];
@@ -736,7 +772,10 @@ impl Compensator {
                 Some(axis_of(&self.cfg.head_from_coil_goal)),
                 self.path
                     .filter(|_| self.mode == Mode::Approaching)
-                    .map(|p| axis_of(p.start())),
+                    .and_then(|p| match p {
+                        Plan::Shell(p) => Some(axis_of(p.start())),
+                        Plan::Transit(_) => None,
+                    }),
             ];
             let lateral_of = |c: Vector3<f64>| {
                 axes.iter()
@@ -763,12 +802,43 @@ impl Compensator {
         self.cfg.coil.distance(&self.cfg.head, head_from_coil)
     }
 
-    /// Plans a path from the commanded pose to the goal around the head at `base_from_head` and
-    /// checks it: every sample reachable on the current branch with no joint jump, and every
-    /// step between samples collision-free.
-    fn plan(&self, base_from_head: &Isometry3<f64>) -> Result<ShellPath, Reason> {
-        let head_from_base = base_from_head.inverse();
-        let start = head_from_base * self.arm.fk_flange(&self.q_cmd) * self.cfg.flange_from_coil;
+    /// Plans the way from the commanded pose to the goal around the head at `base_from_head`: a
+    /// shell path when the coil is near the head and the path has a solution on the current
+    /// branch, else a joint-space transit to the goal's approach axis away from the head on a
+    /// branch the approach has a solution on (see [`crate::transit`]).
+    fn plan(&self, base_from_head: &Isometry3<f64>) -> Result<Plan, Reason> {
+        let p = &self.cfg.params;
+        let clearance = self.coil_distance(&self.head_from_coil_at(&self.q_cmd, base_from_head));
+        let near = clearance <= p.transit_distance_m + p.shell_distance_m;
+        let shell = if near {
+            match self.plan_shell(&self.q_cmd, base_from_head) {
+                Ok(path) => return Ok(Plan::Shell(path)),
+                // A goal whose axis points out of the head has no approach on any branch.
+                Err(Reason::GoalAxisOutward) => return Err(Reason::GoalAxisOutward),
+                Err(r) => Some(r),
+            }
+        } else {
+            None
+        };
+        match self.plan_transit(base_from_head) {
+            Ok(t) => Ok(Plan::Transit(t)),
+            // Near the head with no transit either: the shell's own reason says where it failed.
+            Err(Reason::NoTransit(TransitRefusal::Unreachable)) if shell.is_some() => {
+                Err(shell.unwrap_or(Reason::NoPath(f64::NAN)))
+            }
+            Err(r) => Err(r),
+        }
+    }
+
+    /// A shell path from the coil at joints `q` to the goal around the head at
+    /// `base_from_head`, checked: every sample reachable on `q`'s branch with no joint jump, and
+    /// every step between samples collision-free.
+    fn plan_shell(
+        &self,
+        q: &[f64; 6],
+        base_from_head: &Isometry3<f64>,
+    ) -> Result<ShellPath, Reason> {
+        let start = self.head_from_coil_at(q, base_from_head);
         let path = ShellPath::plan(
             &self.cfg.head,
             &start,
@@ -779,7 +849,7 @@ impl Compensator {
             PlanError::AxisOutward => Reason::GoalAxisOutward,
             PlanError::NoRetreat(_) => Reason::NoPath(f64::NAN),
         })?;
-        let mut q = self.q_cmd;
+        let mut q = *q;
         let n = PATH_CHECKS;
         for k in 1..=n {
             let sigma = path.length() * k as f64 / n as f64;
@@ -804,6 +874,84 @@ impl Compensator {
             q = next;
         }
         Ok(path)
+    }
+
+    /// A joint-space transit from the command to the goal's approach axis `transit_distance_m`
+    /// back from the goal, for the head at `base_from_head`: of the IK solutions there (each
+    /// branch, the `±2π` variant nearest the command), the quickest whose configuration is clear
+    /// of singularities, whose straight joint-space line stays clear of the head, and from which
+    /// the shell path to the goal has a solution. Refused with the furthest any candidate got.
+    fn plan_transit(&self, base_from_head: &Isometry3<f64>) -> Result<JointPath, Reason> {
+        let p = &self.cfg.params;
+        let pre = backed_off(&self.cfg.head_from_coil_goal, p.transit_distance_m);
+        let flange = base_from_head * pre * self.coil_from_flange;
+        let refused = |why| Reason::NoTransit(why);
+        let sols = self
+            .arm
+            .ik(&flange, self.q_cmd[5])
+            .map_err(|_| refused(TransitRefusal::Unreachable))?;
+        // Each branch's variant nearest the command, quickest first (at most 8: no allocation).
+        let mut cands = [(f64::INFINITY, [0.0; 6]); 8];
+        let mut n = 0;
+        for s in sols.iter().take(cands.len()) {
+            let sel = Selection {
+                metric: Metric::TimeToReach,
+                branch: BranchPolicy::Only(s.branch),
+                limit_margin: p.joint_margin_rad,
+            };
+            if let Ok(c) = self.arm.choose(&sols, &self.q_cmd, &sel) {
+                cands[n] = (c.cost, c.joints);
+                n += 1;
+            }
+        }
+        cands[..n].sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let mut furthest = TransitRefusal::Unreachable;
+        for (_, q) in &cands[..n] {
+            let path = JointPath::new(self.q_cmd, *q);
+            let why = if self.arm.singularity_margin(q) < p.singularity_slow {
+                TransitRefusal::Singular
+            } else if !self.transit_clear(&path, base_from_head) {
+                TransitRefusal::Collision
+            } else if self.plan_shell(q, base_from_head).is_err() {
+                TransitRefusal::NoApproach
+            } else {
+                return Ok(path);
+            };
+            furthest = furthest.max(why);
+        }
+        Err(refused(furthest))
+    }
+
+    /// Whether a transit stays clear of the head at `base_from_head` all along: the coil never
+    /// closer than the shell (or than it starts, when it starts nearer), no link closer than its
+    /// clearance.
+    fn transit_clear(&self, path: &JointPath, base_from_head: &Isometry3<f64>) -> bool {
+        let p = &self.cfg.params;
+        let head_from_base = base_from_head.inverse();
+        let start = self.coil_distance(&self.head_from_coil_at(path.start(), base_from_head));
+        let coil_min = p.shell_distance_m.min(start - p.coil_contact_tolerance_m);
+        let n = ((path.length() / TRANSIT_CHECK_RAD).ceil() as usize).clamp(1, 200);
+        for k in 1..=n {
+            let q = path.at(path.length() * k as f64 / n as f64);
+            if self.coil_distance(&self.head_from_coil_at(&q, base_from_head)) < coil_min {
+                return false;
+            }
+            let frames = self.arm.link_frames(&q);
+            for i in 1..6 {
+                let (a, b) = (
+                    frames[i - 1].translation.vector,
+                    frames[i].translation.vector,
+                );
+                for s in 0..=4 {
+                    let point = Point3::from(a + (b - a) * (f64::from(s) / 4.0));
+                    let d = self.cfg.head.distance(&(head_from_base * point)) - p.link_radius_m;
+                    if d < p.link_clearance_m {
+                        return false;
+                    }
+                }
+            }
+        }
+        true
     }
 
     /// Advances along the path (a speed-limited, acceleration-limited arc-length profile that
@@ -933,9 +1081,13 @@ impl Compensator {
         }
         if let Some(r) = robot_rules(state.as_ref(), now, &self.cfg.params) {
             // Reaction::Fault, the only reaction of the robot rules.
-            if !self.stop_sent {
+            if self.stop_sent {
+                // The stop again (an edge command: it runs once), so the controller's watchdog
+                // sees the client alive and the stop is there to take when it reads again.
+                let _ = robot.keep_alive();
+            } else {
                 // Best effort: the robot may be unreachable.
-                let _ = robot.stop(self.cfg.params.stop_decel_rad_s2);
+                self.stop_seq = robot.stop(self.cfg.params.stop_decel_rad_s2).ok();
                 self.stop_sent = true;
             }
             self.have_cmd = false;
@@ -945,8 +1097,27 @@ impl Compensator {
             rec.event = event;
             return rec;
         }
-        self.stop_sent = false;
         let Some(state) = state else { return rec };
+        if let Some(seq) = self.stop_seq
+            && !self.have_cmd
+        {
+            if state.acked_seq.wrapping_sub(seq) < 0
+                || state.program_mode == mocomp_ur::program::mode::STOPPING
+            {
+                // Healthy again, but the controller has not yet taken the stop, or is still in it:
+                // commands go into registers, so a command sent before it read the stop would
+                // overwrite it and be judged against the old setpoint it still servoes to (a
+                // jump); and a blocking stopj ignores commands until the arm is still, then judges
+                // the next against where the arm stopped. Wait for the stop to finish, keeping
+                // the link alive.
+                let _ = robot.keep_alive();
+                rec.mode = self.mode;
+                rec.event = event;
+                return rec;
+            }
+            self.stop_seq = None;
+        }
+        self.stop_sent = false;
         if self.freedrive {
             // The hand moves the arm: the loop keeps free-drive alive, follows where the arm is
             // and keeps estimating the head (to teach the coil's pose on it).
@@ -992,13 +1163,20 @@ impl Compensator {
         };
         self.last_controller_s = state.controller_s;
         if !self.have_cmd {
-            // Start (or come back after a stop) from where the arm is and how it moves, so the
-            // first command continues its motion instead of jerking it to a halt.
-            self.q_cmd = state.actual_q;
-            self.v_cmd = std::array::from_fn(|j| {
-                let v = state.actual_qd[j];
-                if v.is_finite() { v } else { 0.0 }
-            });
+            if state.program_mode == mocomp_ur::program::mode::SERVO && self.servo_sent {
+                // The controller still servoes to the last setpoint (a stop that never reached
+                // it): it judges the next one against that, so the command goes on from there,
+                // standing.
+                self.v_cmd = [0.0; 6];
+            } else {
+                // Start (or come back after a stop) from where the arm is and how it moves, so
+                // the first command continues its motion instead of jerking it to a halt.
+                self.q_cmd = state.actual_q;
+                self.v_cmd = std::array::from_fn(|j| {
+                    let v = state.actual_qd[j];
+                    if v.is_finite() { v } else { 0.0 }
+                });
+            }
             self.dt = self.period;
             self.have_cmd = true;
             self.last_desired = None;
@@ -1185,11 +1363,26 @@ impl Compensator {
         // The goal's joints.
         let mut goal_q = None;
         if let (Reaction::Track | Reaction::Retreat, Some(bh)) = (react, base_from_head) {
-            match self.arm.ik_closest(
-                &self.standoff_target(&bh),
-                &self.q_cmd,
-                &Selection::tracking(self.cfg.params.joint_margin_rad),
-            ) {
+            let target = self.standoff_target(&bh);
+            let margin = self.cfg.params.joint_margin_rad;
+            let solved = self
+                .arm
+                .ik_closest(&target, &self.q_cmd, &Selection::tracking(margin))
+                .or_else(|e| {
+                    // Not yet following (holding, faulted, on the way): a goal on another
+                    // branch is reached by a transit, which the planner decides; following, the
+                    // loop never changes branch.
+                    if matches!(self.mode, Mode::Tracking | Mode::Retreating(_)) {
+                        Err(e)
+                    } else {
+                        let any = Selection {
+                            branch: BranchPolicy::Any,
+                            ..Selection::tracking(margin)
+                        };
+                        self.arm.ik_closest(&target, &self.q_cmd, &any)
+                    }
+                });
+            match solved {
                 Err(_) => reason = Some(Reason::Unreachable),
                 Ok(c) => {
                     let m = self.arm.singularity_margin(&c.joints);
@@ -1255,7 +1448,11 @@ impl Compensator {
                                     self.path = Some(p);
                                     (self.sigma, self.sigma_dot) = (0.0, 0.0);
                                     self.replan = false;
-                                    event = event.or(self.enter(Mode::Approaching));
+                                    let resumed = self.enter(Mode::Approaching);
+                                    event = event.or(match p {
+                                        Plan::Transit(t) => Some(Event::Transit(t.length())),
+                                        Plan::Shell(_) => resumed,
+                                    });
                                 }
                                 Err(r) => reason = Some(r),
                             }
@@ -1269,7 +1466,35 @@ impl Compensator {
                             event = event.or(self.enter(Mode::Holding(r)));
                             self.stand_still()
                         }
-                        (None, Mode::Approaching, Some(path)) => {
+                        (None, Mode::Approaching, Some(Plan::Transit(t))) => {
+                            // In joint space, the head's motion aside (the checks on every
+                            // command still see it); the shell path follows from its end.
+                            let p = &self.cfg.params;
+                            let lag = |q: &[f64; 6], r: &[f64; 6]| {
+                                (0..6).fold(0.0f64, |m, j| m.max((q[j] - r[j]).abs()))
+                            };
+                            let want = if lag(&self.q_cmd, &t.at(self.sigma)) < TRANSIT_LAG_RAD {
+                                p.transit_speed_rad_s
+                            } else {
+                                0.0
+                            };
+                            (self.sigma, self.sigma_dot) = profile_step(
+                                self.sigma,
+                                self.sigma_dot,
+                                t.length(),
+                                want,
+                                p.transit_accel_rad_s2,
+                                self.dt,
+                            );
+                            if self.sigma >= t.length()
+                                && lag(&self.q_cmd, t.end()) < TRANSIT_ARRIVED_RAD
+                            {
+                                self.path = None;
+                                self.replan = true;
+                            }
+                            t.at(self.sigma)
+                        }
+                        (None, Mode::Approaching, Some(Plan::Shell(path))) => {
                             let target = self.path_target(&path, &bh);
                             rec.path = Some((self.sigma, path.length()));
                             let step = self.arm.ik_closest(
@@ -1416,6 +1641,7 @@ impl Compensator {
         rec.q_command = q_next;
         if let Ok(seq) = robot.servo(&q_next, &self.cfg.servo) {
             self.note_command(seq, now);
+            self.servo_sent = true;
         }
         rec.mode = self.mode;
         rec.event = event;

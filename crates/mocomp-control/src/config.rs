@@ -48,6 +48,15 @@ pub struct LoopParams {
     pub approach_accel_m_s2: f64,
     /// The path waits while the command lags its point by more than this, m. [0.005]
     pub path_lag_m: f64,
+    /// A coil farther than this from the head, or one whose shell path has no solution on its
+    /// IK branch (a branch change), first moves in joint space (as `movej` would) to its goal's
+    /// approach axis this far back from the goal, on the branch the goal is tracked on; the shell
+    /// path takes over from there, m. [0.1]
+    pub transit_distance_m: f64,
+    /// The largest joint's speed on that joint-space move, rad/s. [0.6]
+    pub transit_speed_rad_s: f64,
+    /// Its acceleration, rad/s². [1.2]
+    pub transit_accel_rad_s2: f64,
     /// Tracker sample older than this (s, by its acquisition time) is late: 75 ms lets a 60 Hz
     /// tracker with 20 ms latency lose one sample. Beyond it the loop coasts on the prediction
     /// for `coast_s`, then holds. [0.075]
@@ -161,6 +170,9 @@ impl Default for LoopParams {
             approach_speed_m_s: 0.05,
             approach_accel_m_s2: 0.2,
             path_lag_m: 0.005,
+            transit_distance_m: 0.1,
+            transit_speed_rad_s: 0.6,
+            transit_accel_rad_s2: 1.2,
             tracker_stale_s: 0.075,
             coast_s: 0.15,
             safety_sigmas: 2.0,
@@ -283,6 +295,15 @@ impl LoopParams {
         }
         if !(self.path_lag_m.is_finite() && self.path_lag_m > 0.0) {
             return err("path_lag_m", self.path_lag_m, "must be finite and > 0");
+        }
+        for (key, value) in [
+            ("transit_distance_m", self.transit_distance_m),
+            ("transit_speed_rad_s", self.transit_speed_rad_s),
+            ("transit_accel_rad_s2", self.transit_accel_rad_s2),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return err(key, value, "must be finite and > 0");
+            }
         }
         if !(self.tracker_stale_s.is_finite() && self.tracker_stale_s > 0.0) {
             return err(
@@ -498,6 +519,13 @@ impl LoopParams {
                 "shell_distance_m",
                 self.shell_distance_m,
                 "must be above approach_zone_m (the shell is outside the approach zone)",
+            );
+        }
+        if self.transit_distance_m < self.shell_distance_m {
+            return err(
+                "transit_distance_m",
+                self.transit_distance_m,
+                "must be at least shell_distance_m (a joint-space move ends outside the shell)",
             );
         }
         Ok(())

@@ -17,8 +17,9 @@ pub mod planner;
 pub mod predict;
 pub mod safety;
 pub mod supervisor;
+pub mod transit;
 
-pub use compensator::{Compensator, CycleRecord, Event, Mode, Reason};
+pub use compensator::{Compensator, CycleRecord, Event, Mode, Plan, Reason};
 pub use config::{LoopConfig, LoopParams, ParamError};
 pub use controller::Controller;
 pub use force::{ForceInputs, ForceMonitor, force_rules};
@@ -26,4 +27,5 @@ pub use geometry::{CoilModel, HeadModel};
 pub use goal::{GoalError, check_goal};
 pub use planner::{PlanError, ShellPath};
 pub use predict::{MotionModel, PosePredictor, PredictorConfig};
-pub use supervisor::{Reaction, reaction};
+pub use supervisor::{Reaction, TransitRefusal, reaction};
+pub use transit::JointPath;

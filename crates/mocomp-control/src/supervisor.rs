@@ -20,6 +20,7 @@
 //! | `CoilCollision` | retreat | the head comes into the coil: the coil gives way along its axis, never the patient |
 //! | `OffApproachAxis` | plan | near the head the coil comes in only along its axis: go round by the shell |
 //! | `NoPath` | hold | no safe path to the goal |
+//! | `NoTransit` | hold | no branch with a joint-space move to the goal's axis clear of the head and an approach from there: the goal is out of reach (move the patient or the robot), or the arm starts too close to the head (move it away by hand) |
 //! | `Operator` | hold | the operator asked (the console's hold); every other rule outranks it |
 //! | `ContactForce` (above `max_contact_force_n`) | retreat | the coil presses too hard: off the scalp now |
 //! | `ContactForceSustained` (above `contact_warning_force_n` for `contact_warning_s`) | retreat | a lighter press held too long |
@@ -80,6 +81,8 @@ pub enum Reason {
     /// No safe path to the goal: unreachable, a branch change or a collision at this arc
     /// length along it (m), or no retreat to the shell (NaN).
     NoPath(f64),
+    /// No joint-space transit to the goal's approach axis: why the furthest branch failed.
+    NoTransit(TransitRefusal),
     /// The operator holds the loop (the console's or a front end's hold); the other rules
     /// outrank it.
     Operator,
@@ -99,6 +102,41 @@ pub enum Reason {
     /// The operator guides the arm by hand (free-drive): the loop commands nothing but
     /// free-drive's keep-alive, and comes back from where the hand left the coil, by a path.
     HandGuided,
+}
+
+/// Why no branch has a transit to the goal's approach axis, from the least to the most
+/// promising: the furthest any branch got is the one reported.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum TransitRefusal {
+    /// The pre-approach pose has no IK solution within the joint limits: the goal is out of the
+    /// arm's reach where the head is (move the patient or the robot's base).
+    Unreachable,
+    /// Every solution there is near a singularity.
+    Singular,
+    /// Every straight joint-space move there passes the head (the coil or a link): move the arm
+    /// away from the head first (free-drive or the pendant).
+    Collision,
+    /// From there no shell path reaches the goal on the same branch.
+    NoApproach,
+}
+
+impl TransitRefusal {
+    /// What the operator can do about it.
+    pub fn advice(self) -> &'static str {
+        match self {
+            Self::Unreachable => {
+                "the goal's approach pose is out of the arm's reach: move the patient or the robot"
+            }
+            Self::Singular => "every way to the goal's approach pose is near a singularity",
+            Self::Collision => {
+                "every joint move to the goal passes the head: move the arm away from the head \
+                 (free-drive or the pendant), then resume"
+            }
+            Self::NoApproach => {
+                "the goal cannot be approached along its axis from any branch: choose another goal"
+            }
+        }
+    }
 }
 
 impl From<GoalError> for Reason {
@@ -148,6 +186,7 @@ pub fn reaction(reason: &Reason) -> Reaction {
         Reason::CoilCollision(_) => Retreat,
         Reason::OffApproachAxis(_) => Plan,
         Reason::NoPath(_) => Hold,
+        Reason::NoTransit(_) => Hold,
         Reason::Operator => Hold,
         Reason::ContactForce(_) => Retreat,
         Reason::ContactForceSustained(_) => Retreat,

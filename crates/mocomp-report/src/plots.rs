@@ -415,7 +415,8 @@ pub fn event_counts(run: &Run) -> EventCounts {
     for r in &run.records {
         match r.event {
             Some(Event::Hold(_)) => n.holds += 1,
-            Some(Event::Resume) => n.resumes += 1,
+            // A transit is a resume by a joint-space move.
+            Some(Event::Resume | Event::Transit(_)) => n.resumes += 1,
             Some(Event::Outlier(..)) => n.outliers += 1,
             Some(Event::Reached) => n.reached += 1,
             Some(Event::Retreat(_)) => n.retreats += 1,
