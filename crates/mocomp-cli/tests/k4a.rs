@@ -251,7 +251,10 @@ fn record_the_example_head(path: &str, seconds: f64, fps: u32) {
 fn the_loop_compensates_on_a_recorded_azure_kinect_and_holds_when_it_ends() {
     let d = TempDir::new("k4a-run");
     let mkv = d.path("head.mkv");
-    record_the_example_head(&mkv, 6.0, 30);
+    // 9 s: room after the approach (about 4 s) for a retreat and a second approach (2 s),
+    // which the safety filter takes when the camera's head estimate jumps towards the coil at the
+    // goal, and still a few seconds of tracking.
+    record_the_example_head(&mkv, 9.0, 30);
     let config = common::example_changed(
         &d,
         "127.0.0.86",
@@ -267,18 +270,18 @@ fn the_loop_compensates_on_a_recorded_azure_kinect_and_holds_when_it_ends() {
     ));
     std::fs::write(&config, text).unwrap();
     // Not quiet: the notes (the camera's among them) go to stderr.
-    let out = mocomp(&["run", "--config", &config, "--seconds", "7.5", "--json"]);
+    let out = mocomp(&["run", "--config", &config, "--seconds", "10.5", "--json"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_success(&out);
     let r: Value = serde_json::from_slice(&out.stdout).unwrap();
     let c = &r["camera"];
     eprintln!(
-        "camera: {c}\ntracking {} %, deviation rms {} mm",
-        r["tracking_percent"], r["deviation_rms_mm"]
+        "camera: {c}\ntracking {} %, deviation rms {} mm\nevents: {}",
+        r["tracking_percent"], r["deviation_rms_mm"], r["event_log"]
     );
     // Every capture tracked, the marker in nearly all, none dropped, then the recording's end.
-    assert_eq!(c["frames"], 180, "{c}");
-    assert!(c["found"].as_u64().unwrap() >= 170, "{c}");
+    assert_eq!(c["frames"], 270, "{c}");
+    assert!(c["found"].as_u64().unwrap() >= 255, "{c}");
     assert_eq!(c["dropped"], 0, "{c}");
     assert_eq!(c["ended"], "recording_ended", "{c}");
     assert!(
@@ -290,7 +293,7 @@ fn the_loop_compensates_on_a_recorded_azure_kinect_and_holds_when_it_ends() {
     let latency = c["latency_p99_ms"].as_f64().unwrap();
     assert!(latency > 0.0 && latency < 100.0, "{c}");
     // The loop followed the nodding head on the camera's poses (after its approach, about 4 s:
-    // tracking about a third of the run) ...
+    // tracking about half of the run, a third after a retreat) ...
     assert!(r["tracking_percent"].as_f64().unwrap() > 20.0, "{r}");
     // (The simulated Kinect v2 camera, source "camera", gets 3.4 mm RMS on this world.)
     assert!(r["deviation_rms_mm"].as_f64().unwrap() < 5.0, "{r}");
