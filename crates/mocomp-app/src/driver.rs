@@ -42,6 +42,8 @@ pub struct Requests {
     pub calibration_invalid: Option<(f64, f64)>,
     /// Free-drive on or handed back, when it changed.
     pub freedrive: Option<bool>,
+    /// The operator re-armed a latched fault, the robot's own recovery done.
+    pub rearm: bool,
 }
 
 /// Runs `controller` at `pace` until the pace ends it. Each record carries the cycle's compute
@@ -64,6 +66,9 @@ pub fn drive<P: Pace + ?Sized>(
         }
         if let Some(on) = requests.freedrive {
             controller.set_freedrive(on);
+        }
+        if requests.rearm {
+            controller.rearm();
         }
         if requests.calibration_invalid.is_some() {
             controller.set_calibration_invalid(requests.calibration_invalid);

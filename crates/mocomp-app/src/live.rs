@@ -16,16 +16,19 @@
 use crate::camera::VisionLink;
 use crate::config::Setup;
 use crate::driver::Requests;
-use crate::live_session::{LoopSession, Note, SessionLog, SessionReport, SessionSetup};
+use crate::live_session::{
+    LoopSession, Note, RearmOutcome, SessionLog, SessionReport, SessionSetup,
+};
 use crate::world::World;
 use crate::{AppError, Context};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopParams, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, PoseSource};
+use mocomp_ur::recovery::RecoveryError;
 use mocomp_ur::{Robot, UrRobot};
 use std::io::Write;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::{Duration, Instant};
@@ -159,6 +162,8 @@ const PENDING_PARAMS: usize = 4;
 pub struct Controls {
     stop: AtomicBool,
     hold: AtomicBool,
+    /// The operator's resumes so far (each one re-arms a latched fault).
+    resumes: AtomicU64,
     freedrive: AtomicBool,
     /// The running session's targets, once the loop has started.
     targets: OnceLock<Arc<crate::live_session::NamedTargets>>,
@@ -182,6 +187,7 @@ impl Controls {
         Arc::new(Self {
             stop: AtomicBool::new(false),
             hold: AtomicBool::new(false),
+            resumes: AtomicU64::new(0),
             freedrive: AtomicBool::new(false),
             targets: OnceLock::new(),
             start: AtomicBool::new(false),
@@ -224,6 +230,20 @@ impl Controls {
     /// The operator's hold (`true`) or resume.
     pub fn set_hold(&self, hold: bool) {
         self.hold.store(hold, Ordering::Relaxed);
+    }
+
+    /// The operator's resume: ends their hold, and re-arms a fault that latched (the controller
+    /// had stopped the arm): the robot's recovery (reconnect, program restart, a protective stop
+    /// unlocked) is done before the next cycle, and the loop comes back from where the arm is,
+    /// by a path. Nothing else ever re-arms the loop.
+    pub fn resume(&self) {
+        self.hold.store(false, Ordering::Relaxed);
+        self.resumes.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// How many resumes the operator has asked for.
+    pub fn resumes(&self) -> u64 {
+        self.resumes.load(Ordering::Relaxed)
     }
 
     /// Whether the operator holds the loop.
@@ -783,6 +803,14 @@ struct Live<'a> {
     tx: &'a SyncSender<CycleRecord>,
     /// Records the logger could not take.
     dropped: u64,
+    /// The operator's resumes already acted on.
+    resumes_seen: u64,
+    /// The last cycle ended faulted.
+    faulted: bool,
+    /// The robot's recovery is done: the controller is re-armed before the next cycle.
+    rearm: bool,
+    /// A state older than this (s) means the state stream is dead (a re-arm reconnects).
+    stream_dead_s: f64,
 }
 
 impl Live<'_> {
@@ -803,12 +831,39 @@ impl Live<'_> {
     }
 }
 
+impl Live<'_> {
+    /// The operator resumed a faulted loop: the robot's own recovery, between cycles (the arm is
+    /// stopped, and a reconnect or a program upload takes longer than a cycle), then the
+    /// controller is re-armed at the next one. What it did, or why not, is the session's note.
+    fn recover(&mut self) {
+        let now = self.clock.now_s();
+        let outcome = match self.robot.recover(now, self.stream_dead_s) {
+            Ok(done) => {
+                self.rearm = true;
+                RearmOutcome::Done(done)
+            }
+            Err(RecoveryError::Refused(r)) => RearmOutcome::Refused(r),
+            Err(RecoveryError::Failed { step, .. }) => RearmOutcome::Failed(step),
+        };
+        // A new connection counts its states afresh.
+        self.seen = self.robot.state_count();
+        self.session.note(Note::Rearm(self.clock.now_s(), outcome));
+    }
+}
+
 impl crate::driver::Pace for Live<'_> {
     type Error = std::convert::Infallible;
 
     fn next_cycle(&mut self) -> Result<Option<f64>, Self::Error> {
         if self.controls.stop_requested() || self.clock.now_s() >= self.t_end {
             return Ok(None);
+        }
+        let resumes = self.controls.resumes();
+        if resumes != self.resumes_seen {
+            self.resumes_seen = resumes;
+            if self.faulted {
+                self.recover();
+            }
         }
         self.seen = self.robot.wait_for_state(self.seen, self.patience);
         Ok(Some(self.clock.now_s()))
@@ -819,6 +874,7 @@ impl crate::driver::Pace for Live<'_> {
     }
 
     fn cycle_done(&mut self, record: CycleRecord) -> Result<(), Self::Error> {
+        self.faulted = matches!(record.mode, Mode::Faulted(_));
         self.session.after_cycle(&record, &mut self.robot);
         if let Err(TrySendError::Full(_)) = self.tx.try_send(record) {
             self.dropped += 1;
@@ -828,8 +884,10 @@ impl crate::driver::Pace for Live<'_> {
 
     fn requests(&mut self) -> Requests {
         if let Some(Ok(call)) = self.ros2_calls.as_ref().map(Receiver::try_recv) {
-            self.controls
-                .set_hold(call == mocomp_ros2::node::Call::Hold);
+            match call {
+                mocomp_ros2::node::Call::Hold => self.controls.set_hold(true),
+                mocomp_ros2::node::Call::Resume => self.controls.resume(),
+            }
         }
         let hold = self.controls.hold();
         let changed = (hold != self.held).then_some(hold);
@@ -858,6 +916,7 @@ impl crate::driver::Pace for Live<'_> {
             goal,
             calibration_invalid: self.session.calibration_invalid(),
             freedrive,
+            rearm: std::mem::take(&mut self.rearm),
         }
     }
 }
@@ -930,6 +989,7 @@ pub fn run(
         })
         .what(|| "starting the logger thread")?;
 
+    let cfg_rearm_s = cfg.params.robot_rearm_after_s;
     let mut comp = Compensator::new(cfg, arm, period);
 
     let file = &setup.file;
@@ -1048,6 +1108,10 @@ pub fn run(
         patience: Duration::from_secs_f64(3.0 * period),
         tx: &tx,
         dropped: 0,
+        resumes_seen: controls.resumes(),
+        faulted: false,
+        rearm: false,
+        stream_dead_s: cfg_rearm_s,
     };
     pace.start(period);
     // The live pace never fails: a late or missing state is the supervisor's to judge.

@@ -146,6 +146,34 @@ pub enum Note {
     OutputFailed(f64),
     /// The depth camera's news at loop time `.0`: frames dropped, its end.
     Camera(f64, crate::camera::CameraNote),
+    /// The operator's re-arm at loop time `.0`: what the robot's recovery did, or why it could
+    /// not.
+    Rearm(f64, RearmOutcome),
+}
+
+/// What a re-arm came to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RearmOutcome {
+    /// The robot is back (the loop comes back from where the arm is, by a path).
+    Done(mocomp_ur::recovery::Recovered),
+    /// Software may not do what is needed: the operator acts at the cell, then resumes again.
+    Refused(mocomp_ur::recovery::Refusal),
+    /// A recovery step failed: the controller did not answer as expected.
+    Failed(mocomp_ur::recovery::Step),
+}
+
+impl std::fmt::Display for RearmOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Done(r) => write!(f, "re-armed: {r}"),
+            Self::Refused(r) => write!(f, "re-arm refused: {r}"),
+            Self::Failed(step) => write!(
+                f,
+                "re-arm failed ({step:?}): the controller did not answer as expected; the arm \
+                 stays stopped; check the controller, then resume again"
+            ),
+        }
+    }
 }
 
 /// The session on the loop's thread.
@@ -201,7 +229,8 @@ impl LoopSession {
         }
     }
 
-    fn note(&mut self, n: Note) {
+    /// Tells the logger `n` (counted when it cannot take it).
+    pub fn note(&mut self, n: Note) {
         if let Err(TrySendError::Full(_)) = self.notes.try_send(n) {
             self.dropped += 1;
         }
@@ -458,6 +487,7 @@ impl SessionLog {
             Note::Selected(_, i) => format!("target {} selected", self.name(Some(i))),
             Note::OutputFailed(_) => "the gate output could not be set".into(),
             Note::Camera(_, n) => n.to_string(),
+            Note::Rearm(_, r) => r.to_string(),
         }
     }
 
@@ -478,7 +508,8 @@ pub fn note_time(n: &Note) -> f64 {
         | Note::Drift(t, _)
         | Note::Selected(t, _)
         | Note::OutputFailed(t)
-        | Note::Camera(t, _) => t,
+        | Note::Camera(t, _)
+        | Note::Rearm(t, _) => t,
         Note::Pulse(p, _) => p.t_s,
     }
 }

@@ -307,7 +307,12 @@ fn set_hold(api: &Api, headers: &HeaderMap, hold: bool) -> Response {
             "a calibration collection runs, not the loop: stop it instead",
         );
     }
-    api.shared.controls.set_hold(hold);
+    if hold {
+        api.shared.controls.set_hold(true);
+    } else {
+        // A resume also re-arms a loop the controller stopped (its recovery, then a path).
+        api.shared.controls.resume();
+    }
     axum::Json(json!({ "operator_hold": hold })).into_response()
 }
 

@@ -218,6 +218,7 @@ impl EventJson {
             Event::Outlier(..) => ("outlier", None),
             Event::Coasting(..) => ("coasting", None),
             Event::Transit(..) => ("transit", None),
+            Event::Rearmed => ("rearmed", None),
         };
         Self {
             t,

@@ -14,7 +14,8 @@ use crate::predict::PosePredictor;
 use crate::safety::{backed_off, required_clearance, standoff_for};
 pub use crate::supervisor::Reason;
 use crate::supervisor::{
-    Reaction, TrackerInputs, TrackerVerdict, TransitRefusal, reaction, robot_rules, tracker_rules,
+    Reaction, TrackerInputs, TrackerVerdict, TransitRefusal, latches, reaction, robot_rules,
+    tracker_rules,
 };
 use crate::transit::{JointPath, profile_step};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
@@ -38,7 +39,10 @@ pub enum Mode {
     /// Holding the last safe command (decelerating to standstill) for a reason; resumes by
     /// itself when the reason has been clear for `resume_after_s`.
     Holding(Reason),
-    /// The robot is stopped by a fault; commands resume when the robot reports healthy again.
+    /// The robot is stopped by a fault. A short gap in its state resumes by itself when the
+    /// robot is healthy again; a fault the controller reports, or a long gap, latches
+    /// ([`crate::supervisor::latches`]): the loop resumes only after the operator re-arms it
+    /// ([`Compensator::rearm`]), from where the arm is, by a path.
     Faulted(Reason),
 }
 
@@ -83,6 +87,9 @@ pub enum Event {
     /// The loop resumed by a joint-space move to the goal's approach axis (a start far from the
     /// head, or on another IK branch): the largest joint's travel, rad.
     Transit(f64),
+    /// The operator re-armed a latched fault (the controller had stopped the arm): the loop
+    /// comes back, once the robot is healthy, from where the arm is, by a path.
+    Rearmed,
 }
 
 /// The way to the goal the loop follows while approaching.
@@ -234,6 +241,10 @@ pub struct Compensator {
     mode: Mode,
     clear_since: Option<f64>,
     stop_sent: bool,
+    /// A robot fault that stays until the operator re-arms ([`crate::supervisor::latches`]).
+    latched: Option<Reason>,
+    /// The operator re-armed since the last cycle: its event is the next cycle's.
+    rearmed: bool,
     /// The sequence number of the stop sent for a fault, until the controller has taken it.
     stop_seq: Option<i32>,
     /// A servo command has been sent (`q_cmd` is a setpoint the controller may hold).
@@ -321,6 +332,8 @@ impl Compensator {
             mode: Mode::Holding(Reason::NoTracker),
             clear_since: None,
             stop_sent: false,
+            latched: None,
+            rearmed: false,
             stop_seq: None,
             servo_sent: false,
             acks: [(0, 0.0); ACK_RING],
@@ -357,6 +370,26 @@ impl Compensator {
     /// off its goal. Takes effect at the next cycle.
     pub fn set_operator_hold(&mut self, hold: bool) {
         self.operator_hold = hold;
+    }
+
+    /// The operator's re-arm after a latched fault (the console's or a front end's resume, once
+    /// the robot's own recovery — reconnect, program restart, a protective stop unlocked — is
+    /// done). Clears the latch; the robot rules still apply, so a fault that persists latches
+    /// again at the next cycle. Comes back as after any fault: `resume_after_s` of a healthy
+    /// robot, then from the arm's actual pose by a planned path. Returns whether a fault was
+    /// latched.
+    pub fn rearm(&mut self) -> bool {
+        let was = self.latched.take().is_some();
+        if was {
+            self.clear_since = None;
+            self.rearmed = true;
+        }
+        was
+    }
+
+    /// The latched fault that waits for the operator's re-arm, if any.
+    pub fn latched(&self) -> Option<Reason> {
+        self.latched
     }
 
     /// The calibration no longer holds (the drift monitor's offset, m and rad): the loop holds
@@ -1071,6 +1104,9 @@ impl Compensator {
         rec.standoff_m = self.standoff;
         // Tracker first: samples are taken even while the robot is faulted.
         let mut event = source.latest().and_then(|s| self.take_sample(s));
+        if std::mem::take(&mut self.rearmed) {
+            event = Some(Event::Rearmed);
+        }
 
         // The robot rules.
         let state = robot.state();
@@ -1079,7 +1115,17 @@ impl Compensator {
             rec.qd_actual = s.actual_qd;
             self.measure_delay(s.acked_seq, s.received_s);
         }
-        if let Some(r) = robot_rules(state.as_ref(), now, &self.cfg.params) {
+        let fired = robot_rules(state.as_ref(), now, &self.cfg.params);
+        if let Some(r) = fired
+            && self.latched.is_none()
+        {
+            let stale_for = state.map_or(f64::INFINITY, |s| now - s.received_s);
+            if latches(&r, stale_for, &self.cfg.params) {
+                self.latched = Some(r);
+            }
+        }
+        // A rule that fires now names the fault; a cleared one that latched keeps it.
+        if let Some(r) = fired.or(self.latched) {
             // Reaction::Fault, the only reaction of the robot rules.
             if self.stop_sent {
                 // The stop again (an edge command: it runs once), so the controller's watchdog

@@ -102,6 +102,13 @@ pub struct LoopParams {
     /// 4 CB3 periods, and below the control program's 50 ms watchdog, so the loop stops the
     /// robot itself before the controller would. [0.03]
     pub robot_stale_s: f64,
+    /// A stale robot state that lasts this long needs the operator's resume (a re-arm) before
+    /// the loop moves the arm again, as every fault the controller itself reports does: past
+    /// the control program's 50 ms watchdog the controller has stopped the arm on its own, and
+    /// what the patient did meanwhile is unknown. A shorter gap, with the program still
+    /// running, is the loop's own stop, and it resumes by itself, by a path from where the arm
+    /// is. [0.25]
+    pub robot_rearm_after_s: f64,
     /// Singularity margin below which the loop slows down (see `Singularity::margin`). [0.1]
     pub singularity_slow: f64,
     /// Singularity margin below which the loop holds. [0.02]
@@ -188,6 +195,7 @@ impl Default for LoopParams {
             max_head_speed_rad_s: 1.2,
             resume_after_s: 0.2,
             robot_stale_s: 0.03,
+            robot_rearm_after_s: 0.25,
             singularity_slow: 0.1,
             singularity_hold: 0.02,
             stop_decel_rad_s2: 4.0,
@@ -385,6 +393,14 @@ impl LoopParams {
                 "robot_stale_s",
                 self.robot_stale_s,
                 "must be finite and > 0",
+            );
+        }
+        if !(self.robot_rearm_after_s.is_finite() && self.robot_rearm_after_s >= self.robot_stale_s)
+        {
+            return err(
+                "robot_rearm_after_s",
+                self.robot_rearm_after_s,
+                "must be finite and at least robot_stale_s",
             );
         }
         if !(self.singularity_slow.is_finite() && self.singularity_slow > 0.0) {

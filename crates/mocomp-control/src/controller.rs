@@ -43,6 +43,10 @@ pub trait Controller {
     /// Free-drive on (`true`) or handed back (`false`), from the next cycle. A controller
     /// without it (the paper's pipeline) ignores it.
     fn set_freedrive(&mut self, _on: bool) {}
+
+    /// The operator's re-arm after a latched fault, from the next cycle (the robot's own
+    /// recovery done by the caller). A controller without latched faults ignores it.
+    fn rearm(&mut self) {}
 }
 
 impl Controller for Compensator {
@@ -78,5 +82,9 @@ impl Controller for Compensator {
 
     fn set_freedrive(&mut self, on: bool) {
         Compensator::set_freedrive(self, on);
+    }
+
+    fn rearm(&mut self) {
+        Compensator::rearm(self);
     }
 }

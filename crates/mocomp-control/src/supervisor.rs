@@ -11,8 +11,8 @@
 //! | `TrackerFrozen` | hold | a frozen stream looks like a still head but is not one |
 //! | `MarkerInvalid` (longer than the coast time) | hold | as a lost tracker |
 //! | `HeadTooFast` | retreat | a head faster than the robot may follow must not catch the coil: back off along the approach axis, keep following from there |
-//! | `Robot` (a fault) | fault | the robot stopped; commands resume when it is healthy |
-//! | `RobotStale` | fault | the robot's state is too old to command on |
+//! | `Robot` (a fault) | fault, latched | the controller stopped the arm itself (program stopped, protective or emergency stop, power off, connection lost): nothing moves until it is healthy and the operator resumes (re-arm, [`latches`]) |
+//! | `RobotStale` | fault (latched past `robot_rearm_after_s`) | the robot's state is too old to command on; a short gap resumes by itself, by a path from where the arm is |
 //! | `Singular` | hold | no safe joint motion near a singularity |
 //! | `Unreachable` | hold | no IK solution on the current branch |
 //! | `GoalInsideHead`, `GoalAxisOutward`, `GoalNotFinite` | hold | the goal itself is wrong: fix the configuration |
@@ -249,6 +249,21 @@ pub fn tracker_rules(t: &TrackerInputs, p: &LoopParams) -> TrackerVerdict {
     TrackerVerdict::Fresh
 }
 
+/// Whether a robot rule that fired latches: the loop stays faulted after it clears, until the
+/// operator re-arms it ([`crate::Controller::rearm`]). A fault the controller reports means it
+/// stopped the arm on its own: what the arm and the patient did meanwhile is unknown, and the
+/// operator looks before anything moves again. So does a state stream silent for
+/// `robot_rearm_after_s` (`stale_for_s`: how long it has been), long past the program's
+/// watchdog. A shorter gap is the loop's own stop, with the program still running: it resumes
+/// by itself, by a path from where the arm is, never by a jump.
+pub fn latches(reason: &Reason, stale_for_s: f64, p: &LoopParams) -> bool {
+    match reason {
+        Reason::Robot(_) => true,
+        Reason::RobotStale => stale_for_s >= p.robot_rearm_after_s,
+        _ => false,
+    }
+}
+
 /// The robot rules: no state or one older than `robot_stale_s` (by the loop's clock), or a
 /// fault the robot reports.
 pub fn robot_rules(state: Option<&RobotState>, now_s: f64, p: &LoopParams) -> Option<Reason> {
@@ -376,6 +391,37 @@ mod tests {
         assert!(matches!(r, Reason::Robot(_)));
         assert_eq!(reaction(&r), Reaction::Fault);
         assert_eq!(reaction(&Reason::RobotStale), Reaction::Fault);
+    }
+
+    #[test]
+    fn a_fault_the_controller_reports_latches_and_only_a_long_stale_state_does() {
+        let p = LoopParams::default();
+        for f in [
+            RobotFault::Disconnected,
+            RobotFault::EmergencyStop,
+            RobotFault::ProtectiveStop,
+            RobotFault::ProgramStopped,
+            RobotFault::NotRunning(mocomp_ur::RobotMode::PowerOff),
+        ] {
+            assert!(latches(&Reason::Robot(f), 0.0, &p), "{f:?}");
+        }
+        assert!(!latches(&Reason::RobotStale, p.robot_stale_s, &p));
+        assert!(!latches(
+            &Reason::RobotStale,
+            p.robot_rearm_after_s * 0.99,
+            &p
+        ));
+        assert!(latches(&Reason::RobotStale, p.robot_rearm_after_s, &p));
+        // No other rule latches: the tracker's, the operator's and the force rules clear by
+        // themselves (the operator's hold by the operator).
+        for r in [
+            Reason::TrackerStale(10.0),
+            Reason::Operator,
+            Reason::ContactForce(30.0),
+            Reason::NoPath(0.1),
+        ] {
+            assert!(!latches(&r, 10.0, &p), "{r:?}");
+        }
     }
 
     #[test]

@@ -168,8 +168,10 @@ fn after_a_stop_the_loop_continues_the_arms_motion_instead_of_jerking_it() {
         r.mode,
         Mode::Faulted(Reason::Robot(RobotFault::ProtectiveStop))
     );
-    // … then healthy again, with the arm still moving (as it does while it brakes).
+    // … then healthy again, the operator re-armed, with the arm still moving (as it does
+    // while it brakes).
     w.robot.state.safety_mode = SafetyMode::Normal;
+    assert!(w.comp.rearm());
     let qd = [0.2, -0.1, 0.15, 0.0, 0.05, -0.3];
     w.robot.state.actual_qd = qd;
     let q = w.robot.state.actual_q;

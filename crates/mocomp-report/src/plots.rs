@@ -421,7 +421,8 @@ pub fn event_counts(run: &Run) -> EventCounts {
             Some(Event::Reached) => n.reached += 1,
             Some(Event::Retreat(_)) => n.retreats += 1,
             Some(Event::Coasting(_)) => n.coasts += 1,
-            None => {}
+            // The lockstep experiment's robot never latches a fault; a re-arm is no motion.
+            Some(Event::Rearmed) | None => {}
         }
     }
     n

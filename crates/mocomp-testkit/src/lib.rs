@@ -7,6 +7,9 @@
 //!   version.
 //! - [`controller`]: `mocomp ursim` in a process of its own, as a real controller is (its own
 //!   start pose and priority), with its event log, and stalls injected by stopping the process.
+//! - [`proxy`]: a fault-injecting TCP relay between mocomp and a server (the controller, the
+//!   tracker server): delay, jitter, stalls, cuts, resets, corrupted and dropped bytes, on
+//!   command from the test.
 //! - [`mem`]: an in-memory robot (wherever it was commanded) and a scripted pose source, for the
 //!   loop's rules and filter without sockets.
 //! - [`TempDir`]: a scratch directory removed when dropped; [`listening_port`] (the port a child
@@ -19,6 +22,7 @@
 
 pub mod controller;
 pub mod mem;
+pub mod proxy;
 
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Write};

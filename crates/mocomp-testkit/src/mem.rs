@@ -3,7 +3,7 @@
 
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSample, PoseSource};
-use mocomp_ur::{Robot, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, UrError};
+use mocomp_ur::{Robot, RobotState, ServoParams, UrError};
 
 /// A robot that is wherever it was last commanded (a perfect servo), healthy, its state's times
 /// and faults set by the test through [`MemRobot::state`].
@@ -29,28 +29,7 @@ impl MemRobot {
     /// A healthy robot at rest at `q`, whose flange is `base_from_tcp`, with `period_s`.
     pub fn at(q: [f64; 6], base_from_tcp: Isometry3<f64>, period_s: f64) -> Self {
         Self {
-            state: RobotState {
-                controller_s: 0.0,
-                received_s: 0.0,
-                actual_q: q,
-                actual_qd: [0.0; 6],
-                target_q: q,
-                base_from_tcp,
-                robot_mode: RobotMode::Running,
-                safety_mode: SafetyMode::Normal,
-                runtime_state: RuntimeState::Playing,
-                robot_status_bits: 0,
-                safety_status_bits: 0,
-                speed_scaling: 1.0,
-                program_mode: 1,
-                acked_seq: 0,
-                move_done_seq: 0,
-                program_ours: true,
-                connected: true,
-                tcp_force: [0.0; 6],
-                digital_inputs: 0,
-                digital_outputs: 0,
-            },
+            state: RobotState::at_rest(0.0, q, base_from_tcp),
             period_s,
             seq: 0,
             stops: 0,

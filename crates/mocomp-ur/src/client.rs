@@ -12,6 +12,7 @@ use crate::connection::{RTDE_PORT, RtdeConnection};
 use crate::dashboard::{DASHBOARD_PORT, Dashboard};
 use crate::error::UrError;
 use crate::program::{self, INPUT_NAMES, OUTPUT_REGISTER_NAMES, PROTOCOL_ID, cmd};
+use crate::recovery::{self, Recovered, RecoveryError, Step};
 use crate::robot::{
     Robot, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, range,
 };
@@ -235,6 +236,68 @@ fn state_from_values(v: &[Value], received_s: f64) -> Option<RobotState> {
     })
 }
 
+/// Fastest joint speed a state may report, rad/s: above any UR's (UR3 wrist: 2π rad/s), so a
+/// larger one is a corrupted package, not motion.
+const PLAUSIBLE_SPEED: f64 = 10.0;
+
+/// Why `s` cannot be a state the controller sent after `prev` (the one before it on this
+/// connection), naming the field: RTDE has no checksum, and bytes corrupted past TCP's own check
+/// (a faulty switch, a bad proxy, a bug) decode into numbers. A non-finite value, a joint
+/// speed no arm has, the controller's clock going back, or a joint that moved further than its
+/// speed allows since the last package.
+pub fn implausible(s: &RobotState, prev: Option<&RobotState>) -> Option<String> {
+    let finite6 = |v: &[f64; 6]| v.iter().all(|x| x.is_finite());
+    for (name, v) in [
+        ("actual_q", &s.actual_q),
+        ("actual_qd", &s.actual_qd),
+        ("target_q", &s.target_q),
+        ("actual_TCP_force", &s.tcp_force),
+    ] {
+        if !finite6(v) {
+            return Some(format!("{name} {v:?} is not finite"));
+        }
+    }
+    if !s.controller_s.is_finite() || s.controller_s < 0.0 {
+        return Some(format!("timestamp {} is not a time", s.controller_s));
+    }
+    if let Some(j) = (0..6).find(|&j| s.actual_qd[j].abs() > PLAUSIBLE_SPEED) {
+        return Some(format!(
+            "actual_qd[{j}] = {} rad/s: faster than any UR joint",
+            s.actual_qd[j]
+        ));
+    }
+    if !(0.0..=1.5).contains(&s.speed_scaling) {
+        return Some(format!(
+            "speed_scaling {} is outside [0, 1]",
+            s.speed_scaling
+        ));
+    }
+    if let Some(p) = prev {
+        let dt = s.controller_s - p.controller_s;
+        if dt < 0.0 {
+            return Some(format!(
+                "timestamp {} went back from {}",
+                s.controller_s, p.controller_s
+            ));
+        }
+        // Over the controller time that passed, at the fastest plausible speed, and a
+        // millimetre-scale allowance for the encoders.
+        let reach = PLAUSIBLE_SPEED * dt + 1e-3;
+        for (name, a, b) in [
+            ("actual_q", &s.actual_q, &p.actual_q),
+            ("target_q", &s.target_q, &p.target_q),
+        ] {
+            if let Some(j) = (0..6).find(|&j| (a[j] - b[j]).abs() > reach) {
+                return Some(format!(
+                    "{name}[{j}] jumped from {} to {} in {dt} s",
+                    b[j], a[j]
+                ));
+            }
+        }
+    }
+    None
+}
+
 fn bits(v: &Value) -> Option<u64> {
     match *v {
         Value::Uint64(b) => Some(b),
@@ -352,6 +415,27 @@ impl UrRobot {
             s.safety_mode == SafetyMode::Normal && s.robot_mode == RobotMode::Running
         })?;
         self.restart_program()
+    }
+
+    /// The operator's re-arm after the controller stopped the arm: does what
+    /// [`crate::recovery::plan`] says from the newest state (`stale_s`: a state older than this,
+    /// on the robot's clock at `now_s`, means the stream is dead), and says what it did. A step
+    /// software may not take is refused, with what the operator must do.
+    pub fn recover(&mut self, now_s: f64, stale_s: f64) -> Result<Recovered, RecoveryError> {
+        let state = self.state();
+        let alive = self.thread.as_ref().is_some_and(|t| !t.is_finished())
+            && state.is_some_and(|s| now_s - s.received_s <= stale_s);
+        let step = recovery::plan(state.as_ref(), alive);
+        let done = match step {
+            Step::Nothing => Ok(Recovered::Healthy),
+            Step::Reconnect => self.reconnect().map(|()| Recovered::Reconnected),
+            Step::UnlockProtectiveStop => self
+                .recover_protective_stop()
+                .map(|()| Recovered::ProtectiveStopUnlocked),
+            Step::RestartProgram => self.restart_program().map(|()| Recovered::ProgramRestarted),
+            Step::Refuse(r) => return Err(RecoveryError::Refused(r)),
+        };
+        done.map_err(|source| RecoveryError::Failed { step, source })
     }
 
     /// Closes this connection and connects again with the same configuration.
@@ -692,6 +776,17 @@ fn state_thread(
         match conn.receive(&recipe, &mut values, true) {
             Ok(()) => match state_from_values(&values, clock.now_s()) {
                 Some(s) => {
+                    if let Some(why) = implausible(&s, last.as_ref()) {
+                        // A corrupted stream: nothing in it can be trusted any more, this
+                        // package or the framing of the next. The connection is dropped (the
+                        // loop sees it lost and stops the arm); a re-arm connects afresh.
+                        record(&shared, format!("an implausible state package: {why}"));
+                        if let Some(mut s) = last {
+                            s.connected = false;
+                            shared.cell.publish(&encode_state(&s));
+                        }
+                        break;
+                    }
                     shared.cell.publish(&encode_state(&s));
                     last = Some(s);
                     wake(&shared);
@@ -732,5 +827,64 @@ fn wake(shared: &Shared) {
 fn record(shared: &Shared, e: String) {
     if let Ok(mut g) = shared.last_error.lock() {
         *g = Some(e);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::*;
+    use mocomp_geom::nalgebra::Isometry3;
+
+    fn state(t: f64, q: f64) -> RobotState {
+        RobotState {
+            actual_qd: [0.1; 6],
+            ..RobotState::at_rest(t, [q; 6], Isometry3::identity())
+        }
+    }
+
+    #[test]
+    fn a_state_that_follows_from_the_last_passes_and_corrupted_fields_are_named() {
+        let a = state(10.0, 0.5);
+        assert_eq!(implausible(&a, None), None);
+        assert_eq!(implausible(&state(10.002, 0.5001), Some(&a)), None);
+        // After a 2 s gap the arm may have moved far.
+        assert_eq!(implausible(&state(12.0, 2.0), Some(&a)), None);
+        let cases: [(RobotState, &str); 6] = [
+            (
+                RobotState {
+                    actual_q: [f64::NAN; 6],
+                    ..a
+                },
+                "actual_q",
+            ),
+            (
+                RobotState {
+                    actual_qd: [0.0, 0.0, 3.0e12, 0.0, 0.0, 0.0],
+                    ..a
+                },
+                "actual_qd[2]",
+            ),
+            (
+                RobotState {
+                    tcp_force: [f64::INFINITY; 6],
+                    ..a
+                },
+                "actual_TCP_force",
+            ),
+            (
+                RobotState {
+                    speed_scaling: -7.0,
+                    ..a
+                },
+                "speed_scaling",
+            ),
+            (state(9.0, 0.5), "went back"),
+            (state(10.002, 0.9), "actual_q[0] jumped"),
+        ];
+        for (s, field) in cases {
+            let why = implausible(&s, Some(&a)).unwrap_or_else(|| panic!("{field} passed"));
+            assert!(why.contains(field), "{why}");
+        }
     }
 }

@@ -7,6 +7,9 @@
 //!   stop unlock, remote-control check.
 //! - [`program`]: mocomp's resident URScript control program and **its register protocol** (in
 //!   the external-client register range 24–47, with an RTDE watchdog).
+//! - [`recovery`]: what a re-arm does after the controller stopped the arm (reconnect, unlock a
+//!   protective stop, restart the program, or refuse with what the operator must do), decided
+//!   without sockets.
 //! - [`robot`]: the [`Robot`] trait the control loop uses, the robot state and faults;
 //!   [`client`]: [`UrRobot`], its implementation over RTDE (state on its own thread, newest state
 //!   readable without blocking or locks).
@@ -19,6 +22,7 @@ pub mod connection;
 pub mod dashboard;
 pub mod error;
 pub mod program;
+pub mod recovery;
 pub mod robot;
 pub mod types;
 

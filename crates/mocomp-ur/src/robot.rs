@@ -250,6 +250,37 @@ pub struct RobotState {
 }
 
 impl RobotState {
+    /// A healthy arm at rest at `q` (its flange at `base_from_tcp`), running mocomp's program,
+    /// idle, at controller time `t_s`: where simulators and tests start.
+    pub fn at_rest(
+        t_s: f64,
+        q: [f64; 6],
+        base_from_tcp: mocomp_geom::nalgebra::Isometry3<f64>,
+    ) -> Self {
+        Self {
+            controller_s: t_s,
+            received_s: t_s,
+            actual_q: q,
+            actual_qd: [0.0; 6],
+            target_q: q,
+            base_from_tcp,
+            robot_mode: RobotMode::Running,
+            safety_mode: SafetyMode::Normal,
+            runtime_state: RuntimeState::Playing,
+            robot_status_bits: 0,
+            safety_status_bits: 0,
+            speed_scaling: 1.0,
+            program_mode: crate::program::mode::IDLE,
+            acked_seq: 0,
+            move_done_seq: 0,
+            program_ours: true,
+            connected: true,
+            tcp_force: [0.0; 6],
+            digital_inputs: 0,
+            digital_outputs: 0,
+        }
+    }
+
     /// The wrench on the tool in the TCP's frame (force N, torque N·m): what presses along the
     /// tool's axis is its z component.
     pub fn tcp_force_in_tool(&self) -> [f64; 6] {

@@ -1,0 +1,212 @@
+#![allow(clippy::print_stderr, clippy::unwrap_used, clippy::panic)] // test support: a child's stderr passed on
+//! `mocomp run --dashboard` in a child process, driven through its console's HTTP API as the
+//! operator's browser would: the console tests, and the fault tests' operator (hold, resume).
+
+use mocomp_testkit::{TempDir, workspace_root};
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Writes the example configuration `example` (in `examples/`) with its simulated robot on
+/// `host` into `dir`; its path.
+pub fn write_example(dir: &TempDir, example: &str, host: &str) -> String {
+    let path = dir.path("run.toml");
+    let cfg = std::fs::read_to_string(workspace_root().join("examples").join(example))
+        .unwrap()
+        .replace("host = \"127.0.0.2\"", &format!("host = \"{host}\""));
+    std::fs::write(&path, cfg).unwrap();
+    path
+}
+
+/// A `mocomp run --dashboard` child and its console's address and token.
+#[derive(Debug)]
+pub struct Session {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+    /// The token from the printed link.
+    pub token: String,
+    agent: ureq::Agent,
+    stdout: Option<std::thread::JoinHandle<String>>,
+}
+
+impl Session {
+    /// Starts the example configuration `example` (in `examples/`) with its simulated robot on
+    /// `host` for `seconds`, the console on a free loopback port, plus `extra` options.
+    pub fn start(
+        dir: &TempDir,
+        example: &str,
+        host: &str,
+        seconds: u32,
+        extra: &[&str],
+    ) -> Session {
+        Self::start_file(&write_example(dir, example, host), seconds, extra)
+    }
+
+    /// Starts the configuration at `path` for `seconds`, the console on a free loopback port.
+    pub fn start_file(path: &str, seconds: u32, extra: &[&str]) -> Session {
+        let seconds = seconds.to_string();
+        let mut args = vec!["run", "--config", path, "--quiet", "--seconds", &seconds];
+        args.extend(["--dashboard", "127.0.0.1:0"]);
+        args.extend(extra);
+        Self::spawn(&args)
+    }
+
+    /// Runs `mocomp` with `args` (which ask for a console); its first line names the console.
+    pub fn spawn(args: &[&str]) -> Session {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_mocomp"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let mut lines = BufReader::new(child.stdout.take().unwrap());
+        // The first line names the console.
+        let mut first = String::new();
+        lines.read_line(&mut first).unwrap();
+        let stdout = std::thread::spawn(move || collect(lines));
+        Self::with_url(child, &first, stdout)
+    }
+
+    /// Runs `mocomp` with `args` (which ask for a console and `--json`): the console's line
+    /// comes on standard error, standard output is the JSON summary alone. The rest of standard
+    /// error is passed on to the test's.
+    pub fn spawn_json(args: &[&str]) -> Session {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_mocomp"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut err = BufReader::new(child.stderr.take().unwrap());
+        let mut first = String::new();
+        while !first.starts_with("dashboard: ") {
+            first.clear();
+            assert!(
+                err.read_line(&mut first).unwrap() > 0,
+                "the run ended before naming its console"
+            );
+            eprint!("{first}");
+        }
+        std::thread::spawn(move || {
+            for line in err.lines().map_while(Result::ok) {
+                eprintln!("{line}");
+            }
+        });
+        let out = BufReader::new(child.stdout.take().unwrap());
+        let stdout = std::thread::spawn(move || collect(out));
+        Self::with_url(child, &first, stdout)
+    }
+
+    fn with_url(child: Child, first: &str, stdout: std::thread::JoinHandle<String>) -> Session {
+        let url = first
+            .strip_prefix("dashboard: ")
+            .unwrap_or_else(|| panic!("first line: {first:?}"))
+            .trim()
+            .to_string();
+        let (base, token) = url.split_once("/?token=").unwrap();
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(Duration::from_secs(10)))
+            .build()
+            .into();
+        Session {
+            child,
+            base: base.to_string(),
+            token: token.to_string(),
+            agent,
+            stdout: Some(stdout),
+        }
+    }
+
+    /// GET `path` (no token), its status code and JSON.
+    pub fn get(&self, path: &str) -> (u16, Value) {
+        let mut r = self
+            .agent
+            .get(format!("{}{path}", self.base))
+            .call()
+            .unwrap();
+        (
+            r.status().as_u16(),
+            r.body_mut().read_json().unwrap_or(Value::Null),
+        )
+    }
+
+    /// POST `body` to `path` with these headers.
+    pub fn post(&self, path: &str, headers: &[(&str, &str)], body: &Value) -> (u16, Value) {
+        let mut req = self.agent.post(format!("{}{path}", self.base));
+        for (k, v) in headers {
+            req = req.header(*k, *v);
+        }
+        let mut r = req.send_json(body).unwrap();
+        (
+            r.status().as_u16(),
+            r.body_mut().read_json().unwrap_or(Value::Null),
+        )
+    }
+
+    /// POST with the token.
+    pub fn post_auth(&self, path: &str, body: &Value) -> (u16, Value) {
+        let bearer = format!("Bearer {}", self.token);
+        self.post(path, &[("Authorization", &bearer)], body)
+    }
+
+    /// Waits (up to 30 s) until the status satisfies `f`; returns it.
+    pub fn wait_status(&self, what: &str, f: impl Fn(&Value) -> bool) -> Value {
+        self.wait_status_for(what, 30, f)
+    }
+
+    /// Waits (up to `seconds`) until the status satisfies `f`; returns it.
+    pub fn wait_status_for(&self, what: &str, seconds: u64, f: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(seconds);
+        loop {
+            let (code, s) = self.get("/api/status");
+            assert_eq!(code, 200, "{s}");
+            if f(&s) {
+                return s;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "waiting for {what}; last status {s}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Waits (up to 15 s) for the run to end; its exit success and standard output.
+    pub fn finish(mut self) -> (bool, String) {
+        let deadline = Instant::now() + Duration::from_secs(15);
+        let status = loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                break s;
+            }
+            if Instant::now() > deadline {
+                self.child.kill().ok();
+                panic!("the run did not end after its stop");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        (
+            status.success(),
+            self.stdout.take().unwrap().join().unwrap(),
+        )
+    }
+}
+
+/// Every line of `lines`, as they come, until it closes.
+fn collect(lines: impl BufRead) -> String {
+    let mut rest = String::new();
+    for line in lines.lines() {
+        rest.push_str(&line.unwrap_or_default());
+        rest.push('\n');
+    }
+    rest
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        self.child.kill().ok();
+        self.child.wait().ok();
+    }
+}
