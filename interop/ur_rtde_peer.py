@@ -5,12 +5,15 @@ Ops: version; receive (RTDEReceiveInterface: rate and values); control_connect (
 plus a receiver); moveJ; servo_stream (servoJ at the controller rate with initPeriod/waitPeriod);
 speedJ; speedStop; servoStop; stopJ; zeroFtSensor (with the TCP force before and after);
 stopScript; disconnect; io (RTDEIOInterface: digital outputs set and read back, inputs read);
-moveL (asynchronous, the TCP's path sampled); teachMode (not emulated: refused).
+moveL (asynchronous, the TCP's path sampled); teachMode (not emulated: refused); watch (a
+receiver on its own thread recording, on CLOCK_MONOTONIC, the fastest joint's speed of every
+new state), still_after (when, after t0, the arm came to stand and stayed), top_speed.
 """
 
 import importlib.metadata
 import math
 import statistics
+import threading
 import time
 
 from jsonlines import serve
@@ -61,6 +64,49 @@ def receive(req):
     return out
 
 
+def watch(req):
+    # A third party's view of the arm, beside whatever else is connected: every new state's
+    # arrival (time.monotonic is CLOCK_MONOTONIC, the same clock the test stamps its faults
+    # with) and its fastest joint's speed.
+    r = rtde_receive.RTDEReceiveInterface(req["host"], -1.0)
+    samples = []
+    stop = threading.Event()
+
+    def run():
+        last = None
+        while not stop.is_set():
+            ts = r.getTimestamp()
+            if ts != last:
+                last = ts
+                qd = r.getActualQd()
+                samples.append((time.monotonic(), max(abs(v) for v in qd)))
+            time.sleep(0.0002)
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    state["watch"] = (r, samples, stop, t)
+    return {"ok": True}
+
+
+def still_after(req):
+    # The first sample at or after t0 from which every sample for stay_s is below 1 mrad/s.
+    _, samples, _, _ = state["watch"]
+    xs = [s for s in list(samples) if s[0] >= req["t0"]]
+    stay = req["stay_s"]
+    for i, (t, _) in enumerate(xs):
+        if xs[-1][0] < t + stay:
+            break
+        if all(v < 1e-3 for (u, v) in xs[i:] if u < t + stay):
+            return {"still_s": t - req["t0"], "samples": len(xs)}
+    return {"still_s": None, "samples": len(xs)}
+
+
+def top_speed(req):
+    _, samples, _, _ = state["watch"]
+    vs = [v for (t, v) in list(samples) if req["from"] <= t < req["to"]]
+    return {"speed": max(vs) if vs else None, "samples": len(vs)}
+
+
 def wait_for(f, seconds=5.0):
     # How long a package takes here depends on how busy the machine is: wait with a deadline.
     deadline = time.monotonic() + seconds
@@ -109,6 +155,12 @@ def handle(req):
     op = req["op"]
     if op == "version":
         return {"version": importlib.metadata.version("ur-rtde")}
+    if op == "watch":
+        return watch(req)
+    if op == "still_after":
+        return still_after(req)
+    if op == "top_speed":
+        return top_speed(req)
     if op == "receive":
         return receive(req)
     if op == "control_connect":

@@ -381,6 +381,10 @@ pub struct SimTrackerSection {
     pub motion: HeadMotion,
     /// The tracker's model.
     pub model: TrackerModel,
+    /// Where its OpenIGTLink server listens, host:port (port 0: any free one). The loop
+    /// connects there, or to `tracker.igtl` when that is given (the same server seen through a
+    /// relay or another host's address).
+    pub serve: String,
 }
 
 impl Default for SimTrackerSection {
@@ -393,6 +397,7 @@ impl Default for SimTrackerSection {
             flange_from_marker: pose_const([0.0, 0.06, 0.02, std::f64::consts::PI, 0.0, 0.0]),
             motion: HeadMotion::Random(mocomp_sim::motion::RandomMotion::default()),
             model: TrackerModel::default(),
+            serve: "127.0.0.1:0".into(),
         }
     }
 }

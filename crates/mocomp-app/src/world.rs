@@ -130,7 +130,9 @@ impl World {
             _ => (None, None),
         };
         let tracker_addr = match (&tracker, &camera, &file.tracker.igtl) {
-            (Some(t), _, _) => t.addr().to_string(),
+            // The simulated tracker seen through another address (a relay).
+            (Some(_), _, Some(a)) => a.clone(),
+            (Some(t), _, None) => t.addr().to_string(),
             (None, Some(c), _) => c.addr().to_string(),
             (None, None, Some(a)) => a.clone(),
             // The head's poses come over ROS 2 (`mocomp run` takes them from its node).
@@ -332,7 +334,8 @@ fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> Result<TrackerServer, 
             }),
         });
     }
-    TrackerServer::start("127.0.0.1:0", s.model, markers).what(|| "the simulated tracker")
+    TrackerServer::start(&s.serve, s.model, markers)
+        .what(|| format!("tracker.simulated.serve {}: the simulated tracker", s.serve))
 }
 
 /// Starts a simulated controller of `model` on the standard ports of `host` (for `mocomp ursim`

@@ -36,6 +36,11 @@ pub struct UrsimCmd {
     /// Pin the controller's threads to this CPU (on a shared machine, away from the loop's).
     #[arg(long, value_name = "N")]
     cpu: Option<usize>,
+    /// Take the cell's own events from standard input, one per line: `protective stop [why]`,
+    /// `emergency stop`, `emergency stop release` (what a person in the room causes, which no
+    /// network command of a real controller does).
+    #[arg(long)]
+    cell_stdin: bool,
 }
 
 /// `--realtime`: a SCHED_FIFO priority, or none.
@@ -74,7 +79,24 @@ impl UrsimCmd {
                 e
             }
         })?;
+        if self.cell_stdin {
+            let sim = sim.handle();
+            std::thread::Builder::new()
+                .name("ursim-cell".into())
+                .spawn(move || cell_events(&sim))?;
+        }
         serve(out, &sim, self.model, self.seconds)
+    }
+}
+
+/// The cell's events from standard input, until it closes; an unknown line is named on
+/// standard error and skipped.
+fn cell_events(sim: &mocomp_ursim::SimHandle) {
+    for line in std::io::stdin().lines().map_while(Result::ok) {
+        match mocomp_ursim::cell::CellEvent::parse(&line) {
+            Ok(e) => sim.with(|c| e.apply(c)),
+            Err(why) => eprintln!("error: {why}"),
+        }
     }
 }
 

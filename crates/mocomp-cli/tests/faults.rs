@@ -7,8 +7,9 @@
 //! The faults of a real cell (issue 29), injected while `mocomp run` compensates against a
 //! controller in another process: `mocomp ursim` started on its own, reached through the test
 //! kit's fault-injecting relay (RTDE, dashboard and script ports on an address of the relay's
-//! own), the operator at the console. A monitor that is not mocomp reads the controller's own
-//! RTDE stream directly, beside the loop's connection, and says when the arm stood still.
+//! own), the operator at the console. A monitor that is not mocomp (ur_rtde's receive
+//! interface) reads the controller's own RTDE stream directly, beside the loop's connection,
+//! and says when the arm stood still.
 //!
 //! For each fault: the loop's named event; the arm still (and how soon); a fault the controller
 //! reports, or a gap long enough that it stopped the arm itself, stays until the operator
@@ -18,94 +19,49 @@
 mod common;
 use common::example_changed;
 use common::session::Session;
-use mocomp_testkit::TempDir;
 use mocomp_testkit::controller::ChildController;
 use mocomp_testkit::proxy::{Direction, FaultProxy};
-use mocomp_ur::connection::RtdeConnection;
+use mocomp_testkit::{PythonPeer, TempDir, monotonic_s};
+use mocomp_ur::dashboard::Dashboard;
 use serde_json::{Value, json};
 use std::net::SocketAddr;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::sync::Mutex;
+use std::time::Duration;
 
 /// One cell at a time in this file: a loop and a controller at real-time priority each, on two
 /// cores.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
-/// The controller's own view of the arm, read over a connection of its own: when each state
-/// came, the fastest joint's speed, the runtime state.
-struct Monitor {
-    samples: Arc<Mutex<Vec<(Instant, f64, i32)>>>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-}
+/// The controller's own view of the arm, read by a third party (ur_rtde's receive interface,
+/// SDU's client) over a connection of its own beside the loop's: when each new state came
+/// (CLOCK_MONOTONIC) and the fastest joint's speed.
+struct Monitor(Mutex<PythonPeer>);
 
 impl Monitor {
     fn start(controller: SocketAddr) -> Self {
-        let samples = Arc::new(Mutex::new(Vec::new()));
-        let stop = Arc::new(AtomicBool::new(false));
-        let mut conn = RtdeConnection::connect(controller, Duration::from_secs(2)).unwrap();
-        conn.negotiate().unwrap();
-        let recipe = conn
-            .setup_outputs(500.0, &["actual_qd", "runtime_state"])
-            .unwrap();
-        conn.start().unwrap();
-        let thread = {
-            let (samples, stop) = (Arc::clone(&samples), Arc::clone(&stop));
-            std::thread::spawn(move || {
-                let mut values = Vec::new();
-                while !stop.load(Ordering::Relaxed) {
-                    if conn.receive(&recipe, &mut values, false).is_err() {
-                        continue;
-                    }
-                    let qd = values[0].as_vec6().unwrap();
-                    let speed = qd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                    let runtime = values[1].as_f64().unwrap() as i32;
-                    samples
-                        .lock()
-                        .unwrap()
-                        .push((Instant::now(), speed, runtime));
-                }
-            })
-        };
-        Self {
-            samples,
-            stop,
-            thread: Some(thread),
-        }
+        let mut peer = PythonPeer::start("ur_rtde_peer.py", "ur-rtde", "1.6.5");
+        peer.request(&json!({"op": "watch", "host": controller.ip().to_string()}));
+        Self(Mutex::new(peer))
     }
 
-    /// The fastest joint's top speed in [from, to), rad/s.
-    fn top_speed(&self, from: Instant, to: Instant) -> f64 {
-        let s = self.samples.lock().unwrap();
-        s.iter()
-            .filter(|x| x.0 >= from && x.0 < to)
-            .fold(0.0, |m, x| m.max(x.1))
+    fn ask(&self, req: &Value) -> Value {
+        self.0.lock().unwrap().request(req)
     }
 
-    /// How long after `t0` the arm came to stand (every joint below 1 mrad/s) and stayed there
-    /// for `for_s`; `None` if it never did.
-    fn still_after(&self, t0: Instant, stay: Duration) -> Option<Duration> {
-        let s = self.samples.lock().unwrap();
-        let after: Vec<_> = s.iter().filter(|x| x.0 >= t0).collect();
-        (0..after.len()).find_map(|i| {
-            let start = after[i].0;
-            let end = start + stay;
-            let through: Vec<_> = after[i..].iter().take_while(|x| x.0 < end).collect();
-            let long_enough = after.last().is_some_and(|l| l.0 >= end);
-            (long_enough && through.iter().all(|x| x.1 < 1e-3)).then(|| start - t0)
-        })
+    /// The fastest joint's top speed in [from, to) (monotonic s), rad/s.
+    fn top_speed(&self, from: f64, to: f64) -> f64 {
+        self.ask(&json!({"op": "top_speed", "from": from, "to": to}))["speed"]
+            .as_f64()
+            .unwrap_or(0.0)
     }
-}
 
-impl Drop for Monitor {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            t.join().ok();
-        }
+    /// How long after `t0` (monotonic s) the arm came to stand (every joint below 1 mrad/s)
+    /// and stayed there for `stay`; `None` if it never did.
+    fn still_after(&self, t0: f64, stay: Duration) -> Option<Duration> {
+        self.ask(&json!({"op": "still_after", "t0": t0, "stay_s": stay.as_secs_f64()}))["still_s"]
+            .as_f64()
+            .map(Duration::from_secs_f64)
     }
 }
 
@@ -113,6 +69,8 @@ impl Drop for Monitor {
 struct Cell {
     controller: ChildController,
     rtde: FaultProxy,
+    /// The tracker's relay, when the test put one between the loop and the tracker server.
+    igtl: Option<FaultProxy>,
     _others: [FaultProxy; 2],
     monitor: Monitor,
     session: Session,
@@ -123,6 +81,18 @@ struct Cell {
 /// dashboard, script ports), and `mocomp run` against the relay for at most `seconds`, with its
 /// CSV log.
 fn cell(controller_ip: &str, relay_ip: &str, seconds: u32, seed: u64) -> Cell {
+    cell_with(controller_ip, relay_ip, seconds, seed, None)
+}
+
+/// [`cell`], and with `tracker` (the simulated tracker's address, its relay's) the tracker's
+/// OpenIGTLink stream through a relay too.
+fn cell_with(
+    controller_ip: &str,
+    relay_ip: &str,
+    seconds: u32,
+    seed: u64,
+    tracker: Option<(&str, &str)>,
+) -> Cell {
     let dir = TempDir::new(&format!("mocomp-faults-{relay_ip}"));
     let controller = ChildController::start(
         Path::new(env!("CARGO_BIN_EXE_mocomp")),
@@ -136,7 +106,23 @@ fn cell(controller_ip: &str, relay_ip: &str, seconds: u32, seed: u64) -> Cell {
     let others = [29999, 30003]
         .map(|p| FaultProxy::start(at(relay_ip, p), at(controller_ip, p), seed + 1).unwrap());
     let monitor = Monitor::start(at(controller_ip, 30004));
-    let config = example_changed(&dir, relay_ip, &[("simulate = true ", "simulate = false")]);
+    let igtl = tracker.map(|(server, relay)| {
+        FaultProxy::start(at(relay, 18944), at(server, 18944), seed + 2).unwrap()
+    });
+    let (serve, connect) = tracker.map_or((String::new(), String::new()), |(server, relay)| {
+        (
+            format!("\nserve = \"{server}:18944\""),
+            format!("igtl = \"{relay}:18944\""),
+        )
+    });
+    let marker = "flange_from_marker = [0.0, 0.06, 0.02, 3.1416, 0.0, 0.0]";
+    let mut changes = vec![("simulate = true ", "simulate = false".to_string())];
+    if tracker.is_some() {
+        changes.push(("# igtl = \"127.0.0.1:18944\"", connect));
+        changes.push((marker, format!("{marker}{serve}")));
+    }
+    let changes: Vec<(&str, &str)> = changes.iter().map(|(a, b)| (*a, b.as_str())).collect();
+    let config = example_changed(&dir, relay_ip, &changes);
     let (csv, secs) = (dir.path("run.csv"), seconds.to_string());
     let session = Session::spawn_json(&[
         "run",
@@ -154,6 +140,7 @@ fn cell(controller_ip: &str, relay_ip: &str, seconds: u32, seed: u64) -> Cell {
     Cell {
         controller,
         rtde,
+        igtl,
         _others: others,
         monitor,
         session,
@@ -173,19 +160,32 @@ impl Cell {
     /// Ends the run; its JSON summary. Checks what every run must show: no protective stop
     /// (the controller refused no setpoint), the arm at a standstill, every cycle logged.
     fn finish(self) -> Value {
+        self.finish_with_protective_stops(0)
+    }
+
+    /// [`Self::finish`], with `n` protective stops the test caused itself.
+    fn finish_with_protective_stops(self, n: usize) -> Value {
         let (code, _) = self.session.post_auth("/api/stop", &json!({}));
         assert_eq!(code, 200);
         let (ok, out) = self.session.finish();
         assert!(ok, "the run failed: {out}");
         let v: Value = serde_json::from_str(&out).unwrap();
+        let stops = self.controller.protective_stops();
+        let caused = stops
+            .iter()
+            .filter(|l| l.contains("protective stop: "))
+            .count();
         assert!(
-            self.controller.protective_stops().is_empty(),
-            "{:?}",
-            self.controller.protective_stops()
+            caused == n && !stops.iter().any(|l| l.contains("C204A3")),
+            "{stops:?}"
         );
-        assert_eq!(v["protective_stops"], 0, "{v}");
+        assert_eq!(v["protective_stops"], n, "{v}");
         assert_eq!(v["stop"]["outcome"], "standstill", "{v}");
         assert_eq!(v["log_records_dropped"], 0, "{v}");
+        eprintln!(
+            "robot state stale holds: {}; missed cycles: {}",
+            v["robot_stale_holds"], v["missed_cycles"]
+        );
         let rows = csv::Reader::from_path(self.dir.path("run.csv"))
             .unwrap()
             .records()
@@ -218,8 +218,19 @@ fn latched_fault(
     still_within: Duration,
     fault: impl FnOnce(&Cell),
 ) -> Duration {
+    latched_fault_then(c, what, still_within, fault, |_| {})
+}
+
+/// [`latched_fault`], with what the operator does at the cell (`operator`) before resuming.
+fn latched_fault_then(
+    c: &Cell,
+    what: &str,
+    still_within: Duration,
+    fault: impl FnOnce(&Cell),
+    operator: impl FnOnce(&Cell),
+) -> Duration {
     c.tracking(&format!("before the {what}"));
-    let t0 = Instant::now();
+    let t0 = monotonic_s();
     fault(c);
     let s = &c.session;
     let v = s.wait_status_for(&format!("faulted after the {what}"), 10, |v| {
@@ -238,8 +249,8 @@ fn latched_fault(
         .still_after(t0, Duration::from_millis(500))
         .unwrap_or_else(|| panic!("{what}: the arm never stood still"));
     assert!(still <= still_within, "{what}: still only after {still:?}");
-    let quiet_from = t0 + still;
-    let top = c.monitor.top_speed(quiet_from, Instant::now());
+    let quiet_from = t0 + still.as_secs_f64();
+    let top = c.monitor.top_speed(quiet_from, monotonic_s());
     assert!(
         top < 1e-3,
         "{what}: the arm moved while latched ({top} rad/s)"
@@ -248,6 +259,7 @@ fn latched_fault(
         "{what}: arm still {:.0} ms after the fault",
         still.as_secs_f64() * 1e3
     );
+    operator(c);
     // The operator resumes: the robot's recovery, then back by a path.
     let (code, _) = s.post_auth("/api/resume", &json!({}));
     assert_eq!(code, 200);
@@ -341,4 +353,214 @@ fn short_rtde_stalls_are_ridden_out_or_resumed_from_by_a_path_without_the_operat
     let ev = events(&v);
     assert!(!ev.iter().any(|e| e == "Rearmed"), "{ev:?}");
     eprintln!("{ev:?}");
+}
+
+/// The controller's dashboard, reached directly (as the teach pendant acts on the controller,
+/// not through mocomp's network).
+fn pendant(ip: &str) -> Dashboard {
+    Dashboard::connect(
+        SocketAddr::new(ip.parse().unwrap(), 29999),
+        Duration::from_secs(2),
+    )
+    .unwrap()
+}
+
+#[test]
+fn the_cells_own_faults_stop_the_arm_and_each_has_its_recovery() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let ip = "127.0.0.107";
+    let c = cell(ip, "127.0.0.108", 150, 329);
+    // The program stopped from the pendant (dashboard `stop`): restarted on the resume.
+    latched_fault(&c, "dashboard stop", Duration::from_millis(400), |_| {
+        pendant(ip).stop().unwrap();
+    });
+    // A protective stop: UR lets it be unlocked 5 s after it happened, not before.
+    latched_fault_then(
+        &c,
+        "protective stop",
+        Duration::from_millis(400),
+        |c| c.controller.cell("protective stop a bump"),
+        |_| std::thread::sleep(Duration::from_secs(4)),
+    );
+    // Powered off from the pendant: the operator powers on and releases the brakes there.
+    latched_fault_then(
+        &c,
+        "power off",
+        Duration::from_millis(400),
+        |_| pendant(ip).power_off().unwrap(),
+        |_| {
+            let mut d = pendant(ip);
+            d.power_on().unwrap();
+            d.brake_release().unwrap();
+        },
+    );
+    // The emergency stop: a resume while it is pressed is refused and nothing moves; released,
+    // powered and the brakes off, the resume brings the loop back.
+    latched_fault_then(
+        &c,
+        "emergency stop",
+        Duration::from_millis(400),
+        |c| c.controller.cell("emergency stop"),
+        |c| {
+            let (code, _) = c.session.post_auth("/api/resume", &json!({}));
+            assert_eq!(code, 200);
+            std::thread::sleep(Duration::from_secs(1));
+            let (_, v) = c.session.get("/api/status");
+            assert_eq!(v["mode"], "faulted", "{v}");
+            c.controller.cell("emergency stop release");
+            let mut d = pendant(ip);
+            d.power_on().unwrap();
+            d.brake_release().unwrap();
+        },
+    );
+    let v = c.finish_with_protective_stops(1);
+    let ev = events(&v);
+    eprintln!("{ev:?}");
+    for (fault, recovered) in [
+        (
+            "Hold(Robot(ProgramStopped))",
+            "re-armed: the control program running again",
+        ),
+        (
+            "Hold(Robot(ProtectiveStop))",
+            "re-armed: protective stop unlocked, the control program running again",
+        ),
+        (
+            "Hold(Robot(NotRunning(",
+            "re-armed: the control program running again",
+        ),
+        (
+            "Hold(Robot(EmergencyStop))",
+            "re-armed: the control program running again",
+        ),
+    ] {
+        let at = ev
+            .iter()
+            .position(|e| e.starts_with(fault))
+            .unwrap_or_else(|| panic!("no {fault}: {ev:?}"));
+        let next = ev[at..]
+            .iter()
+            .find(|e| e.starts_with("re-arm"))
+            .unwrap_or_else(|| panic!("no re-arm after {fault}: {ev:?}"));
+        if fault.contains("EmergencyStop") {
+            assert!(next.starts_with("re-arm refused: emergency stop"), "{ev:?}");
+        } else {
+            assert_eq!(next, recovered, "{ev:?}");
+        }
+    }
+    assert_eq!(ev.iter().filter(|e| *e == "Rearmed").count(), 4, "{ev:?}");
+}
+
+#[test]
+fn tracker_stalls_resets_and_corruption_hold_or_coast_and_come_back_by_themselves() {
+    // The tracker's faults are the tracker rules' to judge: a short gap is coasted on the
+    // prediction, a longer one holds the arm (the head unknown, moving blind is worse than
+    // standing), and fresh samples bring the loop back by a path, without the operator: the
+    // controller never stopped the arm. Corrupted bytes never become a pose: the body's CRC
+    // drops a message, a broken header drops the connection, and the client connects again.
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let c = cell_with(
+        "127.0.0.109",
+        "127.0.0.110",
+        120,
+        429,
+        Some(("127.0.0.111", "127.0.0.112")),
+    );
+    let igtl = c.igtl.as_ref().unwrap();
+    c.tracking("before the tracker's faults");
+    // 100 ms: coasted (tracker_stale_s 75 ms + coast_s 150 ms).
+    igtl.stall(Duration::from_millis(100));
+    std::thread::sleep(Duration::from_millis(300));
+    c.tracking("after a 100 ms tracker stall");
+    // 1 s: held, the arm still, then back.
+    let t0 = monotonic_s();
+    igtl.stall(Duration::from_secs(1));
+    let v = c
+        .session
+        .wait_status_for("held for a stale tracker", 5, |v| v["mode"] == "holding");
+    assert_eq!(
+        v["reason"].as_str().map(|r| r.starts_with("TrackerStale")),
+        Some(true),
+        "{v}"
+    );
+    c.tracking("after a 1 s tracker stall");
+    let still = c.monitor.still_after(t0, Duration::from_millis(100));
+    eprintln!("1 s tracker stall: arm still after {still:?}");
+    assert!(
+        still.is_some_and(|d| d < Duration::from_secs(1)),
+        "{still:?}"
+    );
+    // The connection reset: the client connects again.
+    igtl.reset();
+    std::thread::sleep(Duration::from_millis(500));
+    c.tracking("after a tracker reset");
+    assert!(igtl.connections() >= 2, "reconnected");
+    // The tracker server restarted: gone for 2 s (its connection lost, new ones unanswered),
+    // then back.
+    let before = igtl.connections();
+    igtl.cut();
+    igtl.reset();
+    c.session
+        .wait_status_for("held while the tracker is gone", 5, |v| {
+            v["mode"] == "holding"
+        });
+    std::thread::sleep(Duration::from_secs(2));
+    igtl.restore();
+    c.tracking("after the tracker server came back");
+    assert!(igtl.connections() > before, "connected again");
+    // Corrupted bytes, in a message body and in headers.
+    for n in [8, 200] {
+        igtl.corrupt(Direction::Downstream, n);
+        std::thread::sleep(Duration::from_millis(500));
+        assert!(igtl.faults_spent());
+        c.tracking(&format!("after {n} corrupted tracker bytes"));
+    }
+    let v = c.finish();
+    let ev = events(&v);
+    eprintln!("{ev:?}");
+    // The tracker's faults never latch the robot side (a stale robot state of its own, on a
+    // busy machine, is the robot rules' and resumes by itself: not counted here).
+    assert!(
+        !ev.iter()
+            .any(|e| e == "Rearmed" || e.starts_with("Hold(Robot(")),
+        "{ev:?}"
+    );
+    assert!(ev.iter().any(|e| e.starts_with("Coasting")), "{ev:?}");
+    assert!(
+        ev.iter().any(|e| e.starts_with("Hold(TrackerStale")),
+        "{ev:?}"
+    );
+    // No corrupted pose reached the loop as a head that jumped.
+    assert!(!ev.iter().any(|e| e.starts_with("Outlier")), "{ev:?}");
+    let max = v["deviation_max_mm"].as_f64().unwrap();
+    assert!(max < 5.0, "deviation max {max} mm while tracking: {v}");
+}
+
+#[test]
+fn a_killed_loop_leaves_the_arm_still_within_the_watchdog_and_a_stop() {
+    // SIGKILL mid-compensation: no handler runs, no stop is sent. The control program's watchdog
+    // (no command for 50 ms) stops the program, and the arm brakes.
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let mut c = cell("127.0.0.113", "127.0.0.114", 60, 529);
+    c.tracking("before the kill");
+    // Into a fast part of the nod.
+    std::thread::sleep(Duration::from_millis(300));
+    let t0 = monotonic_s();
+    let moving = c.monitor.top_speed(t0 - 0.05, t0);
+    c.session.kill();
+    std::thread::sleep(Duration::from_secs(1));
+    let still = c
+        .monitor
+        .still_after(t0, Duration::from_millis(500))
+        .expect("the arm never stood still");
+    eprintln!(
+        "SIGKILL at {moving:.3} rad/s: arm still {:.0} ms later",
+        still.as_secs_f64() * 1e3
+    );
+    assert!(
+        c.controller.log().contains("RTDE watchdog"),
+        "{}",
+        c.controller.log()
+    );
+    assert!(still < Duration::from_millis(200), "{still:?}");
 }

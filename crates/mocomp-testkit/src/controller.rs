@@ -17,17 +17,21 @@ use std::time::{Duration, Instant};
 pub struct ChildController {
     child: Child,
     log: Arc<Mutex<String>>,
+    /// Its standard input: the cell's events (`--cell-stdin`).
+    cell: Mutex<Option<std::process::ChildStdin>>,
 }
 
 impl ChildController {
-    /// Starts `bin ursim --model MODEL --host HOST --initial-joints Q` plus `extra`, and waits
-    /// (10 s at most) until it serves.
+    /// Starts `bin ursim --model MODEL --host HOST --initial-joints Q --cell-stdin` plus
+    /// `extra`, and waits (10 s at most) until it serves.
     pub fn start(bin: &Path, model: &str, host: &str, q: [f64; 6], extra: &[&str]) -> Self {
         let joints = q.map(|v| format!("{v:.6}")).join(",");
         let mut child = Command::new(bin)
             .args(["ursim", "--model", model, "--host", host])
             .arg(format!("--initial-joints={joints}"))
+            .arg("--cell-stdin")
             .args(extra)
+            .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -56,7 +60,8 @@ impl ChildController {
                 }
             });
         }
-        let c = Self { child, log };
+        let cell = Mutex::new(child.stdin.take());
+        let c = Self { child, log, cell };
         crate::wait_until(
             &format!("the simulated controller on {host} to serve"),
             || c.log().contains("RTDE "),
@@ -76,6 +81,22 @@ impl ChildController {
             .filter(|l| l.contains("protective stop") || l.contains("C204A3"))
             .map(str::to_string)
             .collect()
+    }
+
+    /// Something happens in the cell (`protective stop [why]`, `emergency stop`, `emergency stop
+    /// release`), as a person in the room causes it.
+    pub fn cell(&self, event: &str) {
+        use std::io::Write;
+        let mut g = self
+            .cell
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let Some(stdin) = g.as_mut() else {
+            panic!("the controller's standard input is closed");
+        };
+        writeln!(stdin, "{event}")
+            .and_then(|()| stdin.flush())
+            .unwrap_or_else(|e| panic!("telling the controller {event:?}: {e}"));
     }
 
     /// Holds the whole controller for `pause` (stopped, then continued); returns how long it

@@ -216,6 +216,15 @@ fn listening_ports(pid: u32) -> Vec<u16> {
     ports
 }
 
+/// Now on `CLOCK_MONOTONIC`, s: the clock Rust's `Instant` and Python's `time.monotonic` both
+/// read on Linux, so a test and a Python peer can compare times.
+pub fn monotonic_s() -> f64 {
+    use nix::time::{ClockId, clock_gettime};
+    let t =
+        clock_gettime(ClockId::CLOCK_MONOTONIC).unwrap_or_else(|e| panic!("CLOCK_MONOTONIC: {e}"));
+    t.tv_sec() as f64 + t.tv_nsec() as f64 * 1e-9
+}
+
 /// Polls `f` every 2 ms until it is true; panics naming `what` after 10 s. For tests on threads
 /// and sockets, where fixed sleeps are flaky on loaded machines: a condition with a deadline, the
 /// deadline generous enough for two loaded cores.

@@ -19,6 +19,9 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+/// The pumps' `SCHED_FIFO` priority: the simulated controller's (below the loop's 50).
+const PUMP_PRIORITY: u8 = 49;
+
 /// Which way bytes travel through the relay.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Direction {
@@ -347,6 +350,10 @@ fn pump(
     shared: &Arc<Shared>,
     reset: &Arc<AtomicBool>,
 ) {
+    // The relay stands for the network, not for another process competing for the CPU: its
+    // pumps run at the simulated controller's real-time priority where the system allows, so
+    // a busy machine does not turn a 10 ms stall into a 60 ms one (and trip the watchdog).
+    mocomp_rt::set_fifo(PUMP_PRIORITY).ok();
     let queue = Arc::new((
         Mutex::new(Queue {
             chunks: VecDeque::new(),
@@ -359,6 +366,7 @@ fn pump(
         let shared = Arc::clone(shared);
         let reset = Arc::clone(reset);
         std::thread::spawn(move || {
+            mocomp_rt::set_fifo(PUMP_PRIORITY).ok();
             let mut buf = vec![0u8; 64 * 1024];
             // Short: a reset is seen within this.
             from.set_read_timeout(Some(Duration::from_millis(5))).ok();

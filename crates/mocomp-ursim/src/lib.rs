@@ -11,11 +11,15 @@
 //!   mocomp's control program and ur_rtde's `rtde_control` script run natively (their register
 //!   protocols, not a URScript interpreter); other programs are logged and not run.
 //!
+//! [`cell`]: the cell's own events (a protective stop, the emergency stop), as text lines from
+//! whoever stands for the room.
+//!
 //! The [`controller::Controller`] steps the joints every controller period. With
 //! [`SimClock::RealTime`] a thread steps it on the machine's clock; with [`SimClock::Stepped`]
 //! the owner calls [`Sim::step`], so tests and the demo run deterministically while clients still
 //! talk TCP.
 
+pub mod cell;
 pub mod controller;
 mod server;
 
@@ -23,4 +27,4 @@ pub use controller::{
     Bank, Controller, ControllerConfig, DEFAULT_TCP_FORCE_LIMIT_N, Io, SimEvent, ToolLoad,
     ToolLoadFn,
 };
-pub use server::{Ports, Sim, SimAddrs, SimClock, SimConfig, SimError, SimStats};
+pub use server::{Ports, Sim, SimAddrs, SimClock, SimConfig, SimError, SimHandle, SimStats};

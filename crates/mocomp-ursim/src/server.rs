@@ -186,6 +186,23 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
+/// The controller of a [`Sim`], for another thread ([`Sim::handle`]).
+#[derive(Clone)]
+pub struct SimHandle(Arc<Shared>);
+
+impl std::fmt::Debug for SimHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimHandle").finish_non_exhaustive()
+    }
+}
+
+impl SimHandle {
+    /// Runs `f` on the controller.
+    pub fn with<R>(&self, f: impl FnOnce(&mut Controller) -> R) -> R {
+        f(&mut lock(&self.0.ctrl))
+    }
+}
+
 /// A running simulated controller. Dropping it stops every thread and closes every socket.
 pub struct Sim {
     shared: Arc<Shared>,
@@ -338,6 +355,12 @@ impl Sim {
     /// Runs `f` on the controller (inspect it, press the emergency stop, …).
     pub fn with<R>(&self, f: impl FnOnce(&mut Controller) -> R) -> R {
         f(&mut lock(&self.shared.ctrl))
+    }
+
+    /// A handle to the controller another thread can keep (the cell's events from a person in
+    /// the room); it does not keep the simulator running.
+    pub fn handle(&self) -> SimHandle {
+        SimHandle(Arc::clone(&self.shared))
     }
 
     /// Counters.

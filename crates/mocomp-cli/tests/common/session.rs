@@ -174,6 +174,12 @@ impl Session {
         }
     }
 
+    /// Kills the run (SIGKILL: no handler runs, no stop is sent), and waits for it.
+    pub fn kill(&mut self) {
+        self.child.kill().unwrap();
+        self.child.wait().unwrap();
+    }
+
     /// Waits (up to 15 s) for the run to end; its exit success and standard output.
     pub fn finish(mut self) -> (bool, String) {
         let deadline = Instant::now() + Duration::from_secs(15);
