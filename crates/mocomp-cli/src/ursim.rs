@@ -83,20 +83,13 @@ impl UrsimCmd {
             let sim = sim.handle();
             std::thread::Builder::new()
                 .name("ursim-cell".into())
-                .spawn(move || cell_events(&sim))?;
+                .spawn(move || {
+                    mocomp_ursim::cell::follow(std::io::stdin().lock(), &sim, |why| {
+                        eprintln!("error: {why}");
+                    });
+                })?;
         }
         serve(out, &sim, self.model, self.seconds)
-    }
-}
-
-/// The cell's events from standard input, until it closes; an unknown line is named on
-/// standard error and skipped.
-fn cell_events(sim: &mocomp_ursim::SimHandle) {
-    for line in std::io::stdin().lines().map_while(Result::ok) {
-        match mocomp_ursim::cell::CellEvent::parse(&line) {
-            Ok(e) => sim.with(|c| e.apply(c)),
-            Err(why) => eprintln!("error: {why}"),
-        }
     }
 }
 

@@ -289,7 +289,7 @@ impl Drop for TempDir {
 }
 
 /// SplitMix64: a seeded, dependency-free sequence so failures reproduce.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct SplitMix64(pub u64);
 
 impl SplitMix64 {

@@ -11,6 +11,7 @@
 //! or a cut are kept, in order, and sent on when it ends: TCP's own behaviour over a link that
 //! comes back before its retransmission gives up.
 
+use crate::SplitMix64;
 use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
@@ -53,18 +54,7 @@ struct Faults {
     corrupt: [usize; 2],
     /// Bytes still to be dropped.
     drop: [usize; 2],
-    rng: u64,
-}
-
-impl Faults {
-    fn next_u64(&mut self) -> u64 {
-        // SplitMix64, as crate::SplitMix64 (kept inline: the state lives under this lock).
-        self.rng = self.rng.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
+    rng: SplitMix64,
 }
 
 /// What a pump's writer waits on and what the test changes.
@@ -87,6 +77,10 @@ struct Conn {
 }
 
 impl Shared {
+    fn open(&self) -> MutexGuard<'_, Vec<Conn>> {
+        self.open.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
     fn faults(&self) -> MutexGuard<'_, Faults> {
         self.faults.lock().unwrap_or_else(PoisonError::into_inner)
     }
@@ -118,7 +112,7 @@ impl FaultProxy {
         listener.set_nonblocking(true)?;
         let shared = Arc::new(Shared {
             faults: Mutex::new(Faults {
-                rng: seed,
+                rng: SplitMix64(seed),
                 ..Faults::default()
             }),
             changed: Condvar::new(),
@@ -194,11 +188,7 @@ impl FaultProxy {
     /// Resets every open connection (an RST to both the client and the server, as a router that
     /// lost the connection's state does); new connections are relayed as before.
     pub fn reset(&self) {
-        let mut open = self
-            .shared
-            .open
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
+        let mut open = self.shared.open();
         for c in open.drain(..) {
             arm_rst(&c.client);
             arm_rst(&c.server);
@@ -229,11 +219,7 @@ impl Drop for FaultProxy {
         self.shared.stop.store(true, Ordering::Relaxed);
         self.shared.changed.notify_all();
         {
-            let mut open = self
-                .shared
-                .open
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
+            let mut open = self.shared.open();
             for c in open.drain(..) {
                 c.client.shutdown(Shutdown::Both).ok();
                 c.server.shutdown(Shutdown::Both).ok();
@@ -309,15 +295,11 @@ fn relay(client: TcpStream, upstream: SocketAddr, shared: &Arc<Shared>) {
         return;
     };
     let reset = Arc::new(AtomicBool::new(false));
-    shared
-        .open
-        .lock()
-        .unwrap_or_else(PoisonError::into_inner)
-        .push(Conn {
-            reset: Arc::clone(&reset),
-            client: c2,
-            server: s2,
-        });
+    shared.open().push(Conn {
+        reset: Arc::clone(&reset),
+        client: c2,
+        server: s2,
+    });
     let (Ok(client_w), Ok(server_w)) = (client.try_clone(), server.try_clone()) else {
         return;
     };
@@ -329,11 +311,7 @@ fn relay(client: TcpStream, upstream: SocketAddr, shared: &Arc<Shared>) {
     pump(server, client_w, Direction::Downstream, shared, &reset);
     up.join().ok();
     // Closed by either end: forget it (a reset has already).
-    shared
-        .open
-        .lock()
-        .unwrap_or_else(PoisonError::into_inner)
-        .retain(|c| !Arc::ptr_eq(&c.reset, &reset));
+    shared.open().retain(|c| !Arc::ptr_eq(&c.reset, &reset));
 }
 
 /// The chunks read and not yet sent on, with the time each is due.
@@ -384,7 +362,7 @@ fn pump(
                             let jitter = if f.jitter.is_zero() {
                                 Duration::ZERO
                             } else {
-                                let r = f.next_u64();
+                                let r = f.rng.next_u64();
                                 let nanos = u64::try_from(f.jitter.as_nanos()).unwrap_or(u64::MAX);
                                 Duration::from_nanos(r % nanos.max(1))
                             };
@@ -456,7 +434,7 @@ fn pump(
             let n = f.corrupt[d].min(bytes.len());
             for b in bytes.iter_mut().take(n) {
                 // Never XOR with 0: every byte asked for is changed.
-                *b ^= (f.next_u64() % 255 + 1) as u8;
+                *b ^= (f.rng.next_u64() % 255 + 1) as u8;
             }
             f.corrupt[d] -= n;
         }

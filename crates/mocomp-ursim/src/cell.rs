@@ -5,6 +5,8 @@
 //! whoever stands for the room (a test, `mocomp ursim --cell-stdin`).
 
 use crate::controller::Controller;
+use crate::server::SimHandle;
+use std::io::BufRead;
 
 /// One event of the cell.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -47,6 +49,17 @@ impl CellEvent {
             Self::ProtectiveStop(why) => c.protective_stop(why.clone()),
             Self::EmergencyStop => c.emergency_stop(),
             Self::EmergencyStopRelease => c.release_emergency_stop(),
+        }
+    }
+}
+
+/// Applies each line of `lines` to the simulator until the input ends; a line that is not an
+/// event goes to `refused`, and the rest go on.
+pub fn follow(lines: impl BufRead, sim: &SimHandle, mut refused: impl FnMut(String)) {
+    for line in lines.lines().map_while(Result::ok) {
+        match CellEvent::parse(&line) {
+            Ok(e) => sim.with(|c| e.apply(c)),
+            Err(why) => refused(why),
         }
     }
 }
