@@ -288,8 +288,8 @@ pub struct TrackerSection {
     pub igtl: Option<String>,
     /// The head marker's device name (TRANSFORM device or TDATA tool).
     pub device: String,
-    /// How the sender's timestamps map onto our clock. The simulated tracker runs on this host
-    /// and is always read as synchronized.
+    /// How the sender's timestamps map onto our clock ("auto": the simulated tracker and
+    /// camera, on this host, as synchronized; any other as estimated).
     pub timestamps: Timestamps,
     /// The sender's constant latency from acquisition to sending, s (with "estimated").
     pub fixed_latency_s: f64,
@@ -307,7 +307,7 @@ impl Default for TrackerSection {
             source: TrackerSource::Simulated,
             igtl: None,
             device: "HeadToTracker".into(),
-            timestamps: Timestamps::Estimated,
+            timestamps: Timestamps::Auto,
             fixed_latency_s: 0.0,
             simulated: SimTrackerSection::default(),
             camera: CameraSection::default(),
@@ -358,6 +358,9 @@ impl std::fmt::Display for TrackerSource {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Timestamps {
+    /// Synchronized for the simulated tracker or camera (this host's clock), estimated for any
+    /// other sender.
+    Auto,
     /// Unsynchronised clocks: the offset is estimated from the smallest delay (which hides the
     /// sender's constant latency: give it as `fixed_latency_s`).
     Estimated,

@@ -651,6 +651,38 @@ pub struct RunReport {
     pub record: Option<crate::ros2::RecordOutcome>,
     /// The depth camera's figures (`None`: the tracker is not a depth camera).
     pub camera: Option<crate::camera::CameraReport>,
+    /// The tracker's OpenIGTLink connection (`None`: the head's poses came over ROS 2).
+    pub tracker: Option<TrackerFigures>,
+}
+
+/// What the tracker's OpenIGTLink connection went through.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct TrackerFigures {
+    /// Connections made (more than one: it was lost and made again).
+    pub connections: u64,
+    /// Head poses received.
+    pub poses: u64,
+    /// Messages dropped for a CRC mismatch or a bad layout.
+    pub messages_dropped: u64,
+    /// Streams dropped for a bad header (the client connected again).
+    pub streams_dropped: u64,
+    /// Messages stamped before the one before them (read at their arrival).
+    pub backwards_timestamps: u64,
+    /// Steps of the tracker's clock the client re-based for (`timestamps = "estimated"`).
+    pub clock_steps: u64,
+}
+
+impl From<mocomp_igtl::client::ClientCounters> for TrackerFigures {
+    fn from(c: mocomp_igtl::client::ClientCounters) -> Self {
+        Self {
+            connections: c.connections,
+            poses: c.poses,
+            messages_dropped: c.crc_errors + c.malformed,
+            streams_dropped: c.fatal_errors,
+            backwards_timestamps: c.backwards_timestamps,
+            clock_steps: c.clock_steps,
+        }
+    }
 }
 
 /// What the ROS 2 node did.
@@ -744,6 +776,7 @@ impl RunReport {
             ros2: None,
             record: None,
             camera: None,
+            tracker: None,
         }
     }
 
@@ -1137,8 +1170,14 @@ pub fn run(
         if still || t_stop.elapsed() >= STANDSTILL_WAIT {
             break still;
         }
+        // The program's watchdog judges silence, not motion: fed while the arm brakes, so the
+        // program ends by the EXIT below, not by the watchdog.
+        robot.keep_alive().ok();
         std::thread::sleep(Duration::from_millis(5));
     };
+    // At once: the logger's and the session's ends below may take longer than the watchdog.
+    // The robot stands still (or the report says it does not): a failed close changes nothing.
+    robot.close().ok();
     let after_s = t_stop.elapsed().as_secs_f64();
     let stop = match (sent, still) {
         (Ok(_), true) => StopOutcome::Standstill { after_s },
@@ -1159,8 +1198,7 @@ pub fn run(
         .join()
         .map_err(|_| AppError::Refused("the logger thread panicked".into()))?;
     s.dropped = dropped;
-    // The robot stands still (or the report says it does not): a failed close changes nothing.
-    robot.close().ok();
+    let tracker = client.as_ref().map(|c| TrackerFigures::from(c.counters()));
     drop(client);
     drop(session_client);
     let mut report = RunReport::new(&mut s, realtime.as_ref(), &final_mode, stop, session_report);
@@ -1170,6 +1208,7 @@ pub fn run(
         published: b.published(),
         dropped: b.dropped(),
     });
+    report.tracker = tracker;
     report.camera = world
         .camera
         .as_ref()

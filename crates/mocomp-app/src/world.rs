@@ -172,8 +172,8 @@ impl World {
         })
     }
 
-    /// An OpenIGTLink client for `device`, with the configured timestamp handling (a simulated
-    /// tracker on this host is read as synchronized).
+    /// An OpenIGTLink client for `device`, with the configured timestamp handling (`auto`: a
+    /// simulated tracker on this host is read as synchronized).
     pub fn client(&self, setup: &Setup, device: &str) -> Client {
         self.client_keeping(setup, device, 0)
     }
@@ -186,10 +186,10 @@ impl World {
         icfg.device = Some(device.to_string());
         icfg.fixed_latency_s = t.fixed_latency_s;
         let simulated = self.tracker.is_some() || self.camera.is_some();
-        icfg.timestamps = if simulated || t.timestamps == Timestamps::Synchronized {
-            TimestampMode::Synchronized
-        } else {
-            TimestampMode::Estimated
+        icfg.timestamps = match t.timestamps {
+            Timestamps::Synchronized => TimestampMode::Synchronized,
+            Timestamps::Auto if simulated => TimestampMode::Synchronized,
+            Timestamps::Auto | Timestamps::Estimated => TimestampMode::Estimated,
         };
         Client::start(icfg, Arc::clone(&self.clock))
     }

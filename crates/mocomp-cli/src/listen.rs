@@ -58,12 +58,13 @@ impl ListenCmd {
                 .map_err(|e| AppError::failed("writing the poses", e))
         })?;
         eprintln!(
-            "{poses} poses; {} messages, {} CRC errors, {} malformed, {} zero timestamps, {} backwards, {} reconnects",
+            "{poses} poses; {} messages, {} CRC errors, {} malformed, {} zero timestamps, {} backwards, {} clock steps, {} reconnects",
             c.messages,
             c.crc_errors,
             c.malformed,
             c.zero_timestamps,
             c.backwards_timestamps,
+            c.clock_steps,
             c.connections.saturating_sub(1)
         );
         Ok(())

@@ -209,6 +209,13 @@ fn print(out: &mut dyn Write, r: &RunReport, log: Option<&str>) -> std::io::Resu
             writeln!(out, "    ended: {e} ({d})")?;
         }
     }
+    if let Some(t) = &r.tracker {
+        writeln!(
+            out,
+            "  tracker link      {} connections, {} poses; {} messages and {} streams dropped (damaged), {} clock steps re-based",
+            t.connections, t.poses, t.messages_dropped, t.streams_dropped, t.clock_steps
+        )?;
+    }
     writeln!(out, "  events            {}", r.events)?;
     for (t, e) in &r.event_log {
         writeln!(out, "    {t:9.3} s  {e}")?;

@@ -179,7 +179,7 @@ fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
         ),
         ("poses = 15", "poses = 2", "calibrate.poses"),
         (
-            "timestamps = \"estimated\"",
+            "timestamps = \"auto\"",
             "timestamps = \"gps\"",
             "tracker.timestamps",
         ),

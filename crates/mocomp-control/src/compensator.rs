@@ -508,6 +508,12 @@ impl Compensator {
 
     /// Takes the newest tracker sample, applying the tracker rules. Returns an outlier event.
     fn take_sample(&mut self, s: PoseSample) -> Option<Event> {
+        if self.predictor.is_initialised() && s.acquired_s <= self.predictor.time_s() {
+            // Acquired before the newest sample taken (a sender's clock stepped back, not yet
+            // re-based): it says nothing about the head now, and judged as a motion it would
+            // look like a jump. The newest sample keeps ageing, so the tracker rules hold.
+            return None;
+        }
         self.last_valid = s.valid;
         if !s.valid {
             return None;

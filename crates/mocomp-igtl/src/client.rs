@@ -8,7 +8,8 @@
 //!   the smallest `receive time − message time` seen (network delay only adds), adapting slowly
 //!   upwards for clock drift and reset on every reconnect. That minimum also absorbs the sender's
 //!   constant latency (acquisition to sending), which no receiver can observe; give it as
-//!   [`ClientConfig::fixed_latency_s`] and it is subtracted.
+//!   [`ClientConfig::fixed_latency_s`] and it is subtracted. A step in the sender's clock is
+//!   re-based and counted (see [`crate::offset`]).
 //! - `Synchronized` (a sender on this host, or clocks kept together by PTP/NTP): the message time
 //!   is taken at its word, mapped through our own wall clock, so the whole latency is seen.
 //! - `Known(offset)`: a simulator stamping with the receiver's own (stepped) clock.
@@ -20,6 +21,7 @@
 use crate::codec::{DEFAULT_MAX_BODY, Decoder, encode};
 use crate::message::{Body, Message, pose_of};
 use crate::name::{DeviceName, Name};
+use crate::offset::OffsetEstimator;
 use crate::timestamp::Timestamp;
 use mocomp_geom::LatestCell;
 use mocomp_geom::nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
@@ -126,6 +128,7 @@ counters! {
     truncated: "Connections lost in the middle of a message.",
     zero_timestamps: "Messages with timestamp 0 (receive time used).",
     backwards_timestamps: "Messages whose timestamp went backwards for their device (receive time used).",
+    clock_steps: "Steps of the sender's clock the offset was re-based for (estimated timestamps).",
     poses: "Poses published for the configured device.",
     invalid_poses: "Of those, marked invalid (status metadata, or not rigid).",
     non_rigid: "Transforms of the configured device that were not rigid.",
@@ -193,7 +196,7 @@ impl Client {
                 .and_then(|d| DeviceName::new(d).ok()),
             clock,
             tx,
-            offset: None,
+            offset: OffsetEstimator::default(),
             last_ts: HashMap::new(),
             last_pose: None,
             config,
@@ -314,7 +317,7 @@ struct Worker {
     device: Option<DeviceName>,
     clock: Arc<dyn Clock>,
     tx: Option<SyncSender<Received>>,
-    offset: Option<f64>,
+    offset: OffsetEstimator,
     last_ts: HashMap<DeviceName, Timestamp>,
     last_pose: Option<Isometry3<f64>>,
 }
@@ -372,7 +375,7 @@ impl Worker {
             c.connections.fetch_add(1, Ordering::Relaxed);
             self.shared.connected.store(true, Ordering::Relaxed);
             decoder.reset();
-            self.offset = None;
+            self.offset.reset();
             self.last_ts.clear();
             if let Some(res) = self.config.start_tdata {
                 let m = Message::new(
@@ -473,13 +476,11 @@ impl Worker {
             }
             TimestampMode::Known(offset) => (wall + offset).min(now),
             TimestampMode::Estimated => {
-                let est = now - wall;
-                let offset = match self.offset {
-                    Some(o) if est >= o => o + (est - o) * 1e-3,
-                    _ => est,
-                };
-                self.offset = Some(offset);
-                (wall + offset - self.config.fixed_latency_s.max(0.0)).min(now)
+                let o = self.offset.observe(now, wall);
+                if o.step_s.is_some() {
+                    c.clock_steps.fetch_add(1, Ordering::Relaxed);
+                }
+                (wall + o.offset_s - self.config.fixed_latency_s.max(0.0)).min(now)
             }
         }
     }

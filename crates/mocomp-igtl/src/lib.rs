@@ -8,6 +8,7 @@
 //! - [`client`]: a blocking TCP client on its own thread that reconnects with backoff, counts
 //!   everything, maps message timestamps onto the monotonic clock, and publishes the newest pose
 //!   of a device lock-free to an [`client::IgtlPoseSource`].
+//! - [`offset`]: a sender's clock against ours from the smallest delay, re-based when it steps.
 //! - [`server`]: streams messages to any number of clients, answers GET_ queries, starts and
 //!   stops TDATA streams, and drops a slow client without stalling the others.
 
@@ -15,6 +16,7 @@ pub mod client;
 pub mod codec;
 pub mod message;
 pub mod name;
+pub mod offset;
 pub mod server;
 pub mod timestamp;
 

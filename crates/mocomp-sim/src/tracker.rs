@@ -45,6 +45,12 @@ pub struct TrackerModel {
     pub outlier_m: f64,
     /// Seed of the noise, dropouts and outliers.
     pub seed: u64,
+    /// The tracker computer's wall clock steps by this much (s) at `clock_step_at_s`, as NTP or
+    /// an operator setting its clock does: every served timestamp after it carries the step
+    /// (0: no step). Only the OpenIGTLink server's timestamps; the truth is unaffected.
+    pub clock_step_s: f64,
+    /// When the clock steps, s after the server started.
+    pub clock_step_at_s: f64,
 }
 
 impl Default for TrackerModel {
@@ -61,6 +67,8 @@ impl Default for TrackerModel {
             outlier_probability: 0.0,
             outlier_m: 0.05,
             seed: 1,
+            clock_step_s: 0.0,
+            clock_step_at_s: 0.0,
         }
     }
 }
@@ -121,7 +129,30 @@ impl TrackerModel {
             self.outlier_m,
             self.outlier_m >= 0.0,
             "must be ≥ 0",
+        )?;
+        check(
+            "clock_step_s",
+            self.clock_step_s,
+            self.clock_step_s.abs() <= 1e6,
+            "must be within ±10⁶ s",
+        )?;
+        check(
+            "clock_step_at_s",
+            self.clock_step_at_s,
+            self.clock_step_at_s >= 0.0,
+            "must be ≥ 0",
         )
+    }
+
+    /// The server's timestamp (its wall clock, s) of an acquisition at `acquired_s` after a
+    /// start at wall time `wall0`, the clock step included.
+    pub fn stamp_s(&self, wall0: f64, acquired_s: f64) -> f64 {
+        let step = if self.clock_step_s != 0.0 && acquired_s >= self.clock_step_at_s {
+            self.clock_step_s
+        } else {
+            0.0
+        };
+        wall0 + acquired_s + step
     }
 }
 
@@ -393,6 +424,7 @@ fn serve(
     (start, wall0): (Instant, f64),
     stop: &AtomicBool,
 ) {
+    let stamp = |acquired_s| model.stamp_s(wall0, acquired_s);
     let mut sim = TrackerSim::new(model, markers.len());
     let devices: Vec<String> = markers.iter().map(|m| m.device.clone()).collect();
     while !stop.load(Ordering::Relaxed) {
@@ -401,7 +433,7 @@ fn serve(
             now,
             &mut |i, t| markers.get_mut(i).and_then(|m| (m.truth)(t)),
             &mut |o| {
-                let ts = Timestamp::from_secs_f64(wall0 + o.acquired_s);
+                let ts = Timestamp::from_secs_f64(stamp(o.acquired_s));
                 let device = devices.get(o.marker).map_or("", String::as_str);
                 if let Ok(m) = Message::transform(device, &o.tracker_from_marker, ts) {
                     let status = if o.valid { "OK" } else { "INVALID" };
@@ -522,5 +554,24 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(m.validate().unwrap_err().key, "outlier_probability");
+        let m = TrackerModel {
+            clock_step_at_s: -1.0,
+            ..Default::default()
+        };
+        assert_eq!(m.validate().unwrap_err().key, "clock_step_at_s");
+    }
+
+    #[test]
+    fn a_stepped_clock_moves_every_timestamp_from_the_step_on() {
+        let m = TrackerModel {
+            clock_step_s: -1.5,
+            clock_step_at_s: 4.0,
+            ..Default::default()
+        };
+        assert_eq!(m.stamp_s(100.0, 3.999), 103.999);
+        assert_eq!(m.stamp_s(100.0, 4.0), 102.5);
+        assert_eq!(m.stamp_s(100.0, 10.0), 108.5);
+        // No step: the wall clock as it was at the start, plus the time since.
+        assert_eq!(TrackerModel::default().stamp_s(100.0, 10.0), 110.0);
     }
 }

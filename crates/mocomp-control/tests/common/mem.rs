@@ -39,6 +39,8 @@ pub fn coil_on_head_joints(arm: &Arm) -> [f64; 6] {
 pub struct MemTracker {
     /// Loop time, s.
     pub now: f64,
+    /// Added to every acquisition time: a sender's clock mapped wrong (it stepped), s.
+    pub stamp_offset_s: f64,
     k: u64,
     x: u64,
 }
@@ -56,7 +58,7 @@ impl PoseSource for MemTracker {
         pose.translation.vector += Vector3::new(n, -n, 0.5 * n);
         Some(PoseSample {
             tracker_from_marker: pose,
-            acquired_s: t,
+            acquired_s: t + self.stamp_offset_s,
             valid: true,
             error_m: f64::NAN,
         })
@@ -89,6 +91,7 @@ impl World {
             robot: MemRobot::at(q0, arm.fk(&q0), PERIOD),
             tracker: MemTracker {
                 now: 0.0,
+                stamp_offset_s: 0.0,
                 k: 0,
                 x: 42,
             },
