@@ -14,7 +14,8 @@
 //! For each fault: the loop's named event; the arm still (and how soon); a fault the controller
 //! reports, or a gap long enough that it stopped the arm itself, stays until the operator
 //! resumes, and then the loop comes back from where the arm is, by a path (never a silent jump
-//! back); every cycle is in the log.
+//! back); every cycle is in the log, and (across a lost and remade connection) in the MCAP
+//! recording.
 
 mod common;
 use common::example_changed;
@@ -74,6 +75,8 @@ struct Cell {
     _others: [FaultProxy; 2],
     monitor: Monitor,
     session: Session,
+    /// The MCAP recording, if the test asked for one.
+    recorded: Option<String>,
     dir: TempDir,
 }
 
@@ -81,19 +84,30 @@ struct Cell {
 /// dashboard, script ports), and `mocomp run` against the relay for at most `seconds`, with its
 /// CSV log.
 fn cell(controller_ip: &str, relay_ip: &str, seconds: u32, seed: u64) -> Cell {
-    cell_with(controller_ip, relay_ip, seconds, seed, None, &[])
+    cell_with(controller_ip, relay_ip, seconds, seed, &Extras::default())
 }
 
-/// [`cell`], and with `tracker` (the simulated tracker's address, its relay's) the tracker's
-/// OpenIGTLink stream through a relay too; `extra`: more changes to the example's text.
+/// What a test adds to [`cell`].
+#[derive(Default)]
+struct Extras<'a> {
+    /// The simulated tracker's address and its relay's: the tracker's OpenIGTLink stream
+    /// through a relay too.
+    tracker: Option<(&'a str, &'a str)>,
+    /// More changes to the example's text.
+    changes: &'a [(&'a str, &'a str)],
+    /// Record the run as MCAP (`--record`); [`Cell::finish`] reads it back.
+    record: bool,
+}
+
+/// [`cell`], with `extras`.
 fn cell_with(
     controller_ip: &str,
     relay_ip: &str,
     seconds: u32,
     seed: u64,
-    tracker: Option<(&str, &str)>,
-    extra: &[(&str, &str)],
+    extras: &Extras<'_>,
 ) -> Cell {
+    let tracker = extras.tracker;
     let dir = TempDir::new(&format!("mocomp-faults-{relay_ip}"));
     let controller = ChildController::start(
         Path::new(env!("CARGO_BIN_EXE_mocomp")),
@@ -122,11 +136,15 @@ fn cell_with(
         changes.push(("# igtl = \"127.0.0.1:18944\"", connect));
         changes.push((marker, format!("{marker}{serve}")));
     }
-    changes.extend(extra.iter().map(|(a, b)| (*a, (*b).to_string())));
+    changes.extend(extras.changes.iter().map(|(a, b)| (*a, (*b).to_string())));
     let changes: Vec<(&str, &str)> = changes.iter().map(|(a, b)| (*a, b.as_str())).collect();
     let config = example_changed(&dir, relay_ip, &changes);
-    let (csv, secs) = (dir.path("run.csv"), seconds.to_string());
-    let session = Session::spawn_json(&[
+    let (csv, secs, mcap) = (
+        dir.path("run.csv"),
+        seconds.to_string(),
+        dir.path("run.mcap"),
+    );
+    let mut args = vec![
         "run",
         "--config",
         &config,
@@ -138,7 +156,11 @@ fn cell_with(
         &csv,
         "--dashboard",
         "127.0.0.1:0",
-    ]);
+    ];
+    if extras.record {
+        args.extend(["--record", mcap.as_str()]);
+    }
+    let session = Session::spawn_json(&args);
     Cell {
         controller,
         rtde,
@@ -146,6 +168,7 @@ fn cell_with(
         _others: others,
         monitor,
         session,
+        recorded: extras.record.then_some(mcap),
         dir,
     }
 }
@@ -154,9 +177,16 @@ impl Cell {
     /// Waits until the loop has tracked for a second.
     fn tracking(&self, what: &str) {
         let s = &self.session;
-        s.wait_status_for(&format!("tracking {what}"), 40, |v| v["mode"] == "tracking");
-        std::thread::sleep(Duration::from_secs(1));
-        s.wait_status_for(&format!("tracking {what}"), 5, |v| v["mode"] == "tracking");
+        let wait = || {
+            s.wait_status_for(&format!("tracking {what}"), 40, |v| v["mode"] == "tracking");
+            std::thread::sleep(Duration::from_secs(1));
+            s.wait_status_for(&format!("tracking {what}"), 5, |v| v["mode"] == "tracking");
+        };
+        if let Err(e) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(wait)) {
+            // What the controller saw is half the story.
+            eprintln!("the controller's log:\n{}", self.controller.log());
+            std::panic::resume_unwind(e);
+        }
     }
 
     /// Ends the run; its JSON summary. Checks what every run must show: no protective stop
@@ -208,6 +238,16 @@ impl Cell {
             v["cycles"].as_u64().unwrap(),
             "every cycle logged"
         );
+        if let Some(mcap) = &self.recorded {
+            // Read back by the ROS 2 MCAP reader (PyPI `mcap-ros2-support`): every message
+            // decoded, every cycle's record in it, across the faults.
+            assert!(v["record"]["error"].is_null(), "{v}");
+            let mut py = PythonPeer::start("mcap_peer.py", "mcap-ros2-support", "0.6.0");
+            let r = py.request(&json!({"op": "read", "path": mcap}));
+            eprintln!("recorded: {}", r["counts"]);
+            assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
+            assert_eq!(r["counts"]["/mocomp/cycle"], v["cycles"], "{}", r["counts"]);
+        }
         v
     }
 }
@@ -328,7 +368,17 @@ fn assert_rearmed_each_time(ev: &[String], n: usize, recovered: &str) {
 #[test]
 fn a_reset_rtde_connection_is_reconnected_on_the_operators_resume() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    let c = cell("127.0.0.103", "127.0.0.104", 90, 129);
+    // Recorded: the MCAP file keeps every cycle across the lost connections.
+    let c = cell_with(
+        "127.0.0.103",
+        "127.0.0.104",
+        90,
+        129,
+        &Extras {
+            record: true,
+            ..Extras::default()
+        },
+    );
     latched_fault(&c, "RTDE reset", Duration::from_millis(400), |c| {
         c.rtde.reset()
     });
@@ -477,8 +527,10 @@ fn tracker_stalls_resets_and_corruption_hold_or_coast_and_come_back_by_themselve
         "127.0.0.110",
         120,
         429,
-        Some(("127.0.0.111", "127.0.0.112")),
-        &[],
+        &Extras {
+            tracker: Some(("127.0.0.111", "127.0.0.112")),
+            ..Extras::default()
+        },
     );
     let igtl = c.igtl.as_ref().unwrap();
     c.tracking("before the tracker's faults");
@@ -564,13 +616,15 @@ fn a_step_in_the_trackers_clock_holds_the_arm_until_the_client_rebases_then_come
         "127.0.0.116",
         60,
         629,
-        None,
-        &[
-            ("timestamps = \"auto\"", "timestamps = \"estimated\""),
-            ("fixed_latency_s = 0.0", "fixed_latency_s = 0.02"),
-            ("clock_step_s = 0.0", "clock_step_s = -1.0"),
-            ("clock_step_at_s = 0.0", "clock_step_at_s = 14.0"),
-        ],
+        &Extras {
+            changes: &[
+                ("timestamps = \"auto\"", "timestamps = \"estimated\""),
+                ("fixed_latency_s = 0.0", "fixed_latency_s = 0.02"),
+                ("clock_step_s = 0.0", "clock_step_s = -1.0"),
+                ("clock_step_at_s = 0.0", "clock_step_at_s = 14.0"),
+            ],
+            ..Extras::default()
+        },
     );
     c.tracking("before the tracker's clock steps");
     let v = c

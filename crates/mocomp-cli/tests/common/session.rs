@@ -166,10 +166,10 @@ impl Session {
             if f(&s) {
                 return s;
             }
-            assert!(
-                Instant::now() < deadline,
-                "waiting for {what}; last status {s}"
-            );
+            if Instant::now() >= deadline {
+                let (_, events) = self.get("/api/events");
+                panic!("waiting for {what}; last status {s}; events {events}");
+            }
             std::thread::sleep(Duration::from_millis(20));
         }
     }
