@@ -10,99 +10,20 @@
 //! kept for the console's preview ([`VisionLink::overlay_png`]). Dropped frames and the feed's
 //! end (an unplugged device, a recording's end or damage) go to the run's notes and report.
 
-use crate::live_session::Note;
+use crate::camera_link::{CameraNote, FeedEnd, Preview, VisionLink, lock};
+use crate::frontend::Note;
 use crate::{AppError, Context};
 use mocomp_geom::Clock;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_igtl::server::{Server, ServerConfig};
 use mocomp_igtl::{Message, MetaEntry, Timestamp};
-use mocomp_vision::{Frame, FrameResult, Intrinsics, MarkerGeometry, TrackParams, Tracker};
+use mocomp_vision::{Frame, Intrinsics, MarkerGeometry, Tracker};
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::SyncSender;
-use std::sync::{Arc, Mutex, MutexGuard, OnceLock, PoisonError};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::JoinHandle;
 use std::time::Instant;
-
-/// The newest frame and what the pipeline made of it.
-#[derive(Debug, Clone)]
-pub struct Preview {
-    /// Seconds since the camera started.
-    pub t_s: f64,
-    /// Frames taken so far.
-    pub frames: u64,
-    /// Frames in which the marker was found so far.
-    pub found: u64,
-    /// Width, pixels.
-    pub width: u32,
-    /// Height, pixels.
-    pub height: u32,
-    /// IR image.
-    pub ir: Vec<u16>,
-    /// Depth image, mm.
-    pub depth: Vec<u16>,
-    /// The scan area the pipeline used.
-    pub scan_area: [u32; 4],
-    /// The pipeline's result.
-    pub result: FrameResult,
-}
-
-/// What the camera and a front end share: the pipeline's parameters (a front end may change
-/// them; the camera takes them before its next frame) and the newest frame.
-#[derive(Debug)]
-pub struct VisionLink {
-    params: Mutex<TrackParams>,
-    version: AtomicU64,
-    preview: Mutex<Option<Arc<Preview>>>,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-impl VisionLink {
-    /// A link with these parameters and no frame yet.
-    pub fn new(params: TrackParams) -> Arc<Self> {
-        Arc::new(Self {
-            params: Mutex::new(params),
-            version: AtomicU64::new(0),
-            preview: Mutex::new(None),
-        })
-    }
-
-    /// The parameters in force.
-    pub fn params(&self) -> TrackParams {
-        *lock(&self.params)
-    }
-
-    /// New parameters, for the next frame; checked as the configuration file checks them.
-    pub fn set_params(&self, params: TrackParams) -> Result<(), AppError> {
-        params
-            .validate("tracker.camera.params")
-            .map_err(|e| AppError::Config(e.to_string()))?;
-        *lock(&self.params) = params;
-        self.version.fetch_add(1, Ordering::Release);
-        Ok(())
-    }
-
-    /// The newest frame with its result.
-    pub fn preview(&self) -> Option<Arc<Preview>> {
-        lock(&self.preview).clone()
-    }
-
-    /// The newest frame with the paper's overlays (scan area, blobs with boxes, fiducials
-    /// numbered, rejected blobs crossed) as a PNG; `None` before the first frame.
-    pub fn overlay_png(&self) -> Result<Option<Vec<u8>>, AppError> {
-        let Some(p) = self.preview() else {
-            return Ok(None);
-        };
-        let frame = Frame::new(p.width, p.height, &p.ir, &p.depth).what(|| "the camera's frame")?;
-        let img = mocomp_vision::overlay::overlay(&frame, p.scan_area, &p.result);
-        mocomp_vision::codec::encode_rgb_png(img.width, img.height, &img.data, "overlay")
-            .map(Some)
-            .what(|| "encoding the camera's overlay")
-    }
-}
 
 /// One frame from a feed.
 #[derive(Debug, Clone)]
@@ -125,28 +46,6 @@ pub struct FeedFrame {
     pub dropped_before: u64,
 }
 
-/// Why a feed ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum FeedEnd {
-    /// A recording's last capture was played.
-    RecordingEnded,
-    /// A recording could not be read on (truncated or damaged).
-    RecordingDamaged,
-    /// The device stopped delivering (unplugged, or its USB link failed).
-    DeviceLost,
-}
-
-impl std::fmt::Display for FeedEnd {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::RecordingEnded => "the recording ended",
-            Self::RecordingDamaged => "the recording is damaged past this point",
-            Self::DeviceLost => "the camera stopped delivering frames (unplugged?)",
-        })
-    }
-}
-
 /// What a feed gave.
 #[derive(Debug)]
 pub enum FeedEvent {
@@ -167,24 +66,6 @@ pub trait Feed: Send {
     fn intrinsics(&self) -> Intrinsics;
     /// The next frame.
     fn next(&mut self, stop: &AtomicBool) -> FeedEvent;
-}
-
-/// What a camera note says (sent to the run's notes, stamped on the loop's clock).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CameraNote {
-    /// Frames dropped before the frame at hand.
-    Dropped(u64),
-    /// The feed ended.
-    Ended(FeedEnd),
-}
-
-impl std::fmt::Display for CameraNote {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Dropped(n) => write!(f, "depth camera: {n} frame(s) dropped"),
-            Self::Ended(e) => write!(f, "depth camera: {e}; no more head poses"),
-        }
-    }
 }
 
 /// The camera's figures over the run.
@@ -320,7 +201,7 @@ impl Shared {
 
 impl Camera {
     fn run(mut self, stop: &AtomicBool) {
-        let mut version = self.link.version.load(Ordering::Acquire);
+        let mut version = self.link.params_version();
         let intrinsics = self.feed.intrinsics();
         let mut tracker = Tracker::new(intrinsics, self.link.params(), self.geometry.clone()).ok();
         let mut last_pose: Option<Isometry3<f64>> = None;
@@ -346,7 +227,7 @@ impl Camera {
                 lock(&self.shared.report).dropped += f.dropped_before;
                 self.shared.note(CameraNote::Dropped(f.dropped_before));
             }
-            let now_version = self.link.version.load(Ordering::Acquire);
+            let now_version = self.link.params_version();
             if now_version != version {
                 // Checked when they were set: a tracker is always made from them.
                 tracker = Tracker::new(intrinsics, self.link.params(), self.geometry.clone()).ok();
@@ -401,7 +282,7 @@ impl Camera {
                 t_s,
                 ..
             } = *f;
-            *lock(&self.link.preview) = Some(Arc::new(Preview {
+            self.link.show(Preview {
                 t_s,
                 frames,
                 found,
@@ -411,7 +292,7 @@ impl Camera {
                 depth,
                 scan_area,
                 result,
-            }));
+            });
         }
         self.server.stop();
     }
@@ -484,7 +365,7 @@ mod tests {
             ]),
             Arc::clone(&go),
         );
-        let link = VisionLink::new(TrackParams::default());
+        let link = VisionLink::new(mocomp_vision::TrackParams::default());
         let camera = CameraServer::start(
             Box::new(script),
             MarkerGeometry::ndi_8700449(),

@@ -4,7 +4,8 @@
 //! a device's timestamps through [`mocomp_k4a::clock::DeviceClock`], a recording's relative to
 //! its first capture from when playing began.
 
-use crate::camera::{CameraServer, Feed, FeedEnd, FeedEvent, FeedFrame, VisionLink};
+use crate::camera::{CameraServer, Feed, FeedEvent, FeedFrame};
+use crate::camera_link::{FeedEnd, VisionLink};
 use crate::config::{PlaybackPace, Setup};
 use crate::{AppError, Context};
 use mocomp_igtl::Timestamp;

@@ -4,7 +4,8 @@
 //! [`crate::camera::CameraServer`].
 
 use crate::AppError;
-use crate::camera::{CameraServer, Feed, FeedEvent, FeedFrame, VisionLink};
+use crate::camera::{CameraServer, Feed, FeedEvent, FeedFrame};
+use crate::camera_link::VisionLink;
 use crate::config::Setup;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_igtl::Timestamp;

@@ -4,7 +4,7 @@
 
 use crate::calibration::{self, Measurement, MoveState, Station, move_state};
 use crate::config::{CollectSection, Setup, TrackerSource};
-use crate::live::Controls;
+use crate::frontend::Controls;
 use crate::world::World;
 use crate::{AppError, Context};
 use mocomp_calib::plan::{PlanOptions, TrackerView, plan};

@@ -9,7 +9,7 @@
 //! their spacing and order, and the recording reads as a session of that day.
 
 use crate::experiment::Controller;
-use crate::live::{Observer, Status};
+use crate::frontend::{Observer, Status};
 use crate::ros2::{RecordOutcome, Rig, cycle_record_msg, diagnostic, unix_ns};
 use crate::{AppError, Context};
 use mocomp_control::{CycleRecord, Event, LoopConfig, Mode};

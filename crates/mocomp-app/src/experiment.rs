@@ -32,7 +32,7 @@ use crate::baseline::{PaperController, PaperPipeline};
 use crate::calibration::MoveState;
 use crate::config::Config;
 use crate::driver::Requests;
-use crate::live::{Controls, Observer};
+use crate::frontend::{Controls, Observer};
 use crate::session_plan::SessionPlan;
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};

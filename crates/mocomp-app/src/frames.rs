@@ -162,7 +162,7 @@ pub fn render_dir(
     geometry: &MarkerGeometry,
     intrinsics: &Intrinsics,
     o: &RenderOptionsDir,
-    mut recording: Option<&mut crate::k4a::RecordingSink>,
+    mut recording: Option<&mut crate::k4a_record::RecordingSink>,
 ) -> Result<(), AppError> {
     if let Some(h) = o.hide
         && (h == 0 || h > geometry.len())

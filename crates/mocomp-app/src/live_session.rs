@@ -7,21 +7,17 @@
 //! gate over OpenIGTLink and keeps the figures.
 
 use crate::config::Setup;
+use crate::frontend::{NamedTargets, Note};
 use crate::{AppError, Context};
 use mocomp_control::CycleRecord;
 use mocomp_geom::PoseSource;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_igtl::client::{Client, IgtlPoseSource};
 use mocomp_igtl::message::Body;
-use mocomp_session::{
-    Drift, GateEvent, GateState, JointHistory, PulseAt, Session, Targets, shut_reason,
-};
+use mocomp_session::{Drift, GateEvent, GateState, JointHistory, Session, Targets, shut_reason};
 use mocomp_ur::{Robot, UrRobot};
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
-
-/// The session's targets: name and `head_from_coil`, in the file's order.
-pub type NamedTargets = Vec<(String, Isometry3<f64>)>;
 
 /// The session's configuration, resolved: the targets read, the start target found, the
 /// drift monitor's marker known.
@@ -129,51 +125,6 @@ fn flange_from_marker(setup: &Setup) -> Result<Isometry3<f64>, AppError> {
         "session.flange_from_marker: needed with session.marker_device (or calibration.file)"
             .into(),
     ))
-}
-
-/// What the session tells the logger thread.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Note {
-    /// The gate opened or shut at loop time `.0`, on target `.2`.
-    Gate(f64, GateEvent, Option<usize>),
-    /// A pulse, on target `.1` (`None`: the configuration's goal).
-    Pulse(PulseAt, Option<usize>),
-    /// The drift monitor's verdict changed at loop time `.0`.
-    Drift(f64, Drift),
-    /// The operator selected target `.1` at loop time `.0`.
-    Selected(f64, usize),
-    /// The gate output could not be set (the robot refused the write).
-    OutputFailed(f64),
-    /// The depth camera's news at loop time `.0`: frames dropped, its end.
-    Camera(f64, crate::camera::CameraNote),
-    /// The operator's re-arm at loop time `.0`: what the robot's recovery did, or why it could
-    /// not.
-    Rearm(f64, RearmOutcome),
-}
-
-/// What a re-arm came to.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum RearmOutcome {
-    /// The robot is back (the loop comes back from where the arm is, by a path).
-    Done(mocomp_ur::recovery::Recovered),
-    /// Software may not do what is needed: the operator acts at the cell, then resumes again.
-    Refused(mocomp_ur::recovery::Refusal),
-    /// A recovery step failed: the controller did not answer as expected.
-    Failed(mocomp_ur::recovery::Step),
-}
-
-impl std::fmt::Display for RearmOutcome {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Done(r) => write!(f, "re-armed: {r}"),
-            Self::Refused(r) => write!(f, "re-arm refused: {r}"),
-            Self::Failed(step) => write!(
-                f,
-                "re-arm failed ({step:?}): the controller did not answer as expected; the arm \
-                 stays stopped; check the controller, then resume again"
-            ),
-        }
-    }
 }
 
 /// The session on the loop's thread.
@@ -501,26 +452,13 @@ impl SessionLog {
     }
 }
 
-/// The time of a note on the loop's clock.
-pub fn note_time(n: &Note) -> f64 {
-    match *n {
-        Note::Gate(t, ..)
-        | Note::Drift(t, _)
-        | Note::Selected(t, _)
-        | Note::OutputFailed(t)
-        | Note::Camera(t, _)
-        | Note::Rearm(t, _) => t,
-        Note::Pulse(p, _) => p.t_s,
-    }
-}
-
 /// Selects the running session's target `name`: checked with the loop's goal check on the
 /// running configuration `config`, then given to the loop (which goes there by a planned path
 /// while it keeps compensating). Returns its index. Refused, with why: an unknown name, a goal
 /// the check refuses, a loop that has ended or still has an earlier selection waiting.
 pub fn select_target(
     config: &crate::config::Config,
-    controls: &crate::live::Controls,
+    controls: &crate::frontend::Controls,
     name: &str,
 ) -> Result<usize, AppError> {
     let targets = controls.targets();
@@ -549,7 +487,7 @@ pub fn select_target(
 /// Starts free-drive (the arm yields to the operator's hand) while the operator holds the loop,
 /// or hands back to the loop (`on` false). Refused while the loop is not held: a coil that
 /// follows a head must not go limp under a hand.
-pub fn set_freedrive(controls: &crate::live::Controls, on: bool) -> Result<(), AppError> {
+pub fn set_freedrive(controls: &crate::frontend::Controls, on: bool) -> Result<(), AppError> {
     if on && !controls.hold() {
         refuse!("hold the loop first: free-drive starts from a coil standing still");
     }

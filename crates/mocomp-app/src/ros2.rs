@@ -5,7 +5,7 @@
 //! through a channel its pace polls, as the console's buttons do.
 
 use crate::config::{Setup, TrackerSource};
-use crate::live::{Observer, Status, mode_name};
+use crate::frontend::{Observer, Status, mode_name};
 use crate::{AppError, Context};
 use mocomp_control::{CycleRecord, Event, Mode};
 use mocomp_geom::nalgebra::Isometry3;

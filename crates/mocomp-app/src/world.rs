@@ -4,7 +4,8 @@
 //! marker and the flange's calibration marker over OpenIGTLink on loopback, or the simulated
 //! depth camera whose frames the paper's pipeline tracks, [`crate::camera`]).
 
-use crate::camera::{CameraServer, VisionLink};
+use crate::camera::CameraServer;
+use crate::camera_link::VisionLink;
 use crate::config::{Setup, Timestamps, TrackerSource};
 use crate::{AppError, Context};
 use mocomp_geom::nalgebra::Isometry3;

@@ -4,7 +4,7 @@
 use crate::UsageError;
 use clap::Args;
 use mocomp_app::config::Setup;
-use mocomp_app::live::Controls;
+use mocomp_app::frontend::Controls;
 use mocomp_console::{Console, ConsoleError, ConsoleOptions};
 use std::io::Write;
 use std::net::SocketAddr;

@@ -15,7 +15,7 @@ use mocomp_app::config::Setup;
 use mocomp_app::config::{Config, unused_by_experiment};
 use mocomp_app::demo_record::DemoRecording;
 use mocomp_app::experiment::{Controller, ExperimentConfig, Phase, Watch, run_experiment_watched};
-use mocomp_app::live::{Both, Controls, Observer, Silent};
+use mocomp_app::frontend::{Both, Controls, Observer, Silent};
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
 use mocomp_kin::Arm;
 use mocomp_kin::Model;

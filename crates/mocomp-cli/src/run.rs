@@ -3,7 +3,8 @@
 
 use crate::dashboard::DashboardArgs;
 use clap::Args;
-use mocomp_app::live::{Both, Controls, Observer, RunReport, Status, mode_name};
+use mocomp_app::frontend::{Both, Controls, Observer, Status, mode_name};
+use mocomp_app::live::RunReport;
 use mocomp_app::{AppError, config::Setup};
 use mocomp_control::Event;
 use std::io::Write;
@@ -107,7 +108,7 @@ impl RunCmd {
         let progress: &mut dyn Write = if self.json { &mut stderr } else { out };
         let console = self.dashboard.start(&setup, &controls, progress)?;
         let lines: Box<dyn Observer> = if self.quiet {
-            Box::new(mocomp_app::live::Silent)
+            Box::new(mocomp_app::frontend::Silent)
         } else {
             Box::new(Lines)
         };

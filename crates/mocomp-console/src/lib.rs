@@ -4,7 +4,7 @@
 //! token, and serves the page, its API and its WebSocket ([`api`]) from a thread of its own with
 //! a small tokio runtime. The loop is never touched: the console reads what the live loop's
 //! logger thread tells its [`state::ConsoleObserver`], and steers the loop through the lock-free
-//! [`mocomp_app::live::Controls`] (hold, resume, stop, new loop parameters).
+//! [`mocomp_app::frontend::Controls`] (hold, resume, stop, new loop parameters).
 
 pub mod api;
 pub mod auth;
@@ -14,7 +14,7 @@ pub mod state;
 use auth::{Site, Token};
 use mocomp_app::collect::Progress;
 use mocomp_app::config::Setup;
-use mocomp_app::live::Controls;
+use mocomp_app::frontend::Controls;
 use state::{CalibrationJson, ConsoleObserver, Frames, Shared};
 use std::io::Write;
 use std::net::{SocketAddr, TcpListener};

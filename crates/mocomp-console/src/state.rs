@@ -5,7 +5,7 @@
 //! console's display units, named in every field.
 
 use mocomp_app::config::{Config, Setup};
-use mocomp_app::live::{Controls, Observer, Status, mode_name};
+use mocomp_app::frontend::{Controls, Observer, Status, mode_name};
 use mocomp_control::{CycleRecord, Event, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
@@ -77,7 +77,7 @@ pub struct CameraJson {
 }
 
 impl CameraJson {
-    fn of(p: &mocomp_app::camera::Preview) -> Self {
+    fn of(p: &mocomp_app::camera_link::Preview) -> Self {
         Self {
             frames: p.frames,
             found: p.found,

@@ -5,7 +5,7 @@ use crate::dashboard::DashboardArgs;
 use clap::Args;
 use mocomp_app::collect::{Collected, Progress};
 use mocomp_app::config::Setup;
-use mocomp_app::live::Controls;
+use mocomp_app::frontend::Controls;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;

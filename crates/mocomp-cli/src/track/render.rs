@@ -67,13 +67,9 @@ impl RenderCmd {
             _ => Intrinsics::kinect_v2(),
         };
         let mut recording = match (&self.recording, &self.k4a_calibration, &sdk) {
-            (Some(path), Some(c), Some(sdk)) => Some(k4a::RecordingSink::create(
-                sdk,
-                path,
-                mode,
-                mode.max_fps(),
-                c,
-            )?),
+            (Some(path), Some(c), Some(sdk)) => Some(
+                mocomp_app::k4a_record::RecordingSink::create(sdk, path, mode, mode.max_fps(), c)?,
+            ),
             _ => None,
         };
         let o = RenderOptionsDir {
