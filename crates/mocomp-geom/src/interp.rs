@@ -2,7 +2,7 @@
 
 use crate::error::GeomError;
 use crate::pose::{quat_from_rotvec, rotvec_from_quat};
-use nalgebra::{Isometry3, Matrix3, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix4, Translation3, UnitQuaternion, Vector3};
 
 /// Spherical linear interpolation between two orientations along the shorter arc, `t ∈ [0, 1]`
 /// (values outside extrapolate). Never panics: at 180° apart it picks a deterministic arc.
@@ -79,51 +79,13 @@ pub fn average(
     ))
 }
 
-/// The rotation nearest (in Frobenius norm) to a noisy 3×3 matrix: `U·diag(1, 1, det(UVᵀ))·Vᵀ`
-/// from its SVD, so the result is a proper rotation even when the input is near a reflection.
-///
-/// Fails when the matrix is not finite or so close to rank 1 that the nearest rotation is not
-/// unique.
-pub fn orthonormalize(m: &Matrix3<f64>) -> Result<Rotation3<f64>, GeomError> {
-    if let Some(index) = m.transpose().iter().position(|v| !v.is_finite()) {
-        return Err(GeomError::NonFinite {
-            what: "3×3 matrix",
-            index,
-            value: m[(index / 3, index % 3)],
-        });
-    }
-    let svd = m.svd(true, true);
-    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
-        return Err(GeomError::RankDeficient {
-            singular_values: [0.0; 3],
-        });
-    };
-    let mut s = [
-        svd.singular_values[0],
-        svd.singular_values[1],
-        svd.singular_values[2],
-    ];
-    s.sort_by(|a, b| b.total_cmp(a));
-    // The nearest rotation is unique when the second-smallest singular value is not negligible.
-    if s[1] <= s[0] * 1e-12 {
-        return Err(GeomError::RankDeficient { singular_values: s });
-    }
-    let mut d = Matrix3::identity();
-    if (u * v_t).determinant() < 0.0 {
-        // Flip the direction of the smallest singular value.
-        let smallest = (0..3)
-            .min_by(|&i, &j| svd.singular_values[i].total_cmp(&svd.singular_values[j]))
-            .unwrap_or(2);
-        d[(smallest, smallest)] = -1.0;
-    }
-    Ok(Rotation3::from_matrix_unchecked(u * d * v_t))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::metrics::{rotation_error, translation_error};
+    use crate::pose::orthonormalize;
     use approx::assert_relative_eq;
+    use nalgebra::{Matrix3, Rotation3};
     use proptest::prelude::*;
     use std::f64::consts::PI;
 

@@ -24,10 +24,11 @@ pub mod seqlock;
 pub mod units;
 
 pub use error::GeomError;
-pub use interp::{average, interpolate, orthonormalize, slerp};
+pub use interp::{average, interpolate, slerp};
 pub use latest::LatestCell;
 pub use metrics::{LengthUnit, PoseError, frobenius_deviation, rotation_error, translation_error};
 pub use nalgebra;
+pub use pose::orthonormalize;
 pub use pose::{
     RIGID_TOLERANCE, iso_from_matrix, iso_from_matrix_mm, iso_from_rows, iso_from_ur_pose,
     iso_from_wxyz, matrix_from_iso, matrix_mm_from_iso, quat_from_rotvec, rotvec_from_quat,

@@ -1,10 +1,15 @@
 //! What can go wrong with a depth camera or its recording.
 
+/// How to get the SDK, for the error that says it is missing.
+pub const INSTALL_HINT: &str = "install the Azure Kinect SDK 1.4 (Microsoft's libk4a1.4 and \
+     libk4a1.4-dev packages), or `pip install pyk4a-bundle` and point tracker.k4a.sdk_dir (or \
+     MOCOMP_K4A_SDK_DIR) at its pyk4a_bundle.libs directory";
+
 /// An error from the SDK, a recording or a device; each names what it concerns.
 #[derive(Debug, thiserror::Error)]
 pub enum K4aError {
     /// The SDK's libraries are not there (or lack a function).
-    #[error("the Azure Kinect SDK is not available ({tried}: {detail}); {hint}", hint = crate::handles::INSTALL_HINT)]
+    #[error("the Azure Kinect SDK is not available ({tried}: {detail}); {hint}", hint = INSTALL_HINT)]
     SdkMissing {
         /// The directory or library tried.
         tried: String,

@@ -21,11 +21,6 @@ pub struct Sdk {
 const SYSTEM_K4A: &str = "libk4a.so.1.4";
 const SYSTEM_RECORD: &str = "libk4arecord.so.1.4";
 
-/// How to get the SDK, for the error that says it is missing.
-pub const INSTALL_HINT: &str = "install the Azure Kinect SDK 1.4 (Microsoft's libk4a1.4 and \
-     libk4a1.4-dev packages), or `pip install pyk4a-bundle` and point tracker.k4a.sdk_dir (or \
-     MOCOMP_K4A_SDK_DIR) at its pyk4a_bundle.libs directory";
-
 /// The library in `dir` whose name is `stem` followed by `.` or `-` (`libk4a.so.1.4`,
 /// `libk4a-f64cb9eb.so.1.4.2` as a wheel renames it), the first in name order.
 fn find(dir: &Path, stem: &str) -> Result<PathBuf, K4aError> {

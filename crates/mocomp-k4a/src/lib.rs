@@ -28,8 +28,9 @@ mod playback;
 mod record;
 
 pub use device::Device;
+pub use error::INSTALL_HINT;
 pub use error::K4aError;
-pub use handles::{Capture16, INSTALL_HINT, Image16, Sdk};
+pub use handles::{Capture16, Image16, Sdk};
 pub use modes::DepthMode;
 pub use playback::{Playback, RecordingInfo};
 pub use record::Recorder;

@@ -1,6 +1,6 @@
 //! The error type of `mocomp-kin`.
 
-use crate::ik::Branch;
+use crate::branch::Branch;
 
 /// Why a pose has no inverse kinematics solution.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,10 +63,12 @@ impl std::fmt::Display for Unreachable {
 #[non_exhaustive]
 pub enum KinError {
     /// A model name not in the table.
-    #[error("unknown robot model {name:?} (known: {known})", known = crate::model::model_names())]
+    #[error("unknown robot model {name:?} (known: {known})")]
     UnknownModel {
         /// The name given.
         name: String,
+        /// The names in the table.
+        known: String,
     },
     /// An input number is NaN or infinite.
     #[error("{what}: element {index} is not a finite number ({value})")]

@@ -19,6 +19,7 @@
 //! ```
 
 pub mod arm;
+pub mod branch;
 pub mod dh;
 pub mod error;
 pub mod ik;
@@ -26,10 +27,9 @@ pub mod model;
 pub mod select;
 
 pub use arm::{Arm, JointLimits, Singularity, fk_nominal};
+pub use branch::{Branch, Elbow, Shoulder, Wrist};
 pub use dh::{DhCalibration, DhParams};
 pub use error::{KinError, Unreachable};
-pub use ik::{
-    Branch, BranchCoordinates, Elbow, IkSolution, Shoulder, SingularCases, Solutions, Wrist,
-};
+pub use ik::{BranchCoordinates, IkSolution, SingularCases, Solutions};
 pub use model::{MODELS, Model, ModelSpec, Series, UrGeometry};
 pub use select::{BranchPolicy, Choice, Metric, Selection};

@@ -265,6 +265,7 @@ impl FromStr for Model {
             .map(|m| m.model)
             .ok_or_else(|| KinError::UnknownModel {
                 name: s.to_string(),
+                known: model_names(),
             })
     }
 }

@@ -2,8 +2,9 @@
 //! a weighted joint distance, optionally kept on a branch, within joint-limit margins.
 
 use crate::arm::Arm;
+use crate::branch::Branch;
 use crate::error::KinError;
-use crate::ik::{Branch, BranchCoordinates, Solutions};
+use crate::ik::{BranchCoordinates, Solutions};
 use mocomp_geom::nalgebra::Isometry3;
 
 /// How the distance from the current joints to a candidate is measured.

@@ -8,14 +8,13 @@
 //! socket (one small package each, no allocation, no lock).
 
 use crate::codec::{ControllerVersion, Recipe};
+use crate::command::{Robot, ServoParams, range};
 use crate::connection::{RTDE_PORT, RtdeConnection};
 use crate::dashboard::{DASHBOARD_PORT, Dashboard};
 use crate::error::UrError;
 use crate::program::{self, INPUT_NAMES, OUTPUT_REGISTER_NAMES, PROTOCOL_ID, cmd};
 use crate::recovery::{self, Recovered, RecoveryError, Step};
-use crate::robot::{
-    Robot, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams, range,
-};
+use crate::robot::{RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode};
 use crate::types::Value;
 use mocomp_geom::{Clock, SeqLock, iso_from_ur_pose, ur_pose_from_iso};
 use std::io::{Read, Write};

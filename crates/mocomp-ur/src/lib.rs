@@ -18,6 +18,7 @@
 
 pub mod client;
 pub mod codec;
+pub mod command;
 pub mod connection;
 pub mod dashboard;
 pub mod error;
@@ -28,8 +29,7 @@ pub mod types;
 
 pub use client::{UrConfig, UrRobot};
 pub use codec::{ControllerVersion, Recipe};
+pub use command::{Robot, ServoParams};
 pub use error::{RtdeError, UrError};
-pub use robot::{
-    ForceSource, Robot, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode, ServoParams,
-};
+pub use robot::{ForceSource, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode};
 pub use types::{DataType, Value};
