@@ -44,6 +44,8 @@ say "cargo fmt --check"
 cargo fmt --all -- --check
 say "cargo clippy (all targets, -D warnings)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
+say "no import circle among any crate's modules"
+python3 scripts/module_cycles.py
 say "cargo test (workspace): build"
 cargo test --workspace --locked --no-run
 # The tests run in a network namespace of their own with only loopback: the ROS 2 tests speak
