@@ -12,8 +12,8 @@
 //! Unknown keys and bad values are refused naming the key's path (and, where the TOML itself is
 //! at fault, its line). Choices are enums; poses are [`Pose`]; ranges go through [`Check`].
 
-use crate::baseline::PaperController;
 use crate::{AppError, Context};
+use mocomp_control::baseline::PaperController;
 use mocomp_control::{CoilModel, HeadModel, LoopConfig, LoopParams, PredictorConfig};
 use mocomp_geom::iso_from_ur_pose;
 use mocomp_geom::nalgebra::{Isometry3, Vector3};

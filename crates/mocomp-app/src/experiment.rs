@@ -18,7 +18,7 @@
 //! - `paper`: a model of the original MATLAB pipeline. Every `period_s` it takes the newest
 //!   tracker sample, computes the IK solution nearest by angle sum, and `compute_delay_s` later
 //!   sends a point-to-point joint move (movej) to it. No prediction, no servoing
-//!   ([`crate::baseline::PaperPipeline`]).
+//!   ([`mocomp_control::baseline::PaperPipeline`]).
 //! - `mocomp`: the compensation loop of `mocomp-control` at the robot's rate.
 //!
 //! Both are [`mocomp_control::Controller`]s: the experiment drives whichever it runs the same
@@ -28,7 +28,6 @@
 //! simulators' true joints, with the translation and rotation errors of `E2_T_E1`.
 
 use crate::AppError;
-use crate::baseline::{PaperController, PaperPipeline};
 use crate::calibration::MoveState;
 use crate::config::Config;
 use crate::driver::Requests;
@@ -36,6 +35,7 @@ use crate::frontend::{Controls, Observer};
 use crate::session_plan::SessionPlan;
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
+use mocomp_control::baseline::{PaperController, PaperPipeline};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode};
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{

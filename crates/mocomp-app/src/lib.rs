@@ -14,7 +14,6 @@ macro_rules! refuse {
     };
 }
 
-pub mod baseline;
 pub mod blame;
 pub mod calibration;
 pub mod camera;

@@ -1,12 +1,14 @@
 //! The compensation loop (the seed paper's section V, at the robot's rate), with what the paper
 //! left out: prediction that hides latency, a supervisor whose rules each name their reaction, a safety
 //! filter on every command, and a collision model of the
-//! head, the coil and the arm.
+//! head, the coil and the arm. Beside it, behind the same [`Controller`] trait, the paper's own
+//! pipeline ([`baseline`]), the reference the experiment scores it against.
 //!
 //! It talks to the robot and the tracker only through [`mocomp_ur::Robot`] and
 //! [`mocomp_geom::PoseSource`], and takes the time as an argument, so the simulator steps it
 //! deterministically and the live binary drives it from the monotonic clock.
 
+pub mod baseline;
 pub mod compensator;
 pub mod config;
 pub mod controller;

@@ -2,7 +2,7 @@
 //! newest valid sample, computes `Z = Y · S_T_H · H_T_C,g · X⁻¹` and its IK solution of least
 //! angle sum, and `compute_delay_s` later sends a movej there (no prediction, no checks).
 
-use mocomp_control::{Controller, CycleRecord, Event, LoopConfig, Mode, Reason};
+use crate::{Controller, CycleRecord, Event, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, BranchPolicy, Metric, Selection};
