@@ -12,25 +12,11 @@ use mocomp_control::{Event, Mode, Reason};
 use mocomp_ur::robot::{RuntimeState, SafetyMode};
 use mocomp_ur::{RobotFault, program};
 
-/// `n` cycles on time; the modes and events they ended with.
-fn run(w: &mut World, n: usize) -> Vec<(Mode, Option<Event>)> {
-    (0..n)
-        .map(|_| {
-            let now = w.tracker.now;
-            w.robot.state.received_s = now;
-            w.robot.state.controller_s = now;
-            let r = w.cycle_at(now);
-            w.tracker.now += PERIOD;
-            (r.mode, r.event)
-        })
-        .collect()
-}
-
 /// One second of a healthy robot after a fault: the loop stays in `mode`, sending no motion
 /// command.
 fn stays_faulted(w: &mut World, mode: Mode) {
     let seq = w.robot.seq;
-    let modes = run(w, 500);
+    let modes = w.run(500);
     assert!(
         modes.iter().all(|(m, _)| *m == mode),
         "{:?}",
@@ -43,7 +29,7 @@ fn stays_faulted(w: &mut World, mode: Mode) {
 fn comes_back_after_rearm(w: &mut World) {
     assert!(w.comp.rearm(), "a fault was latched");
     assert_eq!(w.comp.latched(), None);
-    let modes = run(w, 2000);
+    let modes = w.run(2000);
     assert_eq!(modes[0].1, Some(Event::Rearmed));
     assert!(
         modes.iter().any(|(m, _)| *m == Mode::Approaching),
@@ -56,7 +42,7 @@ fn comes_back_after_rearm(w: &mut World) {
 fn a_program_stopped_by_the_controller_latches_until_the_operator_rearms() {
     let mut w = World::new();
     w.robot.state.runtime_state = RuntimeState::Stopped;
-    let modes = run(&mut w, 3);
+    let modes = w.run(3);
     let stopped = Mode::Faulted(Reason::Robot(RobotFault::ProgramStopped));
     assert_eq!(modes[0].0, stopped);
     assert_eq!(
@@ -80,10 +66,10 @@ fn a_protective_stop_latches_and_a_rearm_while_it_lasts_latches_again() {
     let mut w = World::new();
     w.robot.state.safety_mode = SafetyMode::ProtectiveStop;
     let protective = Mode::Faulted(Reason::Robot(RobotFault::ProtectiveStop));
-    assert_eq!(run(&mut w, 1)[0].0, protective);
+    assert_eq!(w.run(1)[0].0, protective);
     // A re-arm while the stop is still there changes nothing: the rule fires and latches again.
     assert!(w.comp.rearm());
-    assert_eq!(run(&mut w, 1)[0].0, protective);
+    assert_eq!(w.run(1)[0].0, protective);
     assert!(w.comp.latched().is_some());
     // Unlocked (and the program running again): still the operator's decision.
     w.robot.state.safety_mode = SafetyMode::Normal;
@@ -105,7 +91,7 @@ fn a_short_gap_in_the_state_resumes_by_itself_and_a_long_one_waits_for_the_opera
     assert_eq!(w.comp.latched(), None);
     w.tracker.now = now + PERIOD;
     w.robot.state.program_mode = program::mode::IDLE;
-    let modes = run(&mut w, 2000);
+    let modes = w.run(2000);
     assert_eq!(modes.last().unwrap().0, Mode::Tracking);
     assert!(!modes.iter().any(|(_, e)| *e == Some(Event::Rearmed)));
     // A gap as long as robot_rearm_after_s: latched.
@@ -125,7 +111,7 @@ fn a_short_gap_in_the_state_resumes_by_itself_and_a_long_one_waits_for_the_opera
 fn a_rearm_without_a_latched_fault_does_nothing() {
     let mut w = World::new();
     assert!(!w.comp.rearm());
-    let modes = run(&mut w, 10);
+    let modes = w.run(10);
     assert!(
         modes
             .iter()

@@ -9,26 +9,12 @@ mod common;
 use common::mem::{PERIOD, World};
 use mocomp_control::{Event, Mode, Reason};
 
-/// `n` cycles on time; the modes and events they ended with.
-fn run(w: &mut World, n: usize) -> Vec<(Mode, Option<Event>)> {
-    (0..n)
-        .map(|_| {
-            let now = w.tracker.now;
-            w.robot.state.received_s = now;
-            w.robot.state.controller_s = now;
-            let r = w.cycle_at(now);
-            w.tracker.now += PERIOD;
-            (r.mode, r.event)
-        })
-        .collect()
-}
-
 #[test]
 fn samples_stamped_before_the_newest_are_not_taken_the_arm_holds_and_comes_back() {
     let mut w = World::new();
     let seq = w.robot.seq;
     w.tracker.stamp_offset_s = -1.0;
-    let stepped = run(&mut w, 500);
+    let stepped = w.run(500);
     let events: Vec<_> = stepped.iter().filter_map(|(_, e)| *e).collect();
     assert!(
         !events.iter().any(|e| matches!(e, Event::Outlier(..))),
@@ -55,7 +41,7 @@ fn samples_stamped_before_the_newest_are_not_taken_the_arm_holds_and_comes_back(
     assert!(w.robot.seq > seq, "commands kept coming while held");
     // Stamped right again: back, by a path, without the operator.
     w.tracker.stamp_offset_s = 0.0;
-    let back = run(&mut w, 2000);
+    let back = w.run(2000);
     assert!(
         back.iter().any(|(m, _)| *m == Mode::Approaching),
         "back by a path"

@@ -3,7 +3,7 @@
 //! noisy head, 20 ms old. No sockets, no threads, no clock: time is what the test says.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
-use mocomp_control::{Compensator, CycleRecord, LoopConfig, Mode};
+use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, Model, Selection};
@@ -112,6 +112,20 @@ impl World {
         let rec = self.comp.cycle(now, &mut self.robot, &mut self.tracker);
         self.tracker.now += PERIOD;
         rec.mode
+    }
+
+    /// `n` cycles on time (a fresh state each); the modes and events they ended with.
+    pub fn run(&mut self, n: usize) -> Vec<(Mode, Option<Event>)> {
+        (0..n)
+            .map(|_| {
+                let now = self.tracker.now;
+                self.robot.state.received_s = now;
+                self.robot.state.controller_s = now;
+                let r = self.cycle_at(now);
+                self.tracker.now += PERIOD;
+                (r.mode, r.event)
+            })
+            .collect()
     }
 
     /// One cycle at loop time `now` on whatever state the test set up.
