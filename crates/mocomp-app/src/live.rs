@@ -57,6 +57,25 @@ struct Summary {
     log_error: Option<String>,
 }
 
+/// The controller's protective stops among `events`: a protective stop latches until the
+/// operator's re-arm, so its hold entered again before one (after a stale state in between, say)
+/// is the same stop.
+fn protective_stops(events: &[(f64, Event)]) -> usize {
+    let mut in_stop = false;
+    let mut n = 0;
+    for (_, e) in events {
+        match e {
+            Event::Hold(Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop)) if !in_stop => {
+                in_stop = true;
+                n += 1;
+            }
+            Event::Rearmed => in_stop = false,
+            _ => {}
+        }
+    }
+    n
+}
+
 /// How long the run waits for standstill after its stop.
 const STANDSTILL_WAIT: Duration = Duration::from_secs(3);
 
@@ -328,7 +347,8 @@ pub struct RunReport {
     pub holds: usize,
     /// Holds for a stale robot state.
     pub robot_stale_holds: usize,
-    /// Holds for the controller's protective stop.
+    /// The controller's protective stops (each counted once, however often its hold was
+    /// entered before the operator's re-arm).
     pub protective_stops: usize,
     /// The contact force read (`loop.force_sensing`), RMS, N (NaN without it).
     pub contact_force_n_rms: f64,
@@ -447,9 +467,7 @@ impl RunReport {
             rotation_p95_deg: percentile(&mut s.deviation_deg, 0.95),
             holds: holds(|_| true),
             robot_stale_holds: holds(|r| matches!(r, Reason::RobotStale)),
-            protective_stops: holds(|r| {
-                matches!(r, Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop))
-            }),
+            protective_stops: protective_stops(&s.events),
             contact_force_n_rms: if s.contact_force_n.is_empty() {
                 f64::NAN
             } else {
@@ -920,4 +938,22 @@ pub fn run(
         .as_ref()
         .map(crate::camera::CameraServer::report);
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Event, Reason, protective_stops};
+
+    #[test]
+    fn a_protective_stop_is_counted_once_until_the_rearm() {
+        let stop = Event::Hold(Reason::Robot(mocomp_ur::RobotFault::ProtectiveStop));
+        let ev = [
+            (1.0, stop),
+            (2.0, Event::Hold(Reason::RobotStale)),
+            (2.1, stop),
+            (3.0, Event::Rearmed),
+            (4.0, stop),
+        ];
+        assert_eq!(protective_stops(&ev), 2);
+    }
 }
