@@ -878,6 +878,8 @@ struct Rig {
     /// The phantom's head in the coil robot's base frame, for its simulated controller's
     /// contact (set before it steps, from the head robot's joints at the same tick).
     base1_from_head: Arc<Mutex<Isometry3<f64>>>,
+    /// The contact law the coil robot's simulated force sensor reads (restarted with each run).
+    sensor: Arc<Mutex<Contact>>,
     /// The contact law, for the true force each tick.
     contact: Contact,
     /// The tracker's bump during a run: from this clock time on, the camera is moved by it.
@@ -891,13 +893,21 @@ impl Rig {
         let base1_from_head = Arc::new(Mutex::new(
             scene.world_from_base1.inverse() * scene.world_from_head_rest,
         ));
-        let mut law = Contact::new(cfg.contact, cfg.head, cfg.coil, cfg.tracker.seed);
-        let (head, tcp_from_coil) = (Arc::clone(&base1_from_head), scene.e1_from_coil);
+        let sensor = Arc::new(Mutex::new(Contact::new(
+            cfg.contact,
+            cfg.head,
+            cfg.coil,
+            cfg.tracker.seed,
+        )));
+        let (head, law) = (Arc::clone(&base1_from_head), Arc::clone(&sensor));
+        let tcp_from_coil = scene.e1_from_coil;
         c1.tool_load = Some(ToolLoad::new(move |t, base_from_tcp| {
             let base_from_head = *head
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner);
-            law.wrench(t, &(base_from_tcp * tcp_from_coil), &base_from_head)
+            law.lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .wrench(t, &(base_from_tcp * tcp_from_coil), &base_from_head)
         }));
         let mut c2 = ControllerConfig::new(cfg.head_robot);
         c2.initial_q = scene.q2_start;
@@ -997,6 +1007,7 @@ impl Rig {
             q_now: q,
             t_prev: 0.0,
             base1_from_head,
+            sensor,
             contact: Contact::new(cfg.contact, cfg.head, cfg.coil, 0),
             bump: None,
         };
@@ -1370,6 +1381,12 @@ impl Rig {
         self.move_to(true, &q1)?;
         self.idle(0.1)?;
         self.tracker = TrackerSim::new(cfg.tracker, 2);
+        // The force sensor's noise from its start too: the simulator read it as many times as
+        // the machine's load made it while the arms moved back and a program restarted.
+        self.sensor
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .restart();
         self.t_base = self.clock.now_s();
         while self.head_source.latest().is_some() {}
         Ok(())

@@ -65,6 +65,7 @@ pub struct Contact {
     head: HeadModel,
     coil: CoilModel,
     last: Option<(f64, f64)>,
+    seed: u64,
     rng: ChaCha8Rng,
 }
 
@@ -76,8 +77,19 @@ impl Contact {
             head,
             coil,
             last: None,
+            seed,
             rng: ChaCha8Rng::seed_from_u64(seed),
         }
+    }
+
+    /// Back to the state of [`Contact::new`]: the sensor's noise from its first draw, the
+    /// damper with no previous depth. A world that runs several controllers restarts the contact
+    /// with each run, so every run meets the same noise whatever the simulator read in between
+    /// (a controller steps in real time while a client connects or a program restarts, as many
+    /// times as the machine's load makes it).
+    pub fn restart(&mut self) {
+        self.last = None;
+        self.rng = ChaCha8Rng::seed_from_u64(self.seed);
     }
 
     /// How deep the coil at `head_from_coil` is below the scalp, m (0 when clear).
@@ -236,6 +248,17 @@ mod tests {
         };
         let a = run(3);
         assert_eq!(a, run(3), "seeded");
+        assert_ne!(a, run(4), "another seed, other noise");
+        // Restarted after readings between runs: the same noise again.
+        let mut c = Contact::new(p, head(), coil(), 3);
+        for k in 0..37 {
+            c.wrench(-1.0 + k as f64 * 0.002, &on_top(0.01), &h);
+        }
+        c.restart();
+        let again: Vec<_> = (0..2000)
+            .map(|k| c.wrench(k as f64 * 0.002, &on_top(0.01), &h))
+            .collect();
+        assert_eq!(a, again, "a restarted contact's noise");
         let mean_z = a.iter().map(|w| w[2]).sum::<f64>() / a.len() as f64;
         assert!((mean_z - 1.0).abs() < 0.03, "{mean_z}");
         let sd_x = (a.iter().map(|w| (w[0] - 0.5).powi(2)).sum::<f64>() / a.len() as f64).sqrt();
