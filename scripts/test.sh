@@ -44,8 +44,9 @@ say "cargo fmt --check"
 cargo fmt --all -- --check
 say "cargo clippy (all targets, -D warnings)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
-say "no import circle among any crate's modules"
+say "no import circle among any crate's modules; no function in mocomp-control over 120 lines"
 python3 scripts/module_cycles.py
+python3 scripts/fn_lengths.py
 say "cargo test (workspace): build"
 cargo test --workspace --locked --no-run
 # The tests run in a network namespace of their own with only loopback: the ROS 2 tests speak

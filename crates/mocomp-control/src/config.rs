@@ -233,318 +233,178 @@ impl LoopParams {
         }
     }
 
-    /// Checks every value's range; the error names the first key out of range.
+    /// Checks every value's range and the relations between them; the error names the first
+    /// key out of range, in the order below.
     pub fn validate(&self) -> Result<(), ParamError> {
-        let err = |key, value, problem| {
-            Err(ParamError {
-                key,
-                value,
-                problem,
-            })
-        };
-        if !(self.joint_margin_rad.is_finite() && self.joint_margin_rad >= 0.0) {
-            return err(
-                "joint_margin_rad",
-                self.joint_margin_rad,
-                "must be finite and ≥ 0",
-            );
-        }
-        if !(self.speed_fraction > 0.0 && self.speed_fraction <= 1.0) {
-            return err("speed_fraction", self.speed_fraction, "must be in (0, 1]");
-        }
-        if !(self.max_joint_accel_rad_s2.is_finite() && self.max_joint_accel_rad_s2 > 0.0) {
-            return err(
-                "max_joint_accel_rad_s2",
-                self.max_joint_accel_rad_s2,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.max_tcp_speed_m_s.is_finite() && self.max_tcp_speed_m_s > 0.0) {
-            return err(
-                "max_tcp_speed_m_s",
-                self.max_tcp_speed_m_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.servo_deviation_m.is_finite() && self.servo_deviation_m > 0.0) {
-            return err(
-                "servo_deviation_m",
-                self.servo_deviation_m,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.plan_rotation_rad.is_finite() && self.plan_rotation_rad > 0.0) {
-            return err(
-                "plan_rotation_rad",
-                self.plan_rotation_rad,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.shell_distance_m.is_finite() && self.shell_distance_m > 0.0) {
-            return err(
-                "shell_distance_m",
-                self.shell_distance_m,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.approach_speed_m_s.is_finite() && self.approach_speed_m_s > 0.0) {
-            return err(
-                "approach_speed_m_s",
-                self.approach_speed_m_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.approach_accel_m_s2.is_finite() && self.approach_accel_m_s2 > 0.0) {
-            return err(
-                "approach_accel_m_s2",
-                self.approach_accel_m_s2,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.path_lag_m.is_finite() && self.path_lag_m > 0.0) {
-            return err("path_lag_m", self.path_lag_m, "must be finite and > 0");
-        }
-        for (key, value) in [
-            ("transit_distance_m", self.transit_distance_m),
-            ("transit_speed_rad_s", self.transit_speed_rad_s),
-            ("transit_accel_rad_s2", self.transit_accel_rad_s2),
-        ] {
-            if !(value.is_finite() && value > 0.0) {
-                return err(key, value, "must be finite and > 0");
-            }
-        }
-        if !(self.tracker_stale_s.is_finite() && self.tracker_stale_s > 0.0) {
-            return err(
-                "tracker_stale_s",
-                self.tracker_stale_s,
-                "must be finite and > 0",
-            );
-        }
-        for (key, value) in [
-            ("coast_s", self.coast_s),
-            ("safety_sigmas", self.safety_sigmas),
+        use Bound::{NonNegative as Z, Positive as P};
+        ranges(&[("joint_margin_rad", self.joint_margin_rad, Z)])?;
+        let fraction = self.speed_fraction;
+        relation(
+            fraction > 0.0 && fraction <= 1.0,
+            ("speed_fraction", fraction),
+            "must be in (0, 1]",
+        )?;
+        ranges(&[
+            ("max_joint_accel_rad_s2", self.max_joint_accel_rad_s2, P),
+            ("max_tcp_speed_m_s", self.max_tcp_speed_m_s, P),
+            ("servo_deviation_m", self.servo_deviation_m, P),
+            ("plan_rotation_rad", self.plan_rotation_rad, P),
+            ("shell_distance_m", self.shell_distance_m, P),
+            ("approach_speed_m_s", self.approach_speed_m_s, P),
+            ("approach_accel_m_s2", self.approach_accel_m_s2, P),
+            ("path_lag_m", self.path_lag_m, P),
+            ("transit_distance_m", self.transit_distance_m, P),
+            ("transit_speed_rad_s", self.transit_speed_rad_s, P),
+            ("transit_accel_rad_s2", self.transit_accel_rad_s2, P),
+            ("tracker_stale_s", self.tracker_stale_s, P),
+            ("coast_s", self.coast_s, Z),
+            ("safety_sigmas", self.safety_sigmas, Z),
+            ("retreat_distance_m", self.retreat_distance_m, Z),
+            ("standoff_return_m_s", self.standoff_return_m_s, P),
+            ("max_standoff_m", self.max_standoff_m, P),
+            ("retreat_resume_s", self.retreat_resume_s, P),
+            ("retreat_tcp_speed_m_s", self.retreat_tcp_speed_m_s, P),
+        ])?;
+        relation(
+            self.retreat_distance_m <= self.max_standoff_m,
             ("retreat_distance_m", self.retreat_distance_m),
-        ] {
-            if !(value.is_finite() && value >= 0.0) {
-                return err(key, value, "must be finite and ≥ 0");
-            }
-        }
-        for (key, value) in [
-            ("standoff_return_m_s", self.standoff_return_m_s),
-            ("max_standoff_m", self.max_standoff_m),
-            ("retreat_resume_s", self.retreat_resume_s),
-            ("retreat_tcp_speed_m_s", self.retreat_tcp_speed_m_s),
-        ] {
-            if !(value.is_finite() && value > 0.0) {
-                return err(key, value, "must be finite and > 0");
-            }
-        }
-        if self.retreat_distance_m > self.max_standoff_m {
-            return err(
-                "retreat_distance_m",
-                self.retreat_distance_m,
-                "must be at most max_standoff_m",
-            );
-        }
-        if self.frozen_samples < 2 {
-            return err(
-                "frozen_samples",
-                f64::from(self.frozen_samples),
-                "must be at least 2",
-            );
-        }
-        if !(self.outlier_speed_m_s.is_finite() && self.outlier_speed_m_s > 0.0) {
-            return err(
-                "outlier_speed_m_s",
-                self.outlier_speed_m_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.outlier_speed_rad_s.is_finite() && self.outlier_speed_rad_s > 0.0) {
-            return err(
-                "outlier_speed_rad_s",
-                self.outlier_speed_rad_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.max_head_speed_m_s.is_finite() && self.max_head_speed_m_s > 0.0) {
-            return err(
-                "max_head_speed_m_s",
-                self.max_head_speed_m_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.max_head_speed_rad_s.is_finite() && self.max_head_speed_rad_s > 0.0) {
-            return err(
-                "max_head_speed_rad_s",
-                self.max_head_speed_rad_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.resume_after_s.is_finite() && self.resume_after_s > 0.0) {
-            return err(
-                "resume_after_s",
-                self.resume_after_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.robot_stale_s.is_finite() && self.robot_stale_s > 0.0) {
-            return err(
-                "robot_stale_s",
-                self.robot_stale_s,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.robot_rearm_after_s.is_finite() && self.robot_rearm_after_s >= self.robot_stale_s)
-        {
-            return err(
-                "robot_rearm_after_s",
-                self.robot_rearm_after_s,
-                "must be finite and at least robot_stale_s",
-            );
-        }
-        if !(self.singularity_slow.is_finite() && self.singularity_slow > 0.0) {
-            return err(
-                "singularity_slow",
-                self.singularity_slow,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.singularity_hold.is_finite() && self.singularity_hold >= 0.0) {
-            return err(
-                "singularity_hold",
-                self.singularity_hold,
-                "must be finite and ≥ 0",
-            );
-        }
-        if !(self.stop_decel_rad_s2.is_finite() && self.stop_decel_rad_s2 > 0.0) {
-            return err(
-                "stop_decel_rad_s2",
-                self.stop_decel_rad_s2,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.coil_min_distance_m.is_finite() && self.coil_min_distance_m >= 0.0) {
-            return err(
-                "coil_min_distance_m",
-                self.coil_min_distance_m,
-                "must be finite and ≥ 0",
-            );
-        }
-        if !(self.coil_contact_tolerance_m.is_finite() && self.coil_contact_tolerance_m >= 0.0) {
-            return err(
-                "coil_contact_tolerance_m",
-                self.coil_contact_tolerance_m,
-                "must be finite and ≥ 0",
-            );
-        }
-        if !(self.link_clearance_m.is_finite() && self.link_clearance_m >= 0.0) {
-            return err(
-                "link_clearance_m",
-                self.link_clearance_m,
-                "must be finite and ≥ 0",
-            );
-        }
-        if !(self.link_radius_m.is_finite() && self.link_radius_m > 0.0) {
-            return err(
-                "link_radius_m",
-                self.link_radius_m,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.approach_tolerance_m.is_finite() && self.approach_tolerance_m > 0.0) {
-            return err(
-                "approach_tolerance_m",
-                self.approach_tolerance_m,
-                "must be finite and > 0",
-            );
-        }
-        if !(self.approach_zone_m.is_finite() && self.approach_zone_m > 0.0) {
-            return err(
-                "approach_zone_m",
-                self.approach_zone_m,
-                "must be finite and > 0",
-            );
-        }
-        if self.singularity_hold >= self.singularity_slow {
-            return err(
-                "singularity_hold",
-                self.singularity_hold,
-                "must be below singularity_slow",
-            );
-        }
-        if self.outlier_speed_m_s <= self.max_head_speed_m_s {
-            return err(
-                "outlier_speed_m_s",
-                self.outlier_speed_m_s,
-                "must be above max_head_speed_m_s",
-            );
-        }
-        if self.outlier_speed_rad_s <= self.max_head_speed_rad_s {
-            return err(
-                "outlier_speed_rad_s",
-                self.outlier_speed_rad_s,
-                "must be above max_head_speed_rad_s",
-            );
-        }
-        if !(self.force_filter_s.is_finite() && self.force_filter_s >= 0.0) {
-            return err(
-                "force_filter_s",
-                self.force_filter_s,
-                "must be finite and ≥ 0",
-            );
-        }
-        for (key, value) in [
-            ("force_stale_s", self.force_stale_s),
-            ("max_contact_force_n", self.max_contact_force_n),
+            "must be at most max_standoff_m",
+        )?;
+        relation(
+            self.frozen_samples >= 2,
+            ("frozen_samples", f64::from(self.frozen_samples)),
+            "must be at least 2",
+        )?;
+        ranges(&[
+            ("outlier_speed_m_s", self.outlier_speed_m_s, P),
+            ("outlier_speed_rad_s", self.outlier_speed_rad_s, P),
+            ("max_head_speed_m_s", self.max_head_speed_m_s, P),
+            ("max_head_speed_rad_s", self.max_head_speed_rad_s, P),
+            ("resume_after_s", self.resume_after_s, P),
+            ("robot_stale_s", self.robot_stale_s, P),
+        ])?;
+        relation(
+            self.robot_rearm_after_s.is_finite() && self.robot_rearm_after_s >= self.robot_stale_s,
+            ("robot_rearm_after_s", self.robot_rearm_after_s),
+            "must be finite and at least robot_stale_s",
+        )?;
+        ranges(&[
+            ("singularity_slow", self.singularity_slow, P),
+            ("singularity_hold", self.singularity_hold, Z),
+            ("stop_decel_rad_s2", self.stop_decel_rad_s2, P),
+            ("coil_min_distance_m", self.coil_min_distance_m, Z),
+            ("coil_contact_tolerance_m", self.coil_contact_tolerance_m, Z),
+            ("link_clearance_m", self.link_clearance_m, Z),
+            ("link_radius_m", self.link_radius_m, P),
+            ("approach_tolerance_m", self.approach_tolerance_m, P),
+            ("approach_zone_m", self.approach_zone_m, P),
+        ])?;
+        self.speed_relations()?;
+        ranges(&[
+            ("force_filter_s", self.force_filter_s, Z),
+            ("force_stale_s", self.force_stale_s, P),
+            ("max_contact_force_n", self.max_contact_force_n, P),
+            ("contact_warning_force_n", self.contact_warning_force_n, P),
+            ("contact_warning_s", self.contact_warning_s, P),
+            ("contact_resume_s", self.contact_resume_s, P),
+            ("contact_force_n", self.contact_force_n, P),
+            ("contact_damping_n_s_m", self.contact_damping_n_s_m, P),
+            ("contact_speed_m_s", self.contact_speed_m_s, P),
+            ("contact_max_press_m", self.contact_max_press_m, P),
+        ])?;
+        self.contact_relations()?;
+        self.path_relations()
+    }
+
+    /// A slowdown before the hold near a singularity, and an outlier faster than any head the
+    /// loop follows (the values are finite by now).
+    fn speed_relations(&self) -> Result<(), ParamError> {
+        relation(
+            self.singularity_hold < self.singularity_slow,
+            ("singularity_hold", self.singularity_hold),
+            "must be below singularity_slow",
+        )?;
+        relation(
+            self.outlier_speed_m_s > self.max_head_speed_m_s,
+            ("outlier_speed_m_s", self.outlier_speed_m_s),
+            "must be above max_head_speed_m_s",
+        )?;
+        relation(
+            self.outlier_speed_rad_s > self.max_head_speed_rad_s,
+            ("outlier_speed_rad_s", self.outlier_speed_rad_s),
+            "must be above max_head_speed_rad_s",
+        )
+    }
+
+    /// The force thresholds in order, and contact mode only on a measured force.
+    fn contact_relations(&self) -> Result<(), ParamError> {
+        relation(
+            self.contact_warning_force_n < self.max_contact_force_n,
             ("contact_warning_force_n", self.contact_warning_force_n),
-            ("contact_warning_s", self.contact_warning_s),
-            ("contact_resume_s", self.contact_resume_s),
+            "must be below max_contact_force_n",
+        )?;
+        relation(
+            self.contact_force_n < self.contact_warning_force_n,
             ("contact_force_n", self.contact_force_n),
-            ("contact_damping_n_s_m", self.contact_damping_n_s_m),
-            ("contact_speed_m_s", self.contact_speed_m_s),
-            ("contact_max_press_m", self.contact_max_press_m),
-        ] {
-            if !(value.is_finite() && value > 0.0) {
-                return err(key, value, "must be finite and > 0");
-            }
-        }
-        if self.contact_warning_force_n >= self.max_contact_force_n {
-            return err(
-                "contact_warning_force_n",
-                self.contact_warning_force_n,
-                "must be below max_contact_force_n",
-            );
-        }
-        if self.contact_force_n >= self.contact_warning_force_n {
-            return err(
-                "contact_force_n",
-                self.contact_force_n,
-                "must be below contact_warning_force_n (a set force the rules retreat from cannot be held)",
-            );
-        }
-        if self.contact_mode && !self.force_sensing {
-            return err(
-                "contact_mode",
-                1.0,
-                "needs force_sensing = true (contact is held on the measured force)",
-            );
-        }
-        if self.shell_distance_m <= self.approach_zone_m {
-            return err(
-                "shell_distance_m",
-                self.shell_distance_m,
-                "must be above approach_zone_m (the shell is outside the approach zone)",
-            );
-        }
-        if self.transit_distance_m < self.shell_distance_m {
-            return err(
-                "transit_distance_m",
-                self.transit_distance_m,
-                "must be at least shell_distance_m (a joint-space move ends outside the shell)",
-            );
-        }
+            "must be below contact_warning_force_n (a set force the rules retreat from cannot be held)",
+        )?;
+        relation(
+            !self.contact_mode || self.force_sensing,
+            ("contact_mode", 1.0),
+            "needs force_sensing = true (contact is held on the measured force)",
+        )
+    }
+
+    /// The approach zone inside the shell, and a transit that ends outside the shell.
+    fn path_relations(&self) -> Result<(), ParamError> {
+        relation(
+            self.shell_distance_m > self.approach_zone_m,
+            ("shell_distance_m", self.shell_distance_m),
+            "must be above approach_zone_m (the shell is outside the approach zone)",
+        )?;
+        relation(
+            self.transit_distance_m >= self.shell_distance_m,
+            ("transit_distance_m", self.transit_distance_m),
+            "must be at least shell_distance_m (a joint-space move ends outside the shell)",
+        )
+    }
+}
+
+/// A parameter's range.
+#[derive(Debug, Clone, Copy)]
+enum Bound {
+    /// Finite and > 0.
+    Positive,
+    /// Finite and ≥ 0.
+    NonNegative,
+}
+
+/// The first of `keys` (name, value, range) out of its range.
+fn ranges(keys: &[(&'static str, f64, Bound)]) -> Result<(), ParamError> {
+    for &(key, value, bound) in keys {
+        let (ok, problem) = match bound {
+            Bound::Positive => (value.is_finite() && value > 0.0, "must be finite and > 0"),
+            Bound::NonNegative => (value.is_finite() && value >= 0.0, "must be finite and ≥ 0"),
+        };
+        relation(ok, (key, value), problem)?;
+    }
+    Ok(())
+}
+
+/// `Ok` when `holds`, else the error for `key` with its value.
+fn relation(
+    holds: bool,
+    (key, value): (&'static str, f64),
+    problem: &'static str,
+) -> Result<(), ParamError> {
+    if holds {
         Ok(())
+    } else {
+        Err(ParamError {
+            key,
+            value,
+            problem,
+        })
     }
 }
 

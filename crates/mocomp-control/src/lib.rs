@@ -29,5 +29,5 @@ pub use geometry::{CoilModel, HeadModel};
 pub use goal::{GoalError, check_goal};
 pub use planner::{PlanError, ShellPath};
 pub use predict::{MotionModel, PosePredictor, PredictorConfig};
-pub use supervisor::{Reaction, TransitRefusal, reaction};
+pub use supervisor::{Decision, Reaction, RuleInputs, TransitRefusal, decide, reaction};
 pub use transit::JointPath;

@@ -29,8 +29,26 @@
 //! | `HandGuided` (the operator's free-drive) | hold | the hand moves the arm: the loop sends only free-drive's keep-alive; it resumes from the actual pose, by a path |
 //! | `CalibrationInvalid` (the drift monitor: tracker or base moved) | hold | every goal computed through a wrong `base_from_tracker` is wrong by the offset: stop, recalibrate. It stays until the session clears it; the coil still gives way |
 //!
-//! The force rules ([`crate::force`]) outrank every other rule but a fault, and their retreats
-//! end only when they have been clear for `contact_resume_s`.
+//! ## Precedence
+//!
+//! When several rules fire in one cycle, one reason wins. A robot fault ([`robot_rules`],
+//! latched by [`latches`]) comes first: it stops the arm and ends the cycle before any other
+//! rule is read. [`decide`] then reads the others in this order, each overriding what came
+//! before as said:
+//!
+//! 1. the tracker rules ([`tracker_rules`]);
+//! 2. a wrong goal (`GoalInsideHead`, `GoalAxisOutward`, `GoalNotFinite`), over the tracker's;
+//! 3. `CalibrationInvalid`, over any hold so far but not over a retreat (a head too fast still
+//!    makes the coil give way);
+//! 4. `Operator`, only when nothing else fired;
+//! 5. a force rule ([`crate::force`]), over all of them: a coil that may press on the scalp
+//!    backs off whatever else holds, and its retreat ends only when clear for
+//!    `contact_resume_s`.
+//!
+//! After the decision, the goal's own joints may still hold the loop (`Unreachable`,
+//! `Singular`), and the checks on the command (`LinkCollision`, `CoilCollision`,
+//! `OffApproachAxis`, `NoPath`, `NoTransit`) answer by their reaction on the command itself: they
+//! judge a motion, so they come after the motion is chosen.
 //!
 //! A hold with the head in view still gives way: a held coil the head comes closer to than the
 //! safety filter requires backs off along its axis (shown as a retreat for `CoilCollision`),
@@ -194,6 +212,63 @@ pub fn reaction(reason: &Reason) -> Reaction {
         Reason::ForceSaturated(_) => Retreat,
         Reason::CalibrationInvalid(..) => Hold,
         Reason::HandGuided => Hold,
+    }
+}
+
+/// The reasons the rules gave this cycle, the robot's aside (a fault ends the cycle first).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RuleInputs {
+    /// The tracker rules' reason ([`tracker_rules`]).
+    pub tracker: Option<Reason>,
+    /// The goal check's ([`crate::goal::check_goal`]).
+    pub goal: Option<Reason>,
+    /// The drift monitor's offset while the calibration is not valid, m and rad.
+    pub calibration: Option<(f64, f64)>,
+    /// The operator holds.
+    pub operator: bool,
+    /// The force rules' ([`crate::force::force_rules`]).
+    pub force: Option<Reason>,
+}
+
+/// The supervisor's decision: the winning reason and its reaction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    /// The reason that won (`None`: nothing fired).
+    pub reason: Option<Reason>,
+    /// What the loop does about it.
+    pub reaction: Reaction,
+}
+
+impl Decision {
+    /// A reason that holds the loop whatever was decided before (the goal's joints).
+    pub fn hold(reason: Reason) -> Self {
+        Self {
+            reason: Some(reason),
+            reaction: Reaction::Hold,
+        }
+    }
+}
+
+/// One reason out of the rules that fired, by the precedence above.
+pub fn decide(r: &RuleInputs) -> Decision {
+    let mut reason = r.tracker;
+    if r.goal.is_some() {
+        reason = r.goal;
+    }
+    if let Some((m, a)) = r.calibration
+        && reason.is_none_or(|r| reaction(&r) == Reaction::Hold)
+    {
+        reason = Some(Reason::CalibrationInvalid(m, a));
+    }
+    if r.operator && reason.is_none() {
+        reason = Some(Reason::Operator);
+    }
+    if r.force.is_some() {
+        reason = r.force;
+    }
+    Decision {
+        reason,
+        reaction: reason.map_or(Reaction::Track, |r| reaction(&r)),
     }
 }
 
@@ -429,6 +504,72 @@ mod tests {
         assert_eq!(reaction(&Reason::CoilCollision(-0.001)), Reaction::Retreat);
         assert_eq!(reaction(&Reason::LinkCollision(3, 0.005)), Reaction::Hold);
         assert_eq!(reaction(&Reason::OffApproachAxis(0.02)), Reaction::Plan);
+    }
+
+    #[test]
+    fn the_decision_follows_the_precedence() {
+        let d = |r: RuleInputs| decide(&r).reason;
+        let stale = Some(Reason::TrackerStale(1.0));
+        let fast = Some(Reason::HeadTooFast(1.0, 0.0));
+        let goal = Some(Reason::GoalAxisOutward);
+        let force = Some(Reason::ContactForce(40.0));
+        let calibration = Some((0.01, 0.0));
+        assert_eq!(decide(&RuleInputs::default()).reaction, Reaction::Track);
+        // The operator only when nothing else fired.
+        let op = RuleInputs {
+            operator: true,
+            ..Default::default()
+        };
+        assert_eq!(d(op), Some(Reason::Operator));
+        assert_eq!(
+            d(RuleInputs {
+                tracker: stale,
+                ..op
+            }),
+            stale
+        );
+        // A wrong goal over the tracker.
+        assert_eq!(
+            d(RuleInputs {
+                tracker: stale,
+                goal,
+                ..op
+            }),
+            goal
+        );
+        // The calibration over a hold, not over a retreat.
+        let cal = RuleInputs {
+            calibration,
+            ..Default::default()
+        };
+        assert_eq!(
+            d(RuleInputs {
+                tracker: stale,
+                ..cal
+            }),
+            Some(Reason::CalibrationInvalid(0.01, 0.0))
+        );
+        assert_eq!(
+            d(RuleInputs {
+                tracker: fast,
+                ..cal
+            }),
+            fast
+        );
+        assert_eq!(
+            d(RuleInputs { goal, ..cal }),
+            Some(Reason::CalibrationInvalid(0.01, 0.0))
+        );
+        // A force rule over everything.
+        let all = RuleInputs {
+            tracker: fast,
+            goal,
+            calibration,
+            operator: true,
+            force,
+        };
+        assert_eq!(d(all), force);
+        assert_eq!(decide(&all).reaction, Reaction::Retreat);
     }
 
     #[test]

@@ -1,0 +1,357 @@
+//! The command side of the cycle: the joint setpoint and its speed, the controller time it is
+//! stepped by, the rate and acceleration limits ([`CommandState::limit`]), and the estimate of
+//! how long a command takes to reach the controller ([`DelayEstimator`]). Pure: the robot's
+//! state comes in as a value, nothing is sent from here.
+
+use crate::config::LoopParams;
+use mocomp_kin::Arm;
+use mocomp_ur::RobotState;
+
+/// Commands remembered for the delay estimate.
+const ACK_RING: usize = 64;
+
+/// The setpoint the loop commands and how it moves.
+#[derive(Debug, Clone)]
+pub(super) struct CommandState {
+    /// The joints last commanded.
+    pub(super) q: [f64; 6],
+    /// Their speed, rad/s.
+    pub(super) v: [f64; 6],
+    /// `q` is a setpoint to go on from (false: start from where the arm is).
+    pub(super) have: bool,
+    /// The previous cycle's target joints (for the target's speed).
+    pub(super) last_desired: Option<[f64; 6]>,
+    /// The controller time of the state the previous command answered (NaN before the first).
+    pub(super) last_controller_s: f64,
+    /// The controller time between the previous command and this one, s: the time the command
+    /// is stepped by.
+    pub(super) dt: f64,
+    /// A servo command has been sent (`q` is a setpoint the controller may hold).
+    pub(super) servo_sent: bool,
+    /// Whether this cycle's command gives way to the head (retreating): its speed limit is
+    /// `retreat_tcp_speed_m_s`. (Not for the filter's small corrections: at that speed they
+    /// overshoot and the servo's lag brings the coil back in.)
+    pub(super) giving_way: bool,
+    /// Send → acknowledged in the robot's state.
+    pub(super) delay: DelayEstimator,
+}
+
+/// The command state before this cycle's limits ran: a correction (the safety filter, a
+/// refusal) starts again from it, so it is limited like any command.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Saved {
+    /// The previous command's joints.
+    pub(super) q: [f64; 6],
+    v: [f64; 6],
+    last_desired: Option<[f64; 6]>,
+}
+
+impl CommandState {
+    /// No command yet, at the robot's `period_s`.
+    pub(super) fn new(period_s: f64) -> Self {
+        Self {
+            q: [0.0; 6],
+            v: [0.0; 6],
+            have: false,
+            last_desired: None,
+            last_controller_s: f64::NAN,
+            dt: period_s,
+            servo_sent: false,
+            giving_way: false,
+            delay: DelayEstimator::new(period_s),
+        }
+    }
+
+    /// This cycle's controller time step from the robot's `state`, and without a command the
+    /// command's start from it.
+    ///
+    /// Step by the controller's time, not the loop's: what matters is how long the controller
+    /// held the previous setpoint. Several states that arrive together give one longer step; a
+    /// cycle on the same state (woken without a new one) gives none.
+    pub(super) fn step_time(&mut self, state: &RobotState, period: f64, robot_stale_s: f64) {
+        self.dt = if self.last_controller_s.is_finite() {
+            let raw = state.controller_s - self.last_controller_s;
+            // The controller's clock advances in whole periods: the difference of two large
+            // times carries rounding that depends on how long the controller has been up, which
+            // would make the same run differ in its last bits from one start to the next.
+            let periods = (raw / period).round();
+            let dt = if (raw - periods * period).abs() < 1e-6 {
+                periods * period
+            } else {
+                raw
+            };
+            dt.clamp(0.0, robot_stale_s)
+        } else {
+            period
+        };
+        self.last_controller_s = state.controller_s;
+        if !self.have {
+            if state.program_mode == mocomp_ur::program::mode::SERVO && self.servo_sent {
+                // The controller still servoes to the last setpoint (a stop that never reached
+                // it): it judges the next one against that, so the command goes on from there,
+                // standing.
+                self.v = [0.0; 6];
+            } else {
+                // Start (or come back after a stop) from where the arm is and how it moves, so
+                // the first command continues its motion instead of jerking it to a halt.
+                self.q = state.actual_q;
+                self.v = std::array::from_fn(|j| {
+                    let v = state.actual_qd[j];
+                    if v.is_finite() { v } else { 0.0 }
+                });
+            }
+            self.dt = period;
+            self.have = true;
+            self.last_desired = None;
+        }
+    }
+
+    /// The state a correction starts again from.
+    pub(super) fn save(&self) -> Saved {
+        Saved {
+            q: self.q,
+            v: self.v,
+            last_desired: self.last_desired,
+        }
+    }
+
+    /// Back to the state before this cycle's limits ran.
+    pub(super) fn restore(&mut self, saved: Saved) {
+        (self.q, self.v, self.last_desired) = (saved.q, saved.v, saved.last_desired);
+    }
+
+    /// A hold's target: the last command, standing. Its speed is zero, so the limits
+    /// decelerate the arm to standstill on it; a target taken as moving at the command's own
+    /// speed (the feed-forward of a followed target) would keep the arm going forever.
+    pub(super) fn stand_still(&mut self) -> [f64; 6] {
+        self.last_desired = None;
+        self.q
+    }
+
+    /// Rate- and acceleration-limits the command towards `desired`, joint by joint, so that each
+    /// joint can still stop at `desired` within its acceleration, relative to the target's own
+    /// motion: a moving target is followed at its speed (feed-forward), not approached as if it
+    /// stood still, which would lag it by the braking distance. The target's speed is over the
+    /// controller time since the previous command (`self.dt`); the step itself is never longer
+    /// than one controller period's: the controller judges a setpoint against its previous one,
+    /// which it may have taken only one period ago however long this state took to come (a
+    /// controller that stalled and caught up, a network that held the previous command back),
+    /// so after any gap the command goes on from the last setpoint within the per-cycle limit
+    /// (URControl's C204A3) and makes up the lost time over the following cycles. A cycle with
+    /// no controller time passed moves nothing.
+    pub(super) fn limit(
+        &mut self,
+        arm: &Arm,
+        p: &LoopParams,
+        period: f64,
+        desired: &[f64; 6],
+        speed_fraction: f64,
+    ) -> [f64; 6] {
+        if self.dt <= 0.0 {
+            return self.q;
+        }
+        let target_dt = self.dt;
+        let dt = self.dt.min(period);
+        let a = p.max_joint_accel_rad_s2;
+        let mut q = self.q;
+        let mut v = self.v;
+        let previous = self.last_desired.replace(*desired);
+        for j in 0..6 {
+            let vmax = arm.spec().max_speed[j] * speed_fraction;
+            // The target's speed, from its last two values; a jump (a new mode, a retreat) is
+            // not a speed to keep.
+            let v_target = previous
+                .map(|p| (desired[j] - p[j]) / target_dt)
+                .filter(|v| v.abs() <= vmax)
+                .unwrap_or(0.0);
+            let delta = desired[j] - self.q[j];
+            // Largest speed relative to the target from which the joint can still stop on it in
+            // whole cycles of deceleration a·dt each: n·a·dt with a·dt²·n(n+1)/2 ≤ |delta| (the
+            // continuous √(2a|delta|) overshoots by up to a cycle and chatters around a still
+            // target).
+            let adt2 = a * dt * dt;
+            let n = 0.5 * ((1.0 + 8.0 * delta.abs() / adt2).sqrt() - 1.0);
+            let v_stop = n * a * dt;
+            let want =
+                (v_target + (delta / dt - v_target).clamp(-v_stop, v_stop)).clamp(-vmax, vmax);
+            v[j] = want.clamp(self.v[j] - a * dt, self.v[j] + a * dt);
+            q[j] = self.q[j] + v[j] * dt;
+        }
+        // The coil's speed limit, on the whole step.
+        let p0 = arm.fk(&self.q).translation.vector;
+        let p1 = arm.fk(&q).translation.vector;
+        let speed = (p1 - p0).norm() / dt;
+        let tcp_limit = if self.giving_way {
+            p.max_tcp_speed_m_s.max(p.retreat_tcp_speed_m_s)
+        } else {
+            p.max_tcp_speed_m_s
+        };
+        if speed > tcp_limit {
+            let k = tcp_limit / speed;
+            for j in 0..6 {
+                v[j] *= k;
+                q[j] = self.q[j] + v[j] * dt;
+            }
+        }
+        self.v = v;
+        q
+    }
+}
+
+/// The command delay (send → acknowledged in the robot's state), averaged: commands sent are
+/// remembered by sequence number in a fixed ring (no allocation), and each acknowledgement
+/// found in a state moves the estimate.
+#[derive(Debug, Clone)]
+pub(super) struct DelayEstimator {
+    estimate: f64,
+    sent: [(i32, f64); ACK_RING],
+    head: usize,
+    len: usize,
+}
+
+impl DelayEstimator {
+    /// An estimate of one period before anything is measured.
+    pub(super) fn new(period_s: f64) -> Self {
+        Self {
+            estimate: period_s,
+            sent: [(0, 0.0); ACK_RING],
+            head: 0,
+            len: 0,
+        }
+    }
+
+    /// The estimate, s.
+    pub(super) fn estimate(&self) -> f64 {
+        self.estimate
+    }
+
+    /// Command `seq` was sent at loop time `t`.
+    pub(super) fn note(&mut self, seq: i32, t: f64) {
+        let i = (self.head + self.len) % ACK_RING;
+        self.sent[i] = (seq, t);
+        if self.len < ACK_RING {
+            self.len += 1;
+        } else {
+            self.head = (self.head + 1) % ACK_RING;
+        }
+    }
+
+    /// A state received at `received_s` acknowledges commands up to `acked`.
+    pub(super) fn measure(&mut self, acked: i32, received_s: f64) {
+        while self.len > 0 {
+            let (seq, sent) = self.sent[self.head];
+            if acked.wrapping_sub(seq) < 0 {
+                break;
+            }
+            if acked == seq {
+                let d = (received_s - sent).max(0.0);
+                self.estimate += 0.05 * (d - self.estimate);
+            }
+            self.head = (self.head + 1) % ACK_RING;
+            self.len -= 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::*;
+    use mocomp_geom::nalgebra::Isometry3;
+    use mocomp_kin::Model;
+
+    const PERIOD: f64 = 0.002;
+
+    fn state_at(t: f64, q: [f64; 6]) -> RobotState {
+        let mut s = RobotState::at_rest(t, q, Isometry3::identity());
+        s.controller_s = t;
+        s.received_s = t;
+        s
+    }
+
+    #[test]
+    fn the_step_is_the_controllers_time_in_whole_periods_and_bounded() {
+        let mut c = CommandState::new(PERIOD);
+        let q = [0.1, -1.2, 1.5, -1.8, -1.5, 0.2];
+        c.step_time(&state_at(1000.0, q), PERIOD, 0.1);
+        // The first command starts where the arm is, stepped by one period.
+        assert_eq!(c.q, q);
+        assert!(c.have);
+        assert_eq!(c.dt, PERIOD);
+        // Three periods late: one step of three periods, exactly (no rounding of large times).
+        c.step_time(&state_at(1000.0 + 3.0 * PERIOD, q), PERIOD, 0.1);
+        assert_eq!(c.dt, 3.0 * PERIOD);
+        // The same state again: no time passed, no step.
+        c.step_time(&state_at(1000.0 + 3.0 * PERIOD, q), PERIOD, 0.1);
+        assert_eq!(c.dt, 0.0);
+        // A long gap is bounded by the stale limit.
+        c.step_time(&state_at(1010.0, q), PERIOD, 0.1);
+        assert_eq!(c.dt, 0.1);
+    }
+
+    #[test]
+    fn the_limits_bound_speed_and_acceleration_and_a_zero_step_moves_nothing() {
+        let arm = Arm::new(Model::Ur3e);
+        let p = LoopParams::default();
+        let mut c = CommandState::new(PERIOD);
+        let q0 = [0.0, -1.3, 1.6, -1.87, -1.57, 0.0];
+        c.step_time(&state_at(0.0, q0), PERIOD, p.robot_stale_s);
+        let far = [0.5, -1.0, 1.2, -1.5, -1.2, 0.4];
+        let mut prev_v = [0.0; 6];
+        for k in 1..200 {
+            c.step_time(&state_at(k as f64 * PERIOD, c.q), PERIOD, p.robot_stale_s);
+            let q = c.limit(&arm, &p, PERIOD, &far, 1.0);
+            for j in 0..6 {
+                let v = (q[j] - c.q[j]) / PERIOD;
+                assert!(
+                    v.abs() <= arm.spec().max_speed[j] + 1e-9,
+                    "joint {j} speed {v}"
+                );
+                let dv = (v - prev_v[j]).abs();
+                assert!(
+                    dv <= p.max_joint_accel_rad_s2 * PERIOD + 1e-9,
+                    "joint {j} Δv {dv}"
+                );
+                prev_v[j] = v;
+            }
+            let tcp = (arm.fk(&q).translation.vector - arm.fk(&c.q).translation.vector).norm();
+            assert!(tcp / PERIOD <= p.max_tcp_speed_m_s + 1e-9);
+            c.q = q;
+        }
+        // A cycle on the same state moves nothing.
+        c.step_time(&state_at(199.0 * PERIOD, c.q), PERIOD, p.robot_stale_s);
+        assert_eq!(c.limit(&arm, &p, PERIOD, &far, 1.0), c.q);
+    }
+
+    #[test]
+    fn a_hold_decelerates_to_standstill_on_the_last_command() {
+        let arm = Arm::new(Model::Ur3e);
+        let p = LoopParams::default();
+        let mut c = CommandState::new(PERIOD);
+        let q0 = [0.0, -1.3, 1.6, -1.87, -1.57, 0.0];
+        c.step_time(&state_at(0.0, q0), PERIOD, p.robot_stale_s);
+        c.v = [0.05; 6];
+        for k in 1..400 {
+            c.step_time(&state_at(k as f64 * PERIOD, c.q), PERIOD, p.robot_stale_s);
+            let hold = c.stand_still();
+            c.q = c.limit(&arm, &p, PERIOD, &hold, 1.0);
+        }
+        assert!(c.v.iter().all(|v| v.abs() < 1e-9), "{:?}", c.v);
+    }
+
+    #[test]
+    fn the_delay_is_measured_from_acknowledgements_and_survives_wrapping() {
+        let mut d = DelayEstimator::new(PERIOD);
+        let mut seq = i32::MAX - 100;
+        for k in 0..400 {
+            let t = k as f64 * PERIOD;
+            d.note(seq, t);
+            // Acknowledged 8 ms later.
+            if k >= 4 {
+                d.measure(seq.wrapping_sub(4), t);
+            }
+            seq = seq.wrapping_add(1);
+        }
+        assert!((d.estimate() - 0.008).abs() < 1e-4, "{}", d.estimate());
+    }
+}
