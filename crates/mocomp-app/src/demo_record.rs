@@ -10,7 +10,8 @@
 
 use crate::experiment::Controller;
 use crate::frontend::{Observer, Status};
-use crate::ros2::{RecordOutcome, Rig, cycle_record_msg, diagnostic, unix_ns};
+use crate::live_log::RecordOutcome;
+use crate::ros2::{Rig, cycle_record_msg, diagnostic, unix_ns};
 use crate::{AppError, Context};
 use mocomp_control::{CycleRecord, Event, LoopConfig, Mode};
 use mocomp_kin::Arm;

@@ -1,67 +1,107 @@
 //! `mocomp run` as a ROS 2 node (`[ros2]`, `--ros2`) and its MCAP recording (`record_mcap`,
 //! `--record`): the node ([`mocomp_ros2::Ros2Bridge`]) is started before the robot connects; an
 //! [`Observer`] on the logger's thread turns each cycle into what the node publishes and the
-//! recording stores (never on the loop's thread); the hold and resume services reach the loop
-//! through a channel its pace polls, as the console's buttons do.
+//! recording stores (never on the loop's thread); the hold and resume services call the
+//! operator's [`Controls`], as the console's buttons do. The command line attaches it
+//! ([`Ros2FrontEnd`]); the live loop knows nothing of ROS 2.
 
 use crate::config::{Setup, TrackerSource};
-use crate::frontend::{Observer, Status, mode_name};
+use crate::frontend::{Controls, Observer, Status, mode_name};
+use crate::live::HeadSource;
+use crate::live_log::{RecordOutcome, Ros2Figures, RunReport};
 use crate::{AppError, Context};
 use mocomp_control::{CycleRecord, Event, Mode};
+use mocomp_geom::PoseSource;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
 use mocomp_ros2::node::Call;
 use mocomp_ros2::{Out, Ros2Bridge, Snapshot};
-use std::sync::Arc;
-use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::sync::{Arc, PoisonError};
 
-/// The node and the service calls it took, for the loop's pace.
+/// ROS 2 and the MCAP recording, attached to `mocomp run` from outside as the console is: an
+/// observer for the logger's thread, the node's hold and resume services on the operator's
+/// [`Controls`], and, with `tracker.source = "ros2"`, the head's poses from the node's topic.
 #[derive(Debug)]
-pub struct Ros2Link {
-    /// The node.
-    pub bridge: Arc<Ros2Bridge>,
-    /// Hold and resume calls.
-    pub calls: Receiver<Call>,
+pub struct Ros2FrontEnd {
+    bridge: Option<Arc<Ros2Bridge>>,
+    observer: Option<RosObserver>,
+    record: Option<RecordSlot>,
+    head: bool,
 }
 
-/// Starts the node when `[ros2]` is enabled or the head's poses come over ROS 2 (`None`
-/// otherwise). Errors name what DDS refused.
-pub fn start(setup: &Setup) -> Result<Option<Ros2Link>, AppError> {
-    let file = &setup.file;
-    let head = file.tracker.source == TrackerSource::Ros2;
-    if !(file.ros2.enabled || head) {
-        return Ok(None);
+impl Ros2FrontEnd {
+    /// Starts the node when `[ros2]` is enabled or the head's poses come over ROS 2, and the
+    /// recording when `record_mcap` is set (`None`: neither). Before the robot connects: a DDS
+    /// participant takes a moment. Errors name what DDS refused.
+    pub fn start(setup: &Setup, controls: &Arc<Controls>) -> Result<Option<Self>, AppError> {
+        let file = &setup.file;
+        let head = file.tracker.source == TrackerSource::Ros2;
+        let bridge = if file.ros2.enabled || head {
+            Some(Arc::new(start_node(setup, head, controls)?))
+        } else {
+            None
+        };
+        if bridge.is_none() && file.record_mcap.is_none() {
+            return Ok(None);
+        }
+        let (observer, record) = RosObserver::new(setup, bridge.clone())?;
+        Ok(Some(Self {
+            bridge,
+            observer: Some(observer),
+            record,
+            head,
+        }))
     }
+
+    /// The observer for the logger's thread (once: later calls give `None`).
+    pub fn observer(&mut self) -> Option<Box<dyn Observer>> {
+        self.observer
+            .take()
+            .map(|o| Box::new(o) as Box<dyn Observer>)
+    }
+
+    /// With `tracker.source = "ros2"`: the head's poses from the node's topic, on the loop's
+    /// clock.
+    pub fn head_source(&self) -> Option<HeadSource> {
+        let bridge = Arc::clone(self.bridge.as_ref().filter(|_| self.head)?);
+        Some(Box::new(move |clock| {
+            Box::new(bridge.head_source(clock)) as Box<dyn PoseSource>
+        }))
+    }
+
+    /// What the node published and the recording wrote, into the run's report.
+    pub fn finish(self, report: &mut RunReport) {
+        report.record = self
+            .record
+            .and_then(|s| s.lock().unwrap_or_else(PoisonError::into_inner).take());
+        report.ros2 = self.bridge.map(|b| Ros2Figures {
+            published: b.published(),
+            dropped: b.dropped(),
+        });
+    }
+}
+
+/// The node, its hold and resume services calling the operator's `controls` (with `[ros2]`
+/// enabled; a node started only for the head's poses offers none).
+fn start_node(setup: &Setup, head: bool, controls: &Arc<Controls>) -> Result<Ros2Bridge, AppError> {
+    let file = &setup.file;
     let cfg = file.ros2.node_config(head)?;
-    let (tx, calls) = sync_channel::<Call>(4);
     let handler: Option<mocomp_ros2::node::Handler> = file.ros2.enabled.then(|| {
-        let tx: SyncSender<Call> = tx;
-        Box::new(move |call: Call| match tx.try_send(call) {
-            Ok(()) => Ok(match call {
-                Call::Hold => "hold requested".to_string(),
-                Call::Resume => "resume requested".to_string(),
-            }),
-            Err(TrySendError::Full(_)) => Err("earlier calls still wait for the loop".into()),
-            Err(TrySendError::Disconnected(_)) => Err("the loop has ended".into()),
+        let controls = Arc::clone(controls);
+        Box::new(move |call: Call| {
+            Ok(match call {
+                Call::Hold => {
+                    controls.set_hold(true);
+                    "hold requested".to_string()
+                }
+                Call::Resume => {
+                    controls.resume();
+                    "resume requested".to_string()
+                }
+            })
         }) as mocomp_ros2::node::Handler
     });
-    let bridge =
-        Ros2Bridge::start(&cfg, handler).what(|| format!("ros2 (domain {})", cfg.domain_id))?;
-    Ok(Some(Ros2Link {
-        bridge: Arc::new(bridge),
-        calls,
-    }))
-}
-
-/// What a recording left: its messages and why it stopped, if it did.
-#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
-pub struct RecordOutcome {
-    /// The file.
-    pub path: String,
-    /// Messages written.
-    pub messages: u64,
-    /// Why the recording stopped early or could not be closed (the run then fails).
-    pub error: Option<String>,
+    Ros2Bridge::start(&cfg, handler).what(|| format!("ros2 (domain {})", cfg.domain_id))
 }
 
 /// Where the observer leaves the recording's outcome for the run's report.
@@ -295,8 +335,6 @@ impl Observer for RosObserver {
         {
             outcome.error = Some(e.to_string());
         }
-        *slot
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(outcome);
+        *slot.lock().unwrap_or_else(PoisonError::into_inner) = Some(outcome);
     }
 }

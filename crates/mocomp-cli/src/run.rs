@@ -5,6 +5,7 @@ use crate::dashboard::DashboardArgs;
 use clap::Args;
 use mocomp_app::frontend::{Both, Controls, Observer, Status, mode_name};
 use mocomp_app::live::RunReport;
+use mocomp_app::ros2::Ros2FrontEnd;
 use mocomp_app::{AppError, config::Setup};
 use mocomp_control::Event;
 use std::io::Write;
@@ -106,20 +107,29 @@ impl RunCmd {
         // With --json, standard output is the summary alone; what starts goes to standard error.
         let mut stderr = std::io::stderr();
         let progress: &mut dyn Write = if self.json { &mut stderr } else { out };
+        // The front ends, attached from outside the loop: ROS 2 first (its DDS participant
+        // takes a moment, before the robot connects), then the console.
+        let mut ros2 = Ros2FrontEnd::start(&setup, &controls)?;
         let console = self.dashboard.start(&setup, &controls, progress)?;
-        let lines: Box<dyn Observer> = if self.quiet {
+        let mut observer: Box<dyn Observer> = if self.quiet {
             Box::new(mocomp_app::frontend::Silent)
         } else {
             Box::new(Lines)
         };
-        let observer: Box<dyn Observer> = match &console {
-            Some(c) => Box::new(Both(lines, c.observer())),
-            None => lines,
-        };
+        if let Some(c) = &console {
+            observer = Box::new(Both(observer, c.observer()));
+        }
+        if let Some(o) = ros2.as_mut().and_then(Ros2FrontEnd::observer) {
+            observer = Box::new(Both(observer, o));
+        }
+        let head = ros2.as_ref().and_then(Ros2FrontEnd::head_source);
         let log = setup.file.log_csv.as_deref().map(Path::new);
-        let report = mocomp_app::live::run(&setup, log, &controls, observer, progress)?;
+        let mut report = mocomp_app::live::run(&setup, log, &controls, observer, head, progress)?;
         // The loop has ended: the console's last status says so; it closes with this process.
         drop(console);
+        if let Some(r) = ros2 {
+            r.finish(&mut report);
+        }
         if self.json {
             writeln!(out, "{}", serde_json::to_string(&report)?)?;
         } else {
