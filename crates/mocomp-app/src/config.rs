@@ -1174,8 +1174,16 @@ pub struct Setup {
 impl Setup {
     /// Reads and checks the file at `path`.
     pub fn load(path: &Path) -> Result<Self, AppError> {
+        Self::load_with(path, |_| {})
+    }
+
+    /// [`Setup::load`], with `edit` applied to the file as read, before it is checked: a
+    /// command line's options that override the file are checked as the file's own values
+    /// are, and the checked setup is never edited afterwards.
+    pub fn load_with(path: &Path, edit: impl FnOnce(&mut Config)) -> Result<Self, AppError> {
         let text = std::fs::read_to_string(path).what(|| format!("--config {}", path.display()))?;
-        let file = Config::parse(&path.display().to_string(), &text)?;
+        let mut file = Config::parse(&path.display().to_string(), &text)?;
+        edit(&mut file);
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Self::new(file, Some(path.to_path_buf()), dir)
     }

@@ -113,9 +113,26 @@ pub fn positive(name: &str, v: f64) -> Result<()> {
     }
 }
 
+/// A positive, finite number (a duration in seconds, say), as clap parses a value.
+pub fn positive_number(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) => Err(format!("{v}: must be a positive number")),
+        Err(e) => Err(format!("{s:?}: {e}")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_positive_number_is_finite_and_above_zero() {
+        assert_eq!(positive_number("2.5"), Ok(2.5));
+        for bad in ["0", "-1", "inf", "NaN", "two"] {
+            assert!(positive_number(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn parses_and_rejects() {

@@ -24,7 +24,7 @@ pub struct RunCmd {
     #[arg(long, value_name = "FILE")]
     pub config: PathBuf,
     /// Stop after this many seconds (overrides `duration_s`).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::positive_number)]
     pub seconds: Option<f64>,
     /// Write every cycle to this CSV file (overrides `log_csv`).
     #[arg(long, value_name = "FILE")]
@@ -76,24 +76,19 @@ impl Observer for Lines {
 impl RunCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
-        let mut setup = Setup::load(&self.config)?;
-        if let Some(s) = self.seconds {
-            if !(s.is_finite() && s > 0.0) {
-                return Err(
-                    AppError::Config(format!("--seconds {s}: must be a positive number")).into(),
-                );
+        // The options that override the file, applied before it is checked, as its own values.
+        let setup = Setup::load_with(&self.config, |file| {
+            if let Some(s) = self.seconds {
+                file.duration_s = s;
             }
-            setup.file.duration_s = s;
-        }
-        if self.log_csv.is_some() {
-            setup.file.log_csv.clone_from(&self.log_csv);
-        }
-        if self.ros2 {
-            setup.file.ros2.enabled = true;
-        }
-        if self.record.is_some() {
-            setup.file.record_mcap.clone_from(&self.record);
-        }
+            if self.log_csv.is_some() {
+                file.log_csv.clone_from(&self.log_csv);
+            }
+            file.ros2.enabled |= self.ros2;
+            if self.record.is_some() {
+                file.record_mcap.clone_from(&self.record);
+            }
+        })?;
         if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated
             && let Some(note) = setup.file.predictor_note()
         {
