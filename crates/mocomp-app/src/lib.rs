@@ -6,6 +6,10 @@
 //! the ROS 2 bridge) parse their input, call these and present the results; none of them computes.
 //!
 //! I/O lives here (sockets, threads, files, the wall clock); the math it calls does none.
+//!
+//! **Limits.** No command-line parsing and no printing to the terminal: it returns reports and
+//! errors, and the binary prints them. The compensation itself is mocomp-control's; the
+//! application only connects, runs and records it.
 
 /// Returns an [`AppError::Refused`] with a formatted message.
 macro_rules! refuse {

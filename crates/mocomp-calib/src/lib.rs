@@ -9,6 +9,9 @@
 //! poses of a calibration run; [`synth`] makes seeded synthetic pairs.
 //!
 //! No I/O: pairs files are parsed from text the caller reads.
+//!
+//! **Limits.** No I/O (pairs files are text the caller reads and writes), no robot or tracker:
+//! poses in, transforms out.
 
 pub mod checks;
 pub mod error;

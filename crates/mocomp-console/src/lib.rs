@@ -5,6 +5,9 @@
 //! a small tokio runtime. The loop is never touched: the console reads what the live loop's
 //! logger thread tells its [`state::ConsoleObserver`], and steers the loop through the lock-free
 //! [`mocomp_app::frontend::Controls`] (hold, resume, stop, new loop parameters).
+//!
+//! **Limits.** Changes the running loop only through the application's `Controls`, and only with
+//! the session's token; it never reaches the robot itself.
 
 pub mod api;
 pub mod auth;

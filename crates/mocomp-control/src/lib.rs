@@ -7,6 +7,9 @@
 //! It talks to the robot and the tracker only through [`mocomp_ur::Robot`] and
 //! [`mocomp_geom::PoseSource`], and takes the time as an argument, so the simulator steps it
 //! deterministically and the live binary drives it from the monotonic clock.
+//!
+//! **Limits.** No I/O, no thread, no clock, no allocation or lock in the cycle: the robot and the
+//! tracker only through traits, the time only as an argument.
 
 pub mod baseline;
 pub mod compensator;

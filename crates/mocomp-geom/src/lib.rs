@@ -13,6 +13,9 @@
 //!   the edges to create and hand to the loop.
 //!
 //! `nalgebra` is re-exported so that every mocomp crate uses the one version pinned here.
+//!
+//! **Limits.** No I/O, no threads, no clock reads: pure math and types, depended on by every crate
+//! and depending on none of mocomp's.
 
 pub mod error;
 pub mod interp;

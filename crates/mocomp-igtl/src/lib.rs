@@ -11,6 +11,9 @@
 //! - [`offset`]: a sender's clock against ours from the smallest delay, re-based when it steps.
 //! - [`server`]: streams messages to any number of clients, answers GET_ queries, starts and
 //!   stops TDATA streams, and drops a slow client without stalling the others.
+//!
+//! **Limits.** Knows no robot and no loop: bytes to messages, a client and a server. Every
+//! received byte is hostile: sizes are limited before allocation, errors name the byte offset.
 
 pub mod client;
 pub mod codec;

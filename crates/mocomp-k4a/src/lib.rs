@@ -16,6 +16,9 @@
 //!
 //! `unsafe` lives in two modules only: `ffi` (the C types and the function table) and
 //! `handles` (each SDK handle as an owned value with safe methods).
+//!
+//! **Limits.** Opens the SDK at run time and never links it; without the SDK every call is a clear
+//! error, not a missing symbol.
 
 mod calibration;
 pub mod clock;

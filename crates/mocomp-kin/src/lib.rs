@@ -17,6 +17,9 @@
 //! let chosen = arm.choose(&all, &current, &Selection::tracking(0.05)).unwrap();
 //! assert!((chosen.joints[0] - 0.15).abs() < 1e-9);
 //! ```
+//!
+//! **Limits.** No I/O and no robot connection: kinematics from the model table (or a calibration
+//! file's values passed in), never from a controller.
 
 pub mod arm;
 pub mod branch;

@@ -3,6 +3,9 @@
 //! (`/mocomp/cycle`, `mocomp_msgs/msg/CycleRecord`), each message CDR-encoded as ROS 2 sends it,
 //! each schema the message's `.msg` definition (`ros2msg`). Foxglove, `ros2 bag` and the MCAP
 //! readers open it. Writing is the caller's thread's (never the loop's: the logger's).
+//!
+//! **Limits.** Writes and reads MCAP files only: it knows the messages, not the loop or ROS 2's
+//! network.
 
 use mocomp_ros2::CycleMessages;
 use mocomp_ros2::msg::{CdrError, DiagnosticArray, RosMessage, TypeName, to_cdr};

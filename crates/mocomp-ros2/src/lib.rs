@@ -13,6 +13,9 @@
 //! ROS 2 on the wire is DDS: topic `/joint_states` is the DDS topic `rt/joint_states` of type
 //! `sensor_msgs::msg::dds_::JointState_`; `ros2-client` (pure Rust, over RustDDS) does that
 //! mapping, so any ROS 2 node (Cyclone DDS, Fast DDS) sees mocomp as one of its own.
+//!
+//! **Limits.** No ROS installation and no loop: messages, the node and its DDS participant; the
+//! application decides what to publish and what a service call does.
 
 pub mod convert;
 pub mod cycle;

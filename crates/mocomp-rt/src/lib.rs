@@ -12,6 +12,9 @@
 //!
 //! No `unsafe` here: `thread-priority` wraps `pthread_setschedparam`, `nix` wraps `mlockall`,
 //! `sched_setaffinity` and `clock_nanosleep`.
+//!
+//! **Limits.** Only scheduling, memory locking, pinning and deadline sleeps: it owns no thread's
+//! work and decides no policy.
 
 use serde::{Deserialize, Serialize};
 use std::time::{Duration, Instant};

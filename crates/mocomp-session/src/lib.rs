@@ -15,6 +15,9 @@
 //!
 //! Pure logic: no robot, no socket, no clock (the targets file is parsed and printed, the pulse
 //! log written to a writer the caller gives).
+//!
+//! **Limits.** Pure: no I/O, no robot, no socket; the application feeds it cycle records and robot
+//! inputs, and carries its decisions out.
 
 pub mod drift;
 pub mod gate;

@@ -6,6 +6,10 @@
 //!   and serves the markers over OpenIGTLink as a PLUS server would.
 //!
 //! The paper's two-robot experiment that runs on it is `mocomp_app::experiment`.
+//!
+//! **Limits.** Simulates the world, never the controller under test: it does not use
+//! mocomp-control's loop, only its geometric models, so a bug there is not hidden by the same bug
+//! here.
 
 pub mod contact;
 pub mod motion;

@@ -18,6 +18,8 @@
 //!
 //! There is deliberately no "find a free port" helper: a port probed free and bound later can be
 //! taken in between. Servers bind port 0 (or an address of their own) and report what they got.
+//!
+//! **Limits.** A dev-dependency only: never in a production crate's dependencies.
 #![allow(clippy::panic)] // test support: failures are panics with a message
 
 pub mod controller;

@@ -15,6 +15,9 @@
 //!   readable without blocking or locks).
 //!
 //! Units: radians, metres, seconds everywhere; TCP poses as `base_from_tcp` isometries.
+//!
+//! **Limits.** Knows no head, no tracker and no loop: the robot's protocols and its recovery only.
+//! Every received byte is hostile (sizes before allocation).
 
 pub mod client;
 pub mod codec;

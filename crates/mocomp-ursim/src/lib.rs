@@ -18,6 +18,9 @@
 //! [`SimClock::RealTime`] a thread steps it on the machine's clock; with [`SimClock::Stepped`]
 //! the owner calls [`Sim::step`], so tests and the demo run deterministically while clients still
 //! talk TCP.
+//!
+//! **Limits.** A test and demonstration controller, never a safety reference: it models what UR's
+//! controllers do to a client (timing, registers, faults), not their certified safety system.
 
 pub mod cell;
 pub mod controller;

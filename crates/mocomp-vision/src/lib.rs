@@ -15,6 +15,8 @@
 //! [`pipeline::Tracker`] runs it all; [`render`] makes synthetic frames with ground truth;
 //! [`overlay`] draws what happened; [`source::VisionPoseSource`] feeds the control loop. Files
 //! are the caller's business: [`codec`] works on bytes.
+//!
+//! **Limits.** No I/O, no camera: frames in as buffers, poses out.
 
 pub mod blobs;
 pub mod codec;
