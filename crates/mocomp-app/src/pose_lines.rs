@@ -1,10 +1,14 @@
-//! Poses for `mocomp serve-poses`: a file of JSON lines, or a gently moving head.
+//! `mocomp serve-poses`: poses from a file of JSON lines, or a gently moving head, served over
+//! OpenIGTLink at a steady rate ([`serve`]).
 
 use crate::{AppError, Context};
 use mocomp_geom::iso_from_matrix_mm;
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Translation3, Vector3};
 use mocomp_geom::quat_from_rotvec;
+use mocomp_igtl::server::Server;
+use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 /// A head in front of the tracker at time `t` (s): 1 m away, drifting and nodding gently.
 pub fn gentle_head(t: f64) -> Isometry3<f64> {
@@ -47,4 +51,73 @@ pub fn read(path: &Path) -> Result<Vec<Isometry3<f64>>, AppError> {
         return Err(AppError::Config(format!("--from {name}: no poses")));
     }
     Ok(poses)
+}
+
+/// What [`serve`] sends.
+#[derive(Debug, Clone)]
+pub struct ServeOptions {
+    /// The device name.
+    pub device: String,
+    /// Poses per second.
+    pub rate_hz: f64,
+    /// Stop after this many (`None`: a file once, the gentle head forever).
+    pub count: Option<u64>,
+    /// Header version: 1, or 2 with `TransformStatus` metadata (as PLUS and Slicer send).
+    pub header_version: u16,
+}
+
+/// What [`serve`] did.
+#[derive(Debug, Clone, Copy)]
+pub struct Served {
+    /// Poses sent.
+    pub sent: u64,
+    /// Clients accepted.
+    pub clients: u64,
+    /// Messages dropped for clients too slow to read them.
+    pub dropped_slow: u64,
+    /// The last pose sent (`tracker_from_marker`).
+    pub last: Isometry3<f64>,
+}
+
+/// Waits for a client of `server`, then sends `poses` (the gentle head when `None`, a file's
+/// poses in a loop otherwise) at `opts.rate_hz` on the monotonic clock, each on time however
+/// long the previous send took, and flushes them to the clients (a client that stopped reading
+/// gets 2 s).
+pub fn serve(
+    server: &Server,
+    poses: Option<&[Isometry3<f64>]>,
+    opts: &ServeOptions,
+) -> Result<Served, AppError> {
+    let pose_at = |k: u64| match poses {
+        Some(f) if !f.is_empty() => f[(k as usize) % f.len()],
+        _ => gentle_head(k as f64 / opts.rate_hz),
+    };
+    while server.client_count() == 0 {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let total = opts.count.or(poses.map(|f| f.len() as u64));
+    let period = Duration::from_secs_f64(1.0 / opts.rate_hz);
+    let start = Instant::now();
+    let mut k = 0u64;
+    while total.is_none_or(|n| k < n) {
+        let mut m = Message::transform(&opts.device, &pose_at(k), Timestamp::now())
+            .what(|| format!("--device {}", opts.device))?;
+        if opts.header_version >= 2 {
+            m = m.with_metadata(vec![MetaEntry::text("TransformStatus", "OK")]);
+            m.message_id = k as u32;
+        }
+        server.send(&m);
+        k += 1;
+        if let Some(wait) = (start + period * k as u32).checked_duration_since(Instant::now()) {
+            std::thread::sleep(wait);
+        }
+    }
+    server.flush(Duration::from_secs(2));
+    let c = server.counters();
+    Ok(Served {
+        sent: k,
+        clients: c.accepted,
+        dropped_slow: c.dropped_slow,
+        last: pose_at(k.max(1) - 1),
+    })
 }

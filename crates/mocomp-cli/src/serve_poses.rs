@@ -3,13 +3,11 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use mocomp_app::pose_lines;
+use mocomp_app::pose_lines::{self, ServeOptions};
 use mocomp_geom::matrix_mm_from_iso;
 use mocomp_igtl::server::{Server, ServerConfig};
-use mocomp_igtl::{Message, MetaEntry, Timestamp};
 use std::io::Write;
 use std::path::Path;
-use std::time::{Duration, Instant};
 
 /// Serve poses over OpenIGTLink (TRANSFORM messages) from a file or a simulated head.
 #[derive(Debug, Clone, Args)]
@@ -28,7 +26,7 @@ pub struct ServePosesCmd {
     #[arg(long, default_value = "HeadToTracker")]
     device: String,
     /// Poses per second.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, value_parser = rate_hz)]
     rate: f64,
     /// Stop after this many (default: the file once; forever for sim).
     #[arg(long)]
@@ -42,15 +40,9 @@ impl ServePosesCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> Result<()> {
         let a = self;
-        if !(a.rate.is_finite() && a.rate > 0.0 && a.rate <= 10_000.0) {
-            return Err(
-                crate::UsageError(format!("--rate {}: must be in (0, 10000] Hz", a.rate)).into(),
-            );
-        }
-        let file = if a.from == "sim" {
-            None
-        } else {
-            Some(pose_lines::read(Path::new(&a.from))?)
+        let file = match a.from.as_str() {
+            "sim" => None,
+            path => Some(pose_lines::read(Path::new(path))?),
         };
         let server = Server::bind(
             &format!("{}:{}", a.host, a.igtl_port),
@@ -64,46 +56,33 @@ impl ServePosesCmd {
             server.local_addr()
         )?;
         out.flush()?;
-        while server.client_count() == 0 {
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        let total = a.count.or(file.as_ref().map(|f| f.len() as u64));
-        let period = Duration::from_secs_f64(1.0 / a.rate);
-        let start = Instant::now();
-        let mut k = 0u64;
-        while total.is_none_or(|n| k < n) {
-            let pose = match &file {
-                Some(f) => f[(k as usize) % f.len()],
-                None => pose_lines::gentle_head(k as f64 / a.rate),
-            };
-            let mut m = Message::transform(&a.device, &pose, Timestamp::now())?;
-            if a.header_version >= 2 {
-                m = m.with_metadata(vec![MetaEntry::text("TransformStatus", "OK")]);
-                m.message_id = k as u32;
-            }
-            server.send(&m);
-            k += 1;
-            if let Some(wait) = (start + period * k as u32).checked_duration_since(Instant::now()) {
-                std::thread::sleep(wait);
-            }
-        }
-        // Every pose written to the clients before closing (a client that stopped reading gets 2 s).
-        server.flush(Duration::from_secs(2));
-        let c = server.counters();
-        let last = match &file {
-            Some(f) => f[((k.max(1) - 1) as usize) % f.len()],
-            None => pose_lines::gentle_head((k.max(1) - 1) as f64 / a.rate),
+        let opts = ServeOptions {
+            device: a.device,
+            rate_hz: a.rate,
+            count: a.count,
+            header_version: a.header_version,
         };
-        let t = matrix_mm_from_iso(&last);
+        let s = pose_lines::serve(&server, file.as_deref(), &opts)?;
+        let t = matrix_mm_from_iso(&s.last);
         writeln!(
             out,
-            "sent {k} poses to {} client(s) ({} dropped as slow); last at ({:.1}, {:.1}, {:.1}) mm",
-            c.accepted,
-            c.dropped_slow,
+            "sent {} poses to {} client(s) ({} dropped as slow); last at ({:.1}, {:.1}, {:.1}) mm",
+            s.sent,
+            s.clients,
+            s.dropped_slow,
             t[(0, 3)],
             t[(1, 3)],
             t[(2, 3)]
         )?;
         Ok(())
+    }
+}
+
+/// A rate in (0, 10000] Hz.
+fn rate_hz(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 10_000.0 => Ok(v),
+        Ok(v) => Err(format!("{v}: must be in (0, 10000] Hz")),
+        Err(e) => Err(format!("{s:?}: {e}")),
     }
 }
