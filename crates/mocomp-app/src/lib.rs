@@ -27,6 +27,7 @@ pub mod camera_sim;
 pub mod collect;
 pub mod config;
 pub mod config_file;
+pub mod demo_options;
 pub mod demo_record;
 pub mod driver;
 pub mod experiment;

@@ -97,6 +97,18 @@ impl PlanOptions {
     }
 }
 
+/// The joints a plan starts from when the caller has none: the flange at `center` (the arm's
+/// tool aside), on the branch nearest all-zero joints, as a robot first taught there would be.
+/// Refused when the centre itself is out of reach.
+pub fn start_at_center(arm: &Arm, center: &Isometry3<f64>) -> Result<[f64; 6], CalibError> {
+    arm.with_tool(Isometry3::identity())
+        .ik_closest(center, &[0.0; 6], &Selection::default())
+        .map(|c| c.joints)
+        .map_err(|e| {
+            CalibError::InvalidOption(format!("the centre pose itself is not reachable: {e}"))
+        })
+}
+
 /// One planned pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlannedPose {

@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
 use mocomp_calib::error::CalibError;
-use mocomp_calib::plan::{PlanOptions, TrackerView, plan, tour_time};
+use mocomp_calib::plan::{PlanOptions, TrackerView, plan, start_at_center, tour_time};
 use mocomp_calib::{Pair, SolveOptions, solve};
 use mocomp_geom::nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{quat_from_rotvec, rotation_error, rotvec_from_quat, translation_error};
@@ -168,4 +168,20 @@ fn a_planned_run_calibrates_well() {
     let c = solve(&pairs, &SolveOptions::default()).unwrap();
     assert!(translation_error(&c.base_from_tracker, &s.y) < 1e-3);
     assert!(translation_error(&c.flange_from_marker, &s.x) < 5e-4);
+}
+
+#[test]
+fn without_current_joints_the_plan_starts_at_the_centre_or_says_it_cannot() {
+    let s = setup();
+    let q = start_at_center(&s.arm, &s.center).unwrap();
+    let at = s.arm.fk_flange(&q);
+    assert!(translation_error(&at, &s.center) < 1e-9);
+    assert!(rotation_error(&at, &s.center) < 1e-9);
+    // 3 m away: out of a UR3's reach, named.
+    let far = Isometry3::translation(3.0, 0.0, 0.0) * s.center;
+    let e = start_at_center(&s.arm, &far).unwrap_err();
+    assert!(
+        matches!(&e, CalibError::InvalidOption(m) if m.contains("not reachable")),
+        "{e}"
+    );
 }

@@ -11,15 +11,15 @@ use crate::dashboard::DashboardArgs;
 use anyhow::Context;
 use clap::Args;
 use mocomp_app::AppError;
+use mocomp_app::config::Config;
 use mocomp_app::config::Setup;
-use mocomp_app::config::{Config, unused_by_experiment};
+use mocomp_app::demo_options::{DemoOverrides, demo_config};
 use mocomp_app::demo_record::DemoRecording;
 use mocomp_app::experiment::{Controller, ExperimentConfig, Phase, Watch, run_experiment_watched};
 use mocomp_app::frontend::{Both, Controls, Observer, Silent};
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
 use mocomp_kin::Arm;
 use mocomp_kin::Model;
-use mocomp_sim::HeadMotion;
 use std::io::Write;
 use std::net::IpAddr;
 use std::path::PathBuf;
@@ -143,106 +143,35 @@ pub struct DemoCmd {
 }
 
 impl DemoCmd {
-    /// The configuration: defaults, then the file, then the options.
+    /// The configuration: defaults, then the file, then the options (converted to SI here,
+    /// at the edge).
     fn configuration(&self) -> anyhow::Result<Config> {
-        let mut cfg = Config::default();
-        if let Some(path) = &self.config {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("--config {}", path.display()))?;
-            cfg = Config::parse(&path.display().to_string(), &text)?;
-            let unused = unused_by_experiment(&text);
-            if !unused.is_empty() {
-                eprintln!(
-                    "note: {} sets keys the experiment does not use (it places, calibrates and sets its goal itself): {}",
-                    path.display(),
-                    unused.join(", ")
-                );
-            }
-        }
-        let opt = |flag: &str, e: String| AppError::Config(format!("--{flag}: {e}"));
-        let x = &mut cfg.experiment;
-        if let Some(s) = self.seconds {
-            x.duration_s = s;
-        }
-        if let Some(seed) = self.seed {
-            x.seed = Some(seed);
-        }
-        if let Some(m) = self.head_robot {
-            x.head_robot = Some(m);
-        }
-        if let Some(h) = self.head_host {
-            x.head_host = h;
-        }
-        if let Some(v) = self.paper_period_ms {
-            x.paper.period_s = v * 1e-3;
-        }
-        if let Some(v) = self.paper_delay_ms {
-            x.paper.compute_delay_s = v * 1e-3;
-        }
-        if self.contact {
-            x.contact = true;
-        }
-        if self.record.is_some() {
-            cfg.record_mcap.clone_from(&self.record);
-        }
-        if let Some(m) = self.coil_robot {
-            cfg.robot.model = m;
-        }
-        if let Some(h) = self.coil_host {
-            cfg.robot.host = h.to_string();
-        }
-        let sim = &mut cfg.tracker.simulated;
-        if let Some(file) = &self.motion_file {
-            sim.motion = HeadMotion::from_file(&file.to_string_lossy(), std::path::Path::new(""))
-                .map_err(|e| opt("motion-file", e.to_string()))?;
-        }
-        if let Some(kind) = &self.motion
-            && sim.motion.name() != kind
-        {
-            sim.motion = HeadMotion::named(kind)
-                .ok_or_else(|| opt("motion", format!("{kind:?} is not a motion")))?;
-            // A random motion takes the tracker's seed, as the run's seed sets both.
-            if let HeadMotion::Random(r) = &mut sim.motion {
-                r.seed = sim.model.seed;
-            }
-        }
-        if self.speed_mm_s.is_some() || self.speed_deg_s.is_some() {
-            sim.motion = sim
-                .motion
-                .with_speeds(
-                    self.speed_mm_s.map(mm_to_m),
-                    self.speed_deg_s.map(deg_to_rad),
-                )
-                .map_err(|e| {
-                    let flag = if e.key == "angular_rad_s" {
-                        "speed-deg-s"
-                    } else {
-                        "speed-mm-s"
-                    };
-                    opt(flag, e.problem.to_string())
-                })?;
-        }
-        let t = &mut sim.model;
-        if let Some(v) = self.tracker_rate_hz {
-            t.rate_hz = v;
-        }
-        if let Some(v) = self.tracker_latency_ms {
-            t.latency_s = v * 1e-3;
-        }
-        if let Some(v) = self.tracker_noise_mm {
-            t.noise_m = mm_to_m(v);
-        }
-        if let Some(v) = self.tracker_noise_deg {
-            t.noise_rad = deg_to_rad(v);
-        }
-        if let Some(v) = self.tracker_dropouts_per_s {
-            t.dropouts_per_s = v;
-        }
-        cfg.check()?;
-        if let Some(note) = cfg.predictor_note() {
+        let overrides = DemoOverrides {
+            duration_s: self.seconds,
+            seed: self.seed,
+            head_robot: self.head_robot,
+            head_host: self.head_host,
+            coil_robot: self.coil_robot,
+            coil_host: self.coil_host,
+            paper_period_s: self.paper_period_ms.map(|v| v * 1e-3),
+            paper_delay_s: self.paper_delay_ms.map(|v| v * 1e-3),
+            contact: self.contact,
+            record_mcap: self.record.clone(),
+            motion_file: self.motion_file.clone(),
+            motion: self.motion.clone(),
+            speed_m_s: self.speed_mm_s.map(mm_to_m),
+            speed_rad_s: self.speed_deg_s.map(deg_to_rad),
+            tracker_rate_hz: self.tracker_rate_hz,
+            tracker_latency_s: self.tracker_latency_ms.map(|v| v * 1e-3),
+            tracker_noise_m: self.tracker_noise_mm.map(mm_to_m),
+            tracker_noise_rad: self.tracker_noise_deg.map(deg_to_rad),
+            tracker_dropouts_per_s: self.tracker_dropouts_per_s,
+        };
+        let c = demo_config(self.config.as_deref(), &overrides)?;
+        for note in &c.notes {
             eprintln!("note: {note}");
         }
-        Ok(cfg)
+        Ok(c.config)
     }
 
     /// Runs the demo (or prints its configuration).

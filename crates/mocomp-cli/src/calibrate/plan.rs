@@ -2,10 +2,9 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use mocomp_calib::plan::{PlanOptions, TrackerView, plan, tour_time};
-use mocomp_geom::nalgebra::Isometry3;
+use mocomp_calib::plan::{PlanOptions, TrackerView, plan, start_at_center, tour_time};
 use mocomp_geom::ur_pose_from_iso;
-use mocomp_kin::{Arm, Model, Selection};
+use mocomp_kin::{Arm, Model};
 use serde::Serialize;
 use std::io::Write;
 
@@ -78,15 +77,9 @@ impl PlanCmd {
             .tracker
             .map(|t| crate::args::pose("--tracker", &t))
             .transpose()?;
-        let flange_arm = arm.with_tool(Isometry3::identity());
         let current = match args.current {
             Some(q) => q,
-            None => {
-                flange_arm
-                    .ik_closest(&center, &[0.0; 6], &Selection::default())
-                    .context("--center: the centre pose itself is not reachable")?
-                    .joints
-            }
+            None => start_at_center(&arm, &center).context("--center")?,
         };
         let mut o = PlanOptions::new(args.count, center, current);
         o.rotation_range_rad = (args.min_deg.to_radians(), args.max_deg.to_radians());
