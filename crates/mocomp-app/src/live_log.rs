@@ -411,6 +411,117 @@ pub struct Ros2Figures {
 }
 
 impl RunReport {
+    /// The summary as `mocomp run` prints it: text, one figure per line; `log`: the cycle log's
+    /// path, if one was written.
+    pub fn write_text(
+        &self,
+        out: &mut dyn std::io::Write,
+        log: Option<&str>,
+    ) -> std::io::Result<()> {
+        let r = self;
+        writeln!(out, "\nsummary")?;
+        writeln!(
+            out,
+            "  cycles            {} in {:.2} s ({:.1} Hz); missed {} ({:.2} %); log records dropped {}",
+            r.cycles,
+            r.seconds,
+            r.rate_hz,
+            r.missed_cycles,
+            r.missed_percent,
+            r.log_records_dropped
+        )?;
+        writeln!(
+            out,
+            "  real time         {}{}",
+            r.realtime,
+            if r.realtime_complete {
+                ""
+            } else {
+                " (the loop ran without full real-time scheduling)"
+            }
+        )?;
+        writeln!(
+            out,
+            "  cycle period      median {:.3} ms, p99 {:.3} ms, max {:.3} ms",
+            r.period_median_ms, r.period_p99_ms, r.period_max_ms
+        )?;
+        writeln!(
+            out,
+            "  modes             tracking {:.1} %, approaching {:.1} %, retreating {:.1} %, holding {:.1} %, faulted {:.1} %",
+            r.tracking_percent,
+            r.approaching_percent,
+            r.retreating_percent,
+            r.holding_percent,
+            r.faulted_percent
+        )?;
+        writeln!(
+            out,
+            "  cycle compute     median {:.1} µs, p99 {:.1} µs, max {:.1} µs (the socket write included)",
+            r.compute_median_us, r.compute_p99_us, r.compute_max_us
+        )?;
+        writeln!(
+            out,
+            "  command delay     median {:.2} ms",
+            r.command_delay_median_ms
+        )?;
+        writeln!(
+            out,
+            "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
+            r.deviation_rms_mm, r.deviation_p95_mm, r.deviation_max_mm, r.rotation_p95_deg
+        )?;
+        writeln!(
+            out,
+            "  holds             {} (robot state stale {}, protective stops {})",
+            r.holds, r.robot_stale_holds, r.protective_stops
+        )?;
+        let ses = &r.session;
+        if ses.pulses > 0 || ses.gate_openings > 0 || !ses.drift_max_mm.is_nan() {
+            writeln!(
+                out,
+                "  session           {} pulses ({} off target, largest error on target {:.2} mm), gate opened {} times{}",
+                ses.pulses,
+                ses.pulses_off_target,
+                ses.pulse_error_max_mm,
+                ses.gate_openings,
+                if ses.calibration_invalid {
+                    "; CALIBRATION NO LONGER VALID"
+                } else {
+                    ""
+                }
+            )?;
+        }
+        if let Some(c) = &r.camera {
+            writeln!(
+                out,
+                "  depth camera      {} frames, marker in {}; {} dropped, {} incomplete; acquisition to pose {:.1} ms median, {:.1} ms p99",
+                c.frames, c.found, c.dropped, c.incomplete, c.latency_median_ms, c.latency_p99_ms
+            )?;
+            if let (Some(e), Some(d)) = (&c.ended, &c.ended_detail) {
+                writeln!(out, "    ended: {e} ({d})")?;
+            }
+        }
+        if let Some(t) = &r.tracker {
+            writeln!(
+                out,
+                "  tracker link      {} connections, {} poses; {} messages and {} streams dropped (damaged), {} clock steps re-based",
+                t.connections, t.poses, t.messages_dropped, t.streams_dropped, t.clock_steps
+            )?;
+        }
+        writeln!(out, "  events            {}", r.events)?;
+        for (t, e) in &r.event_log {
+            writeln!(out, "    {t:9.3} s  {e}")?;
+        }
+        writeln!(out, "  final mode        {}", r.final_mode)?;
+        writeln!(out, "  robot stop        {}", r.stop)?;
+        if let Some(e) = &r.log_error {
+            writeln!(out, "  log error         {e}")?;
+        }
+        if let Some(p) = log {
+            writeln!(out, "  log               {p}")?;
+        }
+        Ok(())
+    }
+
     pub(crate) fn new(
         s: &mut Summary,
         rt: Option<&mocomp_rt::RtReport>,
