@@ -531,9 +531,12 @@ impl RunReport {
     ) -> Self {
         let span = s.last_t - s.first_t.unwrap_or(s.last_t);
         let n = s.cycles.max(1) as f64;
-        let rms = (s.deviation_mm.iter().map(|d| d * d).sum::<f64>()
-            / s.deviation_mm.len().max(1) as f64)
-            .sqrt();
+        // No cycle tracked: no figure (as the percentiles say), not the -0 of an empty sum.
+        let rms = if s.deviation_mm.is_empty() {
+            f64::NAN
+        } else {
+            (s.deviation_mm.iter().map(|d| d * d).sum::<f64>() / s.deviation_mm.len() as f64).sqrt()
+        };
         let holds = |f: fn(&Reason) -> bool| {
             s.events
                 .iter()
@@ -631,7 +634,24 @@ impl RunReport {
 
 #[cfg(test)]
 mod tests {
-    use super::{Event, Reason, protective_stops};
+    use super::{Event, Reason, RunReport, StopOutcome, Summary, protective_stops};
+    use crate::live_session::SessionReport;
+    use mocomp_control::Mode;
+
+    #[test]
+    fn a_run_that_never_tracked_has_no_deviation_figure_and_one_that_did_has_its_rms() {
+        let stop = || StopOutcome::Standstill { after_s: 0.1 };
+        let mode = Mode::Approaching;
+        let mut none = Summary::default();
+        let r = RunReport::new(&mut none, None, &mode, stop(), SessionReport::default());
+        assert!(r.deviation_rms_mm.is_nan(), "{}", r.deviation_rms_mm);
+        let mut some = Summary {
+            deviation_mm: vec![3.0, 4.0],
+            ..Summary::default()
+        };
+        let r = RunReport::new(&mut some, None, &mode, stop(), SessionReport::default());
+        assert!((r.deviation_rms_mm - 12.5f64.sqrt()).abs() < 1e-12);
+    }
 
     #[test]
     fn a_protective_stop_is_counted_once_until_the_rearm() {
