@@ -719,13 +719,9 @@ impl Default for ExperimentSection {
     }
 }
 
-/// The paper's goal between the end-effectors, `E2_T_E1,g` (translation in mm).
-pub const PAPER_GOAL_E2_FROM_E1_MM: [[f64; 4]; 4] = [
-    [0.8725, 0.159, 0.4619, 9.5626],
-    [-0.4253, -0.2179, 0.8784, -160.5035],
-    [0.2404, -0.9629, -0.1225, 412.4959],
-    [0.0, 0.0, 0.0, 1.0],
-];
+/// The paper's goal between the end-effectors, `E2_T_E1,g` (translation in mm): the
+/// experiment's.
+pub use mocomp_experiment::experiment::PAPER_GOAL_E2_FROM_E1_MM;
 
 /// The range checks: one mechanism, each error naming the key.
 #[derive(Debug, Clone, Copy)]

@@ -19,20 +19,16 @@ macro_rules! refuse {
 }
 
 pub mod blame;
-pub mod calibration;
 pub mod camera;
 pub mod camera_k4a;
-pub mod camera_link;
 pub mod camera_sim;
 pub mod collect;
 pub mod config;
 pub mod config_file;
 pub mod demo_options;
 pub mod demo_record;
-pub mod driver;
-pub mod experiment;
+pub mod experiment_config;
 pub mod frames;
-pub mod frontend;
 pub mod k4a;
 pub mod k4a_record;
 pub mod listen;
@@ -43,11 +39,30 @@ pub mod pose_lines;
 pub mod ros2;
 pub mod servo_check;
 pub mod session_link;
-pub mod session_plan;
 pub mod targets;
 pub mod teach;
 pub mod tuning;
 pub mod world;
+
+/// The experiment, the driver and the calibration procedure, from their own crate (the live
+/// session uses the driver and the calibration procedure too).
+pub use mocomp_experiment::{calibration, driver, experiment, session_plan};
+
+/// The front ends' contract, from its own crate (the experiment speaks it too).
+pub use mocomp_frontend as frontend;
+/// The camera pipeline's link to the front ends.
+pub use mocomp_frontend::vision as camera_link;
+
+impl From<mocomp_frontend::FrontendError> for AppError {
+    fn from(e: mocomp_frontend::FrontendError) -> Self {
+        use mocomp_frontend::FrontendError as F;
+        match e {
+            F::Refused(m) => Self::Refused(m),
+            F::Config(m) => Self::Config(m),
+            e @ F::Vision { .. } => Self::failed(e.to_string(), e),
+        }
+    }
+}
 
 /// Boxed cause of an [`AppError::Failed`].
 pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;

@@ -9,12 +9,12 @@
 //! `mocomp` controllers on the same trajectory and noise. mocomp must beat the paper's pipeline
 //! by the margins the issue asks for.
 
-use mocomp_app::experiment::{Controller, ExperimentConfig, run_experiment};
+use mocomp_app::experiment::{Controller, run_experiment};
 use std::net::IpAddr;
 
 #[test]
 fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
-    let mut cfg = ExperimentConfig::new().unwrap();
+    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
     cfg.coil_host = IpAddr::from([127, 0, 0, 51]);
     cfg.head_host = IpAddr::from([127, 0, 0, 52]);
     cfg.duration_s = 20.0;

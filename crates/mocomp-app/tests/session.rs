@@ -30,7 +30,7 @@ fn nods() -> HeadMotion {
 }
 
 fn session_run(coil: [u8; 4], head: [u8; 4], bump: Option<f64>) -> (ExperimentConfig, Run) {
-    let mut cfg = ExperimentConfig::new().unwrap();
+    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
     cfg.coil_host = IpAddr::from(coil);
     cfg.head_host = IpAddr::from(head);
     cfg.motion = nods();

@@ -15,7 +15,7 @@ use mocomp_app::config::Config;
 use mocomp_app::config::Setup;
 use mocomp_app::demo_options::{DemoOverrides, demo_config};
 use mocomp_app::demo_record::DemoRecording;
-use mocomp_app::experiment::{Controller, ExperimentConfig, Phase, Watch, run_experiment_watched};
+use mocomp_app::experiment::{Controller, Phase, Watch, run_experiment_watched};
 use mocomp_app::frontend::{Both, Controls, Observer, Silent};
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
 use mocomp_kin::Arm;
@@ -177,7 +177,7 @@ impl DemoCmd {
     /// Runs the demo (or prints its configuration).
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let config = self.configuration()?;
-        let mut exp = ExperimentConfig::from_config(&config)?;
+        let mut exp = mocomp_app::experiment_config::from_config(&config)?;
         if let Some(at) = self.tracker_bump_at_s {
             exp.bump_tracker(
                 at,

@@ -1,7 +1,7 @@
 //! The experiment's written record: the summary (JSON and Markdown), the CSV of every tick, and
 //! the figures ([`crate::plots`]), in one directory.
 
-use mocomp_app::experiment::{ExperimentConfig, Outcome};
+use mocomp_experiment::experiment::{ExperimentConfig, Outcome};
 use mocomp_geom::units::{m_to_mm, rad_to_deg};
 use mocomp_sim::HeadMotion;
 use serde::Serialize;

@@ -11,8 +11,8 @@
 //! Text is set in DejaVu Sans compiled into the binary, so the figures look the same on every
 //! machine and need no system fonts.
 
-use mocomp_app::experiment::{Controller, Record, Run};
 use mocomp_control::{Event, Mode};
+use mocomp_experiment::experiment::{Controller, Record, Run};
 use mocomp_geom::units::{m_to_mm, rad_to_deg};
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};

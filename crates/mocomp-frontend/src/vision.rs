@@ -2,7 +2,7 @@
 //! parameters and the newest frame ([`VisionLink`]), and its news ([`CameraNote`]). A leaf: it
 //! knows the vision pipeline and nothing of the loop or the session.
 
-use crate::{AppError, Context};
+use crate::FrontendError;
 use mocomp_vision::{Frame, FrameResult, TrackParams};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -39,7 +39,9 @@ pub struct VisionLink {
     preview: Mutex<Option<Arc<Preview>>>,
 }
 
-pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+/// The value behind `m`, whether or not a thread panicked holding it (the values kept here stay
+/// whole: each is replaced at once).
+pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
@@ -59,10 +61,10 @@ impl VisionLink {
     }
 
     /// New parameters, for the next frame; checked as the configuration file checks them.
-    pub fn set_params(&self, params: TrackParams) -> Result<(), AppError> {
+    pub fn set_params(&self, params: TrackParams) -> Result<(), FrontendError> {
         params
             .validate("tracker.camera.params")
-            .map_err(|e| AppError::Config(e.to_string()))?;
+            .map_err(|e| FrontendError::Config(e.to_string()))?;
         *lock(&self.params) = params;
         self.version.fetch_add(1, Ordering::Release);
         Ok(())
@@ -86,15 +88,17 @@ impl VisionLink {
 
     /// The newest frame with the paper's overlays (scan area, blobs with boxes, fiducials
     /// numbered, rejected blobs crossed) as a PNG; `None` before the first frame.
-    pub fn overlay_png(&self) -> Result<Option<Vec<u8>>, AppError> {
+    pub fn overlay_png(&self) -> Result<Option<Vec<u8>>, FrontendError> {
         let Some(p) = self.preview() else {
             return Ok(None);
         };
-        let frame = Frame::new(p.width, p.height, &p.ir, &p.depth).what(|| "the camera's frame")?;
+        let vision = |what| move |source| FrontendError::Vision { what, source };
+        let frame =
+            Frame::new(p.width, p.height, &p.ir, &p.depth).map_err(vision("the camera's frame"))?;
         let img = mocomp_vision::overlay::overlay(&frame, p.scan_area, &p.result);
         mocomp_vision::codec::encode_rgb_png(img.width, img.height, &img.data, "overlay")
             .map(Some)
-            .what(|| "encoding the camera's overlay")
+            .map_err(vision("encoding the camera's overlay"))
     }
 }
 

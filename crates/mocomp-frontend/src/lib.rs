@@ -1,16 +1,56 @@
-//! The contract between the loop and its front ends (the CLI's printer, the console, ROS 2, a
-//! recording): what they are told ([`Observer`], [`Status`], [`Note`], [`mode_name`]) and how
-//! they steer the loop ([`Controls`]). A leaf: nothing here reaches into the loop's or the
-//! session's files, so a front end depends on this and not on them.
+//! The contract between a running loop and its front ends (the CLI's printer, the console,
+//! ROS 2, a recording): what they are told ([`Observer`], [`Status`], [`Note`], [`mode_name`])
+//! and how they steer the loop ([`Controls`]), with the camera pipeline's link ([`vision`]).
+//! The live session and the experiment both speak it.
+//!
+//! **Limits.** No I/O, no thread, no loop: flags, bounded channels and types. Nothing here
+//! reaches into the session, the experiment or a front end, so each depends on this and not on
+//! the others.
 
-use crate::AppError;
-use crate::camera_link::VisionLink;
+pub mod vision;
+
 use mocomp_control::{CycleRecord, Event, LoopParams, Mode};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_session::{Drift, GateEvent, PulseAt};
+use mocomp_vision::VisionError;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+use vision::VisionLink;
+
+/// What a front end's request could not do.
+#[derive(Debug, thiserror::Error)]
+pub enum FrontendError {
+    /// The loop cannot take the request (it is busy with earlier ones, or has ended).
+    #[error("{0}")]
+    Refused(String),
+    /// A value out of range; the message names the key.
+    #[error("{0}")]
+    Config(String),
+    /// Making `what` from the camera's frame failed.
+    #[error("{what}")]
+    Vision {
+        /// What was being made.
+        what: &'static str,
+        /// Why it failed.
+        #[source]
+        source: VisionError,
+    },
+}
+
+/// Offers `value` to the loop through `tx` without waiting: refused while `earlier` (what is
+/// still queued, as a sentence's subject) waits, or once the loop has ended.
+fn offer<T>(tx: &SyncSender<T>, value: T, earlier: &str) -> Result<(), FrontendError> {
+    match tx.try_send(value) {
+        Ok(()) => Ok(()),
+        Err(TrySendError::Full(_)) => Err(FrontendError::Refused(format!(
+            "{earlier} still waiting for the loop; try again"
+        ))),
+        Err(TrySendError::Disconnected(_)) => {
+            Err(FrontendError::Refused("the loop has ended".into()))
+        }
+    }
+}
 
 /// The session's targets: name and `head_from_coil`, in the file's order.
 pub type NamedTargets = Vec<(String, Isometry3<f64>)>;
@@ -97,7 +137,7 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
 }
 
 /// A target selected: its index in the session's targets and its `head_from_coil`.
-pub(crate) type Selection = (usize, Isometry3<f64>);
+pub type Selection = (usize, Isometry3<f64>);
 
 /// Parameter changes that may wait for the loop to take them.
 const PENDING_PARAMS: usize = 4;
@@ -149,12 +189,12 @@ impl Controls {
     }
 
     /// The running session's targets, once (the loop's start sets them).
-    pub(crate) fn attach_targets(&self, targets: Arc<NamedTargets>) {
+    pub fn attach_targets(&self, targets: Arc<NamedTargets>) {
         self.targets.set(targets).ok();
     }
 
     /// The session's camera pipeline, once (the loop's start sets it).
-    pub(crate) fn attach_vision(&self, vision: Arc<VisionLink>) {
+    pub fn attach_vision(&self, vision: Arc<VisionLink>) {
         self.vision.set(vision).ok();
     }
 
@@ -226,30 +266,14 @@ impl Controls {
     }
 
     /// New loop parameters (already validated) for the loop to take at its next cycle.
-    pub fn tune(&self, params: LoopParams) -> Result<(), AppError> {
-        match self.params_tx.try_send(params) {
-            Ok(()) => Ok(()),
-            Err(TrySendError::Full(_)) => Err(AppError::Refused(
-                "earlier parameter changes are still waiting for the loop; try again".into(),
-            )),
-            Err(TrySendError::Disconnected(_)) => {
-                Err(AppError::Refused("the loop has ended".into()))
-            }
-        }
+    pub fn tune(&self, params: LoopParams) -> Result<(), FrontendError> {
+        offer(&self.params_tx, params, "earlier parameter changes are")
     }
 
     /// A new goal (`head_from_coil`, checked with the loop's goal check) for the loop to take at
     /// its next cycle.
-    pub fn set_goal(&self, head_from_coil: Isometry3<f64>) -> Result<(), AppError> {
-        match self.goal_tx.try_send(head_from_coil) {
-            Ok(()) => Ok(()),
-            Err(TrySendError::Full(_)) => Err(AppError::Refused(
-                "an earlier goal is still waiting for the loop; try again".into(),
-            )),
-            Err(TrySendError::Disconnected(_)) => {
-                Err(AppError::Refused("the loop has ended".into()))
-            }
-        }
+    pub fn set_goal(&self, head_from_coil: Isometry3<f64>) -> Result<(), FrontendError> {
+        offer(&self.goal_tx, head_from_coil, "an earlier goal is")
     }
 
     /// Selects the session's target `index` (its `head_from_coil`, checked with the loop's goal
@@ -259,20 +283,16 @@ impl Controls {
         &self,
         index: usize,
         head_from_coil: Isometry3<f64>,
-    ) -> Result<(), AppError> {
-        match self.target_tx.try_send((index, head_from_coil)) {
-            Ok(()) => Ok(()),
-            Err(TrySendError::Full(_)) => Err(AppError::Refused(
-                "an earlier target is still waiting for the loop; try again".into(),
-            )),
-            Err(TrySendError::Disconnected(_)) => {
-                Err(AppError::Refused("the loop has ended".into()))
-            }
-        }
+    ) -> Result<(), FrontendError> {
+        offer(
+            &self.target_tx,
+            (index, head_from_coil),
+            "an earlier target is",
+        )
     }
 
     /// The loop's end of the target channel (once).
-    pub(crate) fn take_targets(&self) -> Option<Receiver<Selection>> {
+    pub fn take_targets(&self) -> Option<Receiver<Selection>> {
         self.target_rx
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -280,7 +300,7 @@ impl Controls {
     }
 
     /// The loop's end of the goal channel (once).
-    pub(crate) fn take_goals(&self) -> Option<Receiver<Isometry3<f64>>> {
+    pub fn take_goals(&self) -> Option<Receiver<Isometry3<f64>>> {
         self.goal_rx
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -288,7 +308,7 @@ impl Controls {
     }
 
     /// The loop's end of the parameter channel (once).
-    pub(crate) fn take_params(&self) -> Option<Receiver<LoopParams>> {
+    pub fn take_params(&self) -> Option<Receiver<LoopParams>> {
         self.params_rx
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -330,7 +350,7 @@ pub enum Note {
     /// The gate output could not be set (the robot refused the write).
     OutputFailed(f64),
     /// The depth camera's news at loop time `.0`: frames dropped, its end.
-    Camera(f64, crate::camera_link::CameraNote),
+    Camera(f64, vision::CameraNote),
     /// The operator's re-arm at loop time `.0`: what the robot's recovery did, or why it could
     /// not.
     Rearm(f64, RearmOutcome),

@@ -27,16 +27,14 @@
 //! The score is the paper's `d(t) = ‖E2_T_E1,g − E2_T_E1‖_F` (translation in mm), computed from the
 //! simulators' true joints, with the translation and rotation errors of `E2_T_E1`.
 
-use crate::AppError;
 use crate::calibration::MoveState;
-use crate::config::Config;
 use crate::driver::Requests;
-use crate::frontend::{Controls, Observer};
 use crate::session_plan::SessionPlan;
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
 use mocomp_control::baseline::{PaperController, PaperPipeline};
 use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode};
+use mocomp_frontend::{Controls, Observer};
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{
     Clock, LengthUnit, PoseSource, SteppedClock, frobenius_deviation, iso_from_matrix_mm,
@@ -186,78 +184,23 @@ pub struct ExperimentConfig {
     pub session: Option<SessionPlan>,
 }
 
+/// The paper's goal between the end-effectors, `E2_T_E1,g` (translation in mm).
+pub const PAPER_GOAL_E2_FROM_E1_MM: [[f64; 4]; 4] = [
+    [0.8725, 0.159, 0.4619, 9.5626],
+    [-0.4253, -0.2179, 0.8784, -160.5035],
+    [0.2404, -0.9629, -0.1225, 412.4959],
+    [0.0, 0.0, 0.0, 1.0],
+];
+
 /// The paper's goal as a rigid transform (metres).
 pub fn paper_goal() -> Result<Isometry3<f64>, ExperimentError> {
-    let rows = crate::config::PAPER_GOAL_E2_FROM_E1_MM;
+    let rows = PAPER_GOAL_E2_FROM_E1_MM;
     let m = Matrix4::from_fn(|r, c| rows[r][c]);
     // Four decimals in the paper: the rotation is orthonormal to about 1e-3.
     iso_from_matrix_mm(&m, 5e-3).map_err(|e| ExperimentError::Goal(e.to_string()))
 }
 
 impl ExperimentConfig {
-    /// The defaults: those of the configuration ([`crate::config::Config`]'s, see
-    /// [`crate::config::ExperimentSection`]): a UR3 and a UR5 (CB3, 125 Hz) on 127.0.0.2 and
-    /// 127.0.0.3, 30 s of smooth random motion up to 20 mm/s and 10°/s, a 60 Hz tracker with
-    /// 20 ms latency and 0.1 mm / 1 mrad noise per axis, 15 calibration poses per robot (10
-    /// samples averaged at each), the paper's goal.
-    pub fn new() -> Result<Self, ExperimentError> {
-        Self::from_config(&Config::default()).map_err(|e| ExperimentError::Config(e.to_string()))
-    }
-
-    /// The experiment's configuration from the one configuration (`mocomp demo`): see
-    /// [`crate::config::ExperimentSection`] for which keys it takes. Checked; errors name the key.
-    pub fn from_config(cfg: &Config) -> Result<Self, AppError> {
-        let x = &cfg.experiment;
-        let coil_host: IpAddr = cfg
-            .robot
-            .host
-            .parse()
-            .map_err(|e| AppError::Config(format!("robot.host {:?}: {e}", cfg.robot.host)))?;
-        let m = Matrix4::from_fn(|r, c| x.goal_e2_from_e1_mm[r][c]);
-        let goal = iso_from_matrix_mm(&m, 5e-3)
-            .map_err(|e| AppError::Config(format!("experiment.goal_e2_from_e1_mm: {e}")))?;
-        let mut e = Self {
-            coil_robot: cfg.robot.model,
-            head_robot: x.head_robot.unwrap_or(match cfg.robot.model.spec().series {
-                mocomp_kin::Series::Cb3 => Model::Ur5,
-                mocomp_kin::Series::ESeries => Model::Ur5e,
-            }),
-            coil_host,
-            head_host: x.head_host,
-            duration_s: x.duration_s,
-            motion: cfg.tracker.simulated.motion.clone(),
-            tracker: cfg.tracker.simulated.model,
-            paper: x.paper,
-            calibration_poses: cfg.calibrate.poses,
-            calibration_samples: cfg.calibrate.samples_per_pose,
-            goal_e2_from_e1: goal,
-            loop_params: cfg.params,
-            predictor: cfg.predictor,
-            servo: (cfg.servo.lookahead_s, cfg.servo.gain),
-            head: cfg.head_model(),
-            coil: cfg.coil_model(),
-            contact: ContactParams {
-                noise_n: mocomp_sim::contact::SIMULATED_SENSOR_NOISE_N,
-                ..ContactParams::default()
-            },
-            on_scalp: x.contact,
-            tracker_bump: None,
-            session: None,
-        };
-        if e.on_scalp {
-            e.loop_params.force_sensing = true;
-            e.loop_params.contact_mode = true;
-        }
-        if let Some(seed) = x.seed {
-            e.set_seed(seed);
-        }
-        e.validate().map_err(|e| match e {
-            ExperimentError::Config(m) => AppError::Config(m),
-            other => AppError::failed("the experiment's configuration", other),
-        })?;
-        Ok(e)
-    }
-
     /// Bumps the tracker `at_s` into each run: the camera shifts by `offset_m` along its x axis
     /// and turns by `angle_rad` about its z axis. Refused (naming the option) when a value is not
     /// finite or the time is outside the run.
@@ -294,7 +237,7 @@ impl ExperimentConfig {
     }
 
     /// Checks the values the components do not check themselves; the error names the key as in
-    /// the configuration file (see [`crate::config`]).
+    /// the configuration file (see `mocomp_app::config`).
     pub fn validate(&self) -> Result<(), ExperimentError> {
         let bad = |m: String| Err(ExperimentError::Config(m));
         if let Some(plan) = &self.session {
@@ -849,7 +792,7 @@ fn spin(
 
 /// The experiment's rig in lockstep: two simulated robots (U1 with the coil, U2 with the head
 /// phantom) and the tracker model serving both markers, on one stepped clock. (A live session's
-/// robot and tracker are [`crate::world::World`].)
+/// robot and tracker are `mocomp_app::world::World`.)
 struct Rig {
     clock: Arc<SteppedClock>,
     period: f64,
@@ -1919,40 +1862,5 @@ mod error_tests {
         );
         let source = std::error::Error::source(&e).map(|s| s.is::<mocomp_ur::UrError>());
         assert_eq!(source, Some(true), "the cause is the source, not a string");
-    }
-}
-
-#[cfg(test)]
-mod config_tests {
-    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
-    use super::*;
-
-    #[test]
-    fn the_experiment_takes_the_shared_keys() {
-        let cfg = Config::parse("f.toml", 
-            "[robot]\nmodel = \"ur5e\"\nhost = \"127.0.0.61\"\n[experiment]\nseed = 9\nduration_s = 4.0\n\
-             [tracker.simulated.model]\nnoise_m = 0.0002\n[servo]\ngain = 900.0\n[coil]\nradius_m = 0.05\n\
-             [calibrate]\nposes = 12\nsamples_per_pose = 4\n",
-        )
-        .unwrap();
-        let e = ExperimentConfig::from_config(&cfg).unwrap();
-        assert_eq!((e.coil_robot, e.head_robot), (Model::Ur5e, Model::Ur5e));
-        assert_eq!(e.coil_host, IpAddr::from([127, 0, 0, 61]));
-        assert_eq!(e.duration_s, 4.0);
-        assert_eq!(e.tracker.noise_m, 2e-4);
-        // The seed reaches the tracker and the random motion.
-        assert_eq!(e.tracker.seed, 9);
-        assert!(matches!(e.motion, HeadMotion::Random(r) if r.seed == 9));
-        assert_eq!(e.servo.1, 900.0);
-        assert_eq!(e.coil.radius, 0.05);
-        assert_eq!((e.calibration_poses, e.calibration_samples), (12, 4));
-        // Two robots of different series cannot share one stepped clock.
-        let bad = Config::parse(
-            "f.toml",
-            "[robot]\nmodel = \"ur3e\"\n[experiment]\nhead_robot = \"ur5\"\n",
-        )
-        .unwrap();
-        let err = ExperimentConfig::from_config(&bad).unwrap_err().to_string();
-        assert!(err.contains("experiment.head_robot"), "{err}");
     }
 }

@@ -1,0 +1,16 @@
+//! The paper's two-robot experiment ([`experiment`]): a head robot moves a phantom, the coil
+//! robot follows it under a [`mocomp_control::Controller`], both on simulated controllers in
+//! lockstep on one stepped clock, scored by the paper's `d`. Beside it, what the experiment and
+//! the live session share: the one loop that drives a controller ([`driver`], a `Pace` per
+//! mode), the one calibration procedure ([`calibration`]), and the experiment's scripted
+//! clinical session ([`session_plan`]).
+//!
+//! **Limits.** It knows no configuration file, no command line and no front end beyond the
+//! contract (`mocomp-frontend`): the application turns its configuration into an
+//! [`experiment::ExperimentConfig`]. Its simulators and connections are on loopback only; a run
+//! is deterministic for its seed.
+
+pub mod calibration;
+pub mod driver;
+pub mod experiment;
+pub mod session_plan;
