@@ -17,7 +17,7 @@ use crate::config::Setup;
 use crate::driver::Requests;
 use crate::frontend::{Controls, Note, Observer, RearmOutcome, Selection};
 pub use crate::live_log::{RecordOutcome, Ros2Figures, RunReport, StopOutcome, TrackerFigures};
-use crate::live_log::{SessionSide, Summary, logger};
+use crate::live_log::{Summary, logger};
 use crate::live_session::{LoopSession, SessionReport};
 use crate::session_link::{SessionLogSide, SessionStart};
 use crate::world::World;
@@ -318,10 +318,7 @@ fn start_logger(
     session_log: SessionLogSide,
 ) -> Result<std::thread::JoinHandle<(Summary, SessionReport)>, AppError> {
     let clock = Arc::clone(loop_clock);
-    let mut side = SessionSide {
-        notes: session_log.notes,
-        log: session_log.log,
-    };
+    let mut side = session_log;
     std::thread::Builder::new()
         .name("mocomp-log".into())
         .spawn(move || {

@@ -3,8 +3,9 @@
 //! second) and into the figures of the [`RunReport`], with the session's notes. Nothing here
 //! runs on the loop's thread.
 
-use crate::frontend::{Note, Observer, Status, mode_name, note_time};
-use crate::live_session::{SessionLog, SessionReport};
+use crate::frontend::{Observer, Status, mode_name, note_time};
+use crate::live_session::SessionReport;
+use crate::session_link::SessionLogSide;
 use mocomp_control::{CycleRecord, Event, Mode, Reason};
 use mocomp_geom::Clock;
 use std::path::Path;
@@ -74,20 +75,14 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
-/// The session's notes and log, on the logger's thread.
-pub(crate) struct SessionSide {
-    pub(crate) notes: Receiver<Note>,
-    pub(crate) log: SessionLog,
-}
-
-impl SessionSide {
-    fn drain(&mut self, s: &mut Summary, observer: &mut dyn Observer) {
-        while let Ok(n) = self.notes.try_recv() {
-            let t = note_time(&n);
-            let line = self.log.take(&n);
-            observer.session(t, &line);
-            s.session_lines.push((t, line));
-        }
+/// The session's notes waiting on the logger's thread: into its log, to the observer, into the
+/// summary.
+fn drain(session: &mut SessionLogSide, s: &mut Summary, observer: &mut dyn Observer) {
+    while let Ok(n) = session.notes.try_recv() {
+        let t = note_time(&n);
+        let line = session.log.take(&n);
+        observer.session(t, &line);
+        s.session_lines.push((t, line));
     }
 }
 
@@ -97,7 +92,7 @@ pub(crate) fn logger(
     csv: Option<std::fs::File>,
     clock: &OnceLock<Arc<dyn Clock>>,
     observer: &mut dyn Observer,
-    session: &mut SessionSide,
+    session: &mut SessionLogSide,
 ) -> Summary {
     let mut s = Summary::default();
     let mut w = csv.map(csv::Writer::from_writer);
@@ -172,7 +167,7 @@ pub(crate) fn logger(
             s.events.push((r.t, e));
             observer.event(r.t, &e);
         }
-        session.drain(&mut s, observer);
+        drain(session, &mut s, observer);
         if let Some(w) = w.as_mut().filter(|_| log_error.is_none()) {
             let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
             let mut row = vec![
@@ -219,7 +214,7 @@ pub(crate) fn logger(
         }
     }
     // The loop has ended: the notes of its last cycles.
-    session.drain(&mut s, observer);
+    drain(session, &mut s, observer);
     observer.finish();
     if let Some(w) = w.as_mut()
         && log_error.is_none()

@@ -115,9 +115,23 @@ pub fn positive(name: &str, v: f64) -> Result<()> {
 
 /// A positive, finite number (a duration in seconds, say), as clap parses a value.
 pub fn positive_number(s: &str) -> std::result::Result<f64, String> {
+    number_where(s, |v| v > 0.0, "must be a positive number")
+}
+
+/// A rate in (0, 10000] Hz, as clap parses a value.
+pub fn rate_hz(s: &str) -> std::result::Result<f64, String> {
+    number_where(s, |v| v > 0.0 && v <= 10_000.0, "must be in (0, 10000] Hz")
+}
+
+/// A finite number for which `holds` is true, or the error saying `rule`.
+fn number_where(
+    s: &str,
+    holds: impl Fn(f64) -> bool,
+    rule: &str,
+) -> std::result::Result<f64, String> {
     match s.parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        Ok(v) => Err(format!("{v}: must be a positive number")),
+        Ok(v) if v.is_finite() && holds(v) => Ok(v),
+        Ok(v) => Err(format!("{v}: {rule}")),
         Err(e) => Err(format!("{s:?}: {e}")),
     }
 }
@@ -132,6 +146,8 @@ mod tests {
         for bad in ["0", "-1", "inf", "NaN", "two"] {
             assert!(positive_number(bad).is_err(), "{bad}");
         }
+        assert_eq!(rate_hz("10000"), Ok(10_000.0));
+        assert!(rate_hz("10000.5").is_err());
     }
 
     #[test]

@@ -26,7 +26,7 @@ pub struct ServePosesCmd {
     #[arg(long, default_value = "HeadToTracker")]
     device: String,
     /// Poses per second.
-    #[arg(long, default_value_t = 60.0, value_parser = rate_hz)]
+    #[arg(long, default_value_t = 60.0, value_parser = crate::args::rate_hz)]
     rate: f64,
     /// Stop after this many (default: the file once; forever for sim).
     #[arg(long)]
@@ -75,14 +75,5 @@ impl ServePosesCmd {
             t[(2, 3)]
         )?;
         Ok(())
-    }
-}
-
-/// A rate in (0, 10000] Hz.
-fn rate_hz(s: &str) -> std::result::Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 && v <= 10_000.0 => Ok(v),
-        Ok(v) => Err(format!("{v}: must be in (0, 10000] Hz")),
-        Err(e) => Err(format!("{s:?}: {e}")),
     }
 }

@@ -15,6 +15,14 @@ use mocomp_kin::Selection;
 /// Corrections of one command by the safety filter (each re-solves IK and the limits).
 const FILTER_PASSES: usize = 2;
 
+/// Point `k` of 0..=4 along link `i` (from frame `i - 1` to frame `i`) of the arm's `frames`:
+/// where the link capsules are checked against the head.
+pub(super) fn link_point(frames: &[Isometry3<f64>; 7], i: usize, k: u32) -> Point3<f64> {
+    let a = frames[i - 1].translation.vector;
+    let b = frames[i].translation.vector;
+    Point3::from(a + (b - a) * (f64::from(k) / 4.0))
+}
+
 impl Compensator {
     /// The coil at joints `q` seen from the head at `base_from_head`.
     pub(super) fn head_from_coil_at(
@@ -264,22 +272,17 @@ impl Compensator {
         // The previous command's links are needed only near the head (rare).
         let mut prev_frames: Option<[Isometry3<f64>; 7]> = None;
         let head = &self.cfg.head;
-        let point_at = |f: &[Isometry3<f64>; 7], i: usize, k: u32| {
-            let a = f[i - 1].translation.vector;
-            let b = f[i].translation.vector;
-            Point3::from(a + (b - a) * (f64::from(k) / 4.0))
-        };
         let (radius, clearance) = (
             self.cfg.params.link_radius_m,
             self.cfg.params.link_clearance_m,
         );
         for i in 1..6 {
             for k in 0..=4 {
-                let p = point_at(&frames, i, k);
+                let p = link_point(&frames, i, k);
                 let d = head.distance_below(&(now_from_base * p), clearance + radius) - radius;
                 if d < clearance {
                     let pf = prev_frames.get_or_insert_with(|| self.arm.link_frames(q_prev));
-                    let p0 = point_at(pf, i, k);
+                    let p0 = link_point(pf, i, k);
                     let d0 = head
                         .distance(&(now_from_base * p0))
                         .min(head.distance(&(prev_from_base * p0)))

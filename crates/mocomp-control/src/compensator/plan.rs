@@ -3,12 +3,13 @@
 //! the branch the approach needs, [`crate::transit`]), checked before it is taken, and the step
 //! along it each cycle.
 
+use super::check::link_point;
 use super::{Compensator, CycleRecord, Plan};
 use crate::planner::{PlanError, ShellPath};
 use crate::safety::backed_off;
 use crate::supervisor::{Reason, TransitRefusal};
 use crate::transit::{JointPath, profile_step};
-use mocomp_geom::nalgebra::{Isometry3, Point3};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::{BranchPolicy, Metric, Selection};
 
 /// Samples along a planned path checked for reachability and collisions.
@@ -188,12 +189,8 @@ impl Compensator {
             }
             let frames = self.arm.link_frames(&q);
             for i in 1..6 {
-                let (a, b) = (
-                    frames[i - 1].translation.vector,
-                    frames[i].translation.vector,
-                );
                 for s in 0..=4 {
-                    let point = Point3::from(a + (b - a) * (f64::from(s) / 4.0));
+                    let point = link_point(&frames, i, s);
                     let d = self.cfg.head.distance(&(head_from_base * point)) - p.link_radius_m;
                     if d < p.link_clearance_m {
                         return false;
