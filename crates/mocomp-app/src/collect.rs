@@ -42,6 +42,22 @@ pub enum Progress {
     },
 }
 
+impl Progress {
+    /// What a person should read at this step (before the arm moves, above all), if anything.
+    pub fn announcement(&self) -> Option<String> {
+        match self {
+            Self::Waiting { poses } => Some(format!(
+                "{poses} calibration poses planned: press Start in the console (the arm will move)"
+            )),
+            Self::Planned { poses, center } => Some(format!(
+                "{poses} calibration poses around the flange at [{}]; the arm will move: keep the space clear",
+                mocomp_geom::text::row(&mocomp_geom::ur_pose_from_iso(center))
+            )),
+            Self::Pose { .. } => None,
+        }
+    }
+}
+
 /// What the collection measured, solved and saved.
 #[derive(Debug, Clone)]
 pub struct Collected {
@@ -61,6 +77,70 @@ pub struct Collected {
     pub y_change: PoseError,
     /// With the simulated world: the errors of Y and X against its truth, (m, rad) each.
     pub against_truth: Option<(PoseError, PoseError)>,
+}
+
+impl Collected {
+    /// One line for a front end: how many poses were measured, the residuals, the file.
+    pub fn one_line(&self) -> String {
+        format!(
+            "{} of {} poses measured; residuals {:.3} mm, {:.3}° RMS; saved {}",
+            self.pairs.len(),
+            self.planned,
+            self.solved.rms_mm,
+            self.solved.rms_deg,
+            self.out.display()
+        )
+    }
+
+    /// The report: what was measured, the calibration's own report, where it was written and
+    /// how to use it (`setup` is the one it ran with).
+    pub fn text(&self, setup: &Setup) -> String {
+        use std::fmt::Write;
+        let missed = if self.missed.is_empty() {
+            String::new()
+        } else {
+            format!("; marker not seen at pose(s) {:?}", self.missed)
+        };
+        let mut s = format!(
+            "measured {} of {} poses{missed}\n{}wrote {}\n",
+            self.pairs.len(),
+            self.planned,
+            self.solved,
+            self.out.display()
+        );
+        // Writing to a String cannot fail.
+        if let Some(p) = &self.pairs_csv {
+            let _ = writeln!(
+                s,
+                "wrote {} (re-solve with: mocomp calibrate solve --pairs {} --robot {})",
+                p.display(),
+                p.display(),
+                setup.model
+            );
+        }
+        let _ = writeln!(
+            s,
+            "Y against the configured base_from_tracker: {:.2} mm, {:.3}°",
+            self.y_change.0 * 1e3,
+            self.y_change.1.to_degrees()
+        );
+        if let Some((y, x)) = self.against_truth {
+            let _ = writeln!(
+                s,
+                "against the simulation's truth: Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}°",
+                y.0 * 1e3,
+                y.1.to_degrees(),
+                x.0 * 1e3,
+                x.1.to_degrees()
+            );
+        }
+        let _ = writeln!(
+            s,
+            "to use it: set calibration.file = {:?} in the configuration",
+            setup.file.calibrate.out
+        );
+        s
+    }
 }
 
 /// A pose's error: translation (m) and rotation (rad).

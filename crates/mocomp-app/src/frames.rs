@@ -7,6 +7,7 @@
 use crate::{AppError, Context};
 use mocomp_geom::matrix_mm_from_iso;
 use mocomp_geom::nalgebra::Isometry3;
+use mocomp_geom::units::m_to_mm;
 use mocomp_vision::codec::{Gray16, decode_gray16_png, encode_gray16_png, encode_rgb_png};
 use mocomp_vision::overlay::overlay;
 use mocomp_vision::render::{Distractors, RenderOptions, render, view_pose};
@@ -126,6 +127,60 @@ pub fn track_frame(
         std::fs::write(&path, png).what(|| format!("{}: cannot write", path.display()))?;
     }
     Ok(result)
+}
+
+/// One frame's result as a line of `mocomp track`'s output: JSON (`json`) or text. The JSON
+/// has `frame`, `device_usec` (a recording's capture), `found`, `tracker_from_marker` (4×4, mm),
+/// `fre_mm`, `reason` (why not found) and `blobs`.
+pub fn frame_line(
+    name: &str,
+    device_usec: Option<u64>,
+    result: &FrameResult,
+    json: bool,
+) -> String {
+    let blobs = result.blobs.len();
+    if json {
+        #[derive(Serialize)]
+        struct Line<'a> {
+            frame: &'a str,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            device_usec: Option<u64>,
+            found: bool,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            tracker_from_marker: Option<[[f64; 4]; 4]>,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            fre_mm: Option<f64>,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            reason: Option<String>,
+            blobs: usize,
+        }
+        let d = result.detection.as_ref();
+        let line = Line {
+            frame: name,
+            device_usec,
+            found: d.is_some(),
+            tracker_from_marker: d.map(|d| rows_mm(&d.tracker_from_marker)),
+            fre_mm: d.map(|d| m_to_mm(d.fre_m)),
+            reason: result.not_found.as_ref().map(|r| r.to_string()),
+            blobs,
+        };
+        // Numbers and strings always serialise.
+        return serde_json::to_string(&line).unwrap_or_default();
+    }
+    match (&result.detection, &result.not_found) {
+        (Some(d), _) => {
+            let t = d.tracker_from_marker.translation.vector.map(m_to_mm);
+            format!(
+                "{name}: found at ({:.1}, {:.1}, {:.1}) mm, FRE {:.2} mm, {blobs} blobs",
+                t.x,
+                t.y,
+                t.z,
+                m_to_mm(d.fre_m)
+            )
+        }
+        (None, Some(r)) => format!("{name}: not found: {r} ({blobs} blobs)"),
+        (None, None) => format!("{name}: not found"),
+    }
 }
 
 /// A transform as the rows of a 4×4 matrix with translation in mm (the JSON files' form).

@@ -35,6 +35,55 @@ pub struct Heard {
     pub matrix_mm: Matrix4<f64>,
 }
 
+impl Heard {
+    /// One line for a person: device, time, status and position (mm).
+    pub fn line(&self, device: &str) -> String {
+        let m = &self.matrix_mm;
+        format!(
+            "{device} t={} {} ({:.2}, {:.2}, {:.2}) mm",
+            self.t.map_or_else(|| "none".into(), |t| format!("{t:.6}")),
+            if self.valid { "valid" } else { "INVALID" },
+            m[(0, 3)],
+            m[(1, 3)],
+            m[(2, 3)]
+        )
+    }
+
+    /// One JSON object: `device`, `t`, `valid`, `tracker_from_marker` (4×4 rows, mm).
+    pub fn json(&self, device: &str) -> String {
+        #[derive(serde::Serialize)]
+        struct Line<'a> {
+            device: &'a str,
+            t: Option<f64>,
+            valid: bool,
+            tracker_from_marker: [[f64; 4]; 4],
+        }
+        let m = &self.matrix_mm;
+        let line = Line {
+            device,
+            t: self.t,
+            valid: self.valid,
+            tracker_from_marker: std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])),
+        };
+        // A struct of numbers and a string always serialises.
+        serde_json::to_string(&line).unwrap_or_default()
+    }
+}
+
+/// What a listen heard in all: the poses and the client's counters, as one line.
+pub fn counts_line(poses: u64, c: &ClientCounters) -> String {
+    format!(
+        "{poses} poses; {} messages, {} CRC errors, {} malformed, {} zero timestamps, {} backwards, {} clock steps, {} reconnects",
+        c.messages,
+        c.crc_errors,
+        c.malformed,
+        c.zero_timestamps,
+        c.backwards_timestamps,
+        c.clock_steps,
+        c.connections.saturating_sub(1)
+    )
+}
+
 /// Listens until `count` poses of the device arrived (or forever), telling `each` of every one;
 /// returns the client's counters. An [`AppError::Refused`] when none arrives for `timeout`.
 pub fn listen(

@@ -13,6 +13,34 @@ use std::sync::mpsc::Receiver;
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
+/// An observer that writes the status and the events to its writer, one line each (`mocomp
+/// run` without `--quiet`, on standard error). A line that cannot be written is dropped: the
+/// loop never waits on a terminal.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Lines<W>(pub W);
+
+impl<W: std::io::Write + Send> Observer for Lines<W> {
+    fn event(&mut self, t: f64, e: &Event) {
+        let _ = writeln!(self.0, "{t:9.3} s  event {e:?}");
+    }
+    fn session(&mut self, t: f64, text: &str) {
+        let _ = writeln!(self.0, "{t:9.3} s  session: {text}");
+    }
+    fn status(&mut self, s: &Status) {
+        let _ = writeln!(
+            self.0,
+            "{:9.3} s  {:.0} Hz  horizon {:.1} ms (sample age {:.1} + command delay {:.1} + lookahead)  deviation max {:.2} mm  {}",
+            s.t,
+            s.rate_hz,
+            s.horizon_s * 1e3,
+            s.sample_age_s * 1e3,
+            s.command_delay_s * 1e3,
+            s.deviation_max_m * 1e3,
+            mode_name(&s.mode)
+        );
+    }
+}
+
 /// What a recording left: its messages and why it stopped, if it did.
 #[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
 pub struct RecordOutcome {

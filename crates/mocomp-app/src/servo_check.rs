@@ -84,6 +84,96 @@ pub struct StreamReport {
     pub realtime: String,
 }
 
+impl std::fmt::Display for StreamReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let r = self;
+        writeln!(
+            f,
+            "{} ({} at {:.0} Hz): {} cycles in {} s\n  period median {:.3} ms, p99 {:.3} ms, max {:.3} ms, missed {}\n  servo call median {:.1} us, p99 {:.1} us\n  command → acknowledged in state: median {:.2} ms, p99 {:.2} ms\n  tracking vs current target: joint max {:.4} rad (rms {:.4}; servo lag expected ≈ lookahead × speed = {:.4}), TCP max {:.2} mm (rms {:.2})\n  vs target one lookahead earlier: joint max {:.5} rad",
+            r.model,
+            r.controller,
+            r.rate_hz,
+            r.cycles,
+            r.seconds,
+            r.period_median_ms,
+            r.period_p99_ms,
+            r.period_max_ms,
+            r.missed_cycles,
+            r.servo_call_median_us,
+            r.servo_call_p99_us,
+            r.ack_latency_median_ms,
+            r.ack_latency_p99_ms,
+            r.tracking_joint_max_rad,
+            r.tracking_joint_rms_rad,
+            r.expected_lag_rad,
+            r.tracking_tcp_max_mm,
+            r.tracking_tcp_rms_mm,
+            r.lag_compensated_joint_max_rad,
+        )
+    }
+}
+
+/// A controller's state as mocomp's client reads it (`mocomp robot state`).
+#[derive(Debug, Clone, Serialize)]
+pub struct StateReport {
+    /// The controller's clock, s.
+    pub controller_s: f64,
+    /// Joint angles, rad.
+    pub actual_q: [f64; 6],
+    /// The TCP as a UR pose vector (m, rotation vector).
+    pub tcp_pose: [f64; 6],
+    /// Robot mode.
+    pub robot_mode: String,
+    /// Safety mode.
+    pub safety_mode: String,
+    /// Program state.
+    pub runtime_state: String,
+    /// The fault it reports, if any.
+    pub fault: Option<String>,
+    /// `actual_TCP_force`: N and N·m, base frame.
+    pub tcp_force: [f64; 6],
+    #[serde(skip)]
+    head: String,
+}
+
+impl StateReport {
+    /// Connects to the controller at `host`, starts the control program and reads its state.
+    pub fn read(host: IpAddr) -> Result<Self, AppError> {
+        let robot = connect(host)?;
+        let Some(s) = robot.state() else {
+            refuse!("no state received from {host}");
+        };
+        Ok(Self {
+            controller_s: s.controller_s,
+            actual_q: s.actual_q,
+            tcp_pose: mocomp_geom::ur_pose_from_iso(&s.base_from_tcp),
+            robot_mode: s.robot_mode.to_string(),
+            safety_mode: s.safety_mode.to_string(),
+            runtime_state: s.runtime_state.to_string(),
+            fault: s.fault().map(|f| f.to_string()),
+            tcp_force: s.tcp_force,
+            head: format!("controller {} at {host}", robot.controller_version()),
+        })
+    }
+}
+
+impl std::fmt::Display for StateReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "{}: {} / {} / {}; q = {:?} rad; TCP = {:?}; TCP force = {:?} N, N·m (base frame); fault: {}",
+            self.head,
+            self.robot_mode,
+            self.safety_mode,
+            self.runtime_state,
+            self.actual_q,
+            self.tcp_pose,
+            self.tcp_force,
+            self.fault.as_deref().unwrap_or("none")
+        )
+    }
+}
+
 fn percentile(v: &mut [f64], p: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;

@@ -32,6 +32,40 @@ pub struct Taught {
     pub previous: Option<Isometry3<f64>>,
 }
 
+impl Taught {
+    /// The report: the samples, the coil's distance to the head model, the change from the
+    /// previous goal, and the goal as the configuration file writes it (UR pose vector).
+    pub fn text(&self) -> String {
+        let six = |v: [f64; 6]| {
+            v.iter()
+                .map(|x| format!("{x:.6}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut s = format!(
+            "head samples: {} averaged, spread {:.3} mm, {:.3}° RMS\ncoil face {:.1} mm from the head model",
+            self.samples,
+            self.spread.0 * 1e3,
+            self.spread.1.to_degrees(),
+            self.distance_m * 1e3
+        );
+        if let Some(old) = &self.previous {
+            s += &format!(
+                "; {:.1} mm and {:.2}° from the previous goal",
+                translation_error(&self.head_from_coil, old) * 1e3,
+                rotation_error(&self.head_from_coil, old).to_degrees()
+            );
+        }
+        let pose = mocomp_geom::ur_pose_from_iso(&self.head_from_coil);
+        s += &format!("\ngoal.head_from_coil = [{}]\n", six(pose));
+        if let Some(old) = &self.previous {
+            let pose = mocomp_geom::ur_pose_from_iso(old);
+            s += &format!("previous            = [{}]\n", six(pose));
+        }
+        s
+    }
+}
+
 /// The largest spread (RMS about the mean) of the head samples: beyond it the head moved.
 const MAX_SPREAD_M: f64 = 1e-3;
 /// The same for rotation (0.5°).

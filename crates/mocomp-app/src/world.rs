@@ -405,3 +405,48 @@ impl Default for SimulatorOptions {
         }
     }
 }
+
+/// Prints the simulator's addresses, then its events as they happen, until `seconds` have passed
+/// (then its counters) or forever (`mocomp ursim`).
+pub fn serve_simulator(
+    out: &mut dyn Write,
+    sim: &Sim,
+    model: mocomp_kin::Model,
+    seconds: Option<f64>,
+) -> std::io::Result<()> {
+    use std::time::{Duration, Instant};
+    let a = sim.addrs();
+    let v = sim.with(|c| c.config().version());
+    writeln!(
+        out,
+        "simulated {model} (controller {v}, {:.0} Hz): RTDE {}, dashboard {}, script {} / {} / {}",
+        1.0 / sim.with(|c| c.period_s()),
+        a.rtde,
+        a.dashboard,
+        a.primary,
+        a.secondary,
+        a.realtime
+    )?;
+    out.flush()?;
+    let start = Instant::now();
+    let mut seen = 0;
+    loop {
+        std::thread::sleep(Duration::from_millis(50));
+        let (events, total) = sim.with(|c| c.events());
+        let new = (total - seen) as usize;
+        for e in events.iter().skip(events.len().saturating_sub(new)) {
+            writeln!(out, "[{:10.3} s] {}", e.time_s, e.text)?;
+        }
+        seen = total;
+        out.flush()?;
+        if seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s) {
+            let st = sim.stats();
+            writeln!(
+                out,
+                "{} cycles, {} inputs, {} outputs ({} skipped), {} bad packages, {} overruns",
+                st.ticks, st.inputs, st.outputs, st.outputs_skipped, st.bad_packages, st.overruns
+            )?;
+            return Ok(());
+        }
+    }
+}

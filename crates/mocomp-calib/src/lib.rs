@@ -22,6 +22,7 @@ pub mod plan;
 pub mod refine;
 pub mod report;
 pub mod solve;
+pub mod summary;
 pub mod synth;
 
 pub use error::CalibError;

@@ -77,6 +77,23 @@ fn random_axis(rng: &mut ChaCha8Rng) -> Unit<Vector3<f64>> {
     }
 }
 
+/// A pairs file of `pairs` synthesised with `options`: a comment header naming the seed and the
+/// true X and Y (UR pose vectors), then the pairs in the pose format.
+pub fn pairs_file(options: &SynthOptions, pairs: &[Pair]) -> Result<String, CalibError> {
+    let mut text = format!(
+        "# mocomp synthetic calibration pairs: seed {}, {} pairs\n# true X = flange_from_marker: {:?}\n# true Y = base_from_tracker: {:?}\n",
+        options.seed,
+        options.count,
+        mocomp_geom::ur_pose_from_iso(&options.flange_from_marker),
+        mocomp_geom::ur_pose_from_iso(&options.base_from_tracker)
+    );
+    text.push_str(&crate::pairs::write_pairs_csv(
+        pairs,
+        crate::PairsFormat::Pose,
+    )?);
+    Ok(text)
+}
+
 /// Synthesises pairs. The robot rotates about the marker's centre (so the marker stays in view)
 /// and shifts by the translation spread; measurements are `M_i` and `Y⁻¹·M_i·X` with noise.
 pub fn synthesize(options: &SynthOptions) -> Result<Vec<Pair>, CalibError> {

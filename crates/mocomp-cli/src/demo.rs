@@ -237,12 +237,7 @@ impl DemoCmd {
             &exp,
             &[Controller::Paper, Controller::Mocomp],
             &mut |phase, f| {
-                let name = match phase {
-                    Phase::Connecting => "starting the simulators".to_string(),
-                    Phase::CalibratingCoilRobot => "calibrating the coil robot".to_string(),
-                    Phase::CalibratingHeadRobot => "calibrating the head robot".to_string(),
-                    Phase::Compensating(c) => format!("compensating: {}", c.name()),
-                };
+                let name = phase.to_string();
                 if let Some(c) = &console
                     && !matches!(phase, Phase::Compensating(_))
                 {
@@ -273,21 +268,7 @@ impl DemoCmd {
             writeln!(out, "{v}")?;
         } else {
             write!(out, "{}", w.markdown)?;
-            writeln!(
-                out,
-                "\nwrote {}, {}, {} and {} figures (PNG and SVG: {}) in {}",
-                w.csv.display(),
-                w.markdown_path.display(),
-                w.config.display(),
-                w.figures.len() / 2,
-                w.figures
-                    .iter()
-                    .filter_map(|f| f.file_stem()?.to_str())
-                    .step_by(2)
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                self.out.display()
-            )?;
+            writeln!(out, "\n{}", w.files_line(&self.out))?;
             if let Some(r) = &record {
                 writeln!(out, "recorded {} messages to {}", r.messages, r.path)?;
             }

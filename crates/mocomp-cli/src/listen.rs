@@ -3,19 +3,9 @@
 use anyhow::Result;
 use clap::Args;
 use mocomp_app::AppError;
-use mocomp_app::listen::{Heard, ListenOptions, listen};
-use serde::Serialize;
+use mocomp_app::listen::{ListenOptions, counts_line, listen};
 use std::io::Write;
 use std::time::Duration;
-
-#[derive(Serialize)]
-struct PoseJson<'a> {
-    device: &'a str,
-    /// Message timestamp, seconds since the Unix epoch (null when the sender sets none).
-    t: Option<f64>,
-    valid: bool,
-    tracker_from_marker: [[f64; 4]; 4],
-}
 
 /// Print the poses an OpenIGTLink server streams (PLUS, 3D Slicer, a tracker), as received.
 #[derive(Debug, Clone, Args)]
@@ -54,48 +44,16 @@ impl ListenCmd {
         let mut poses = 0u64;
         let c = listen(&o, &mut |h| {
             poses += 1;
-            self.print(out, h)
+            let line = if self.json {
+                h.json(&self.device)
+            } else {
+                h.line(&self.device)
+            };
+            writeln!(out, "{line}")
+                .and_then(|()| out.flush())
                 .map_err(|e| AppError::failed("writing the poses", e))
         })?;
-        eprintln!(
-            "{poses} poses; {} messages, {} CRC errors, {} malformed, {} zero timestamps, {} backwards, {} clock steps, {} reconnects",
-            c.messages,
-            c.crc_errors,
-            c.malformed,
-            c.zero_timestamps,
-            c.backwards_timestamps,
-            c.clock_steps,
-            c.connections.saturating_sub(1)
-        );
+        eprintln!("{}", counts_line(poses, &c));
         Ok(())
-    }
-
-    fn print(&self, out: &mut dyn Write, h: &Heard) -> std::io::Result<()> {
-        let m = &h.matrix_mm;
-        if self.json {
-            let j = PoseJson {
-                device: &self.device,
-                t: h.t,
-                valid: h.valid,
-                tracker_from_marker: std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])),
-            };
-            writeln!(
-                out,
-                "{}",
-                serde_json::to_string(&j).map_err(std::io::Error::other)?
-            )?;
-        } else {
-            writeln!(
-                out,
-                "{} t={} {} ({:.2}, {:.2}, {:.2}) mm",
-                self.device,
-                h.t.map_or_else(|| "none".into(), |t| format!("{t:.6}")),
-                if h.valid { "valid" } else { "INVALID" },
-                m[(0, 3)],
-                m[(1, 3)],
-                m[(2, 3)]
-            )?;
-        }
-        out.flush()
     }
 }

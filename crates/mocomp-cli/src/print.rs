@@ -1,35 +1,18 @@
 //! Text formatting shared by the subcommands.
 
 use indicatif::{ProgressBar, ProgressStyle};
-use mocomp_geom::nalgebra::Isometry3;
-use mocomp_geom::{rows_from_iso, ur_pose_from_iso};
 use std::io::Write;
 
-/// Numbers in fixed-width columns.
-pub fn row(v: &[f64]) -> String {
-    v.iter()
-        .map(|x| format!("{x:>10.6}"))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-/// A title, the 4×4 matrix of a transform and, when `with_pose`, its UR pose vector.
-pub fn transform(
-    out: &mut (impl Write + ?Sized),
-    title: &str,
-    t: &Isometry3<f64>,
-    with_pose: bool,
-) -> std::io::Result<()> {
-    writeln!(out, "{title}:")?;
-    for r in rows_from_iso(t) {
-        writeln!(out, "  [{} ]", row(&r))?;
-    }
-    if with_pose {
-        writeln!(
-            out,
-            "  pose [x, y, z, rx, ry, rz] (m, rad): [{}]",
-            row(&ur_pose_from_iso(t))
-        )?;
+/// A report as one JSON line (`json`) or as its text.
+pub fn report<R: serde::Serialize + std::fmt::Display>(
+    out: &mut dyn Write,
+    r: &R,
+    json: bool,
+) -> anyhow::Result<()> {
+    if json {
+        writeln!(out, "{}", serde_json::to_string(r)?)?;
+    } else {
+        write!(out, "{r}")?;
     }
     Ok(())
 }

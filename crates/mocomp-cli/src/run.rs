@@ -3,10 +3,9 @@
 
 use crate::dashboard::DashboardArgs;
 use clap::Args;
-use mocomp_app::frontend::{Both, Controls, Observer, Status, mode_name};
+use mocomp_app::frontend::{Both, Controls, Observer};
 use mocomp_app::ros2::Ros2FrontEnd;
 use mocomp_app::{AppError, config::Setup};
-use mocomp_control::Event;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -48,30 +47,6 @@ pub struct RunCmd {
     pub dashboard: DashboardArgs,
 }
 
-/// Status and events on standard error.
-struct Lines;
-
-impl Observer for Lines {
-    fn event(&mut self, t: f64, e: &Event) {
-        eprintln!("{t:9.3} s  event {e:?}");
-    }
-    fn session(&mut self, t: f64, text: &str) {
-        eprintln!("{t:9.3} s  session: {text}");
-    }
-    fn status(&mut self, s: &Status) {
-        eprintln!(
-            "{:9.3} s  {:.0} Hz  horizon {:.1} ms (sample age {:.1} + command delay {:.1} + lookahead)  deviation max {:.2} mm  {}",
-            s.t,
-            s.rate_hz,
-            s.horizon_s * 1e3,
-            s.sample_age_s * 1e3,
-            s.command_delay_s * 1e3,
-            s.deviation_max_m * 1e3,
-            mode_name(&s.mode)
-        );
-    }
-}
-
 impl RunCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
@@ -108,7 +83,7 @@ impl RunCmd {
         let mut observer: Box<dyn Observer> = if self.quiet {
             Box::new(mocomp_app::frontend::Silent)
         } else {
-            Box::new(Lines)
+            Box::new(mocomp_app::live_log::Lines(std::io::stderr()))
         };
         if let Some(c) = &console {
             observer = Box::new(Both(observer, c.observer()));

@@ -64,26 +64,7 @@ impl TargetsCmd {
         match self.command {
             TargetsCommand::List { json } => {
                 for t in &targets.targets {
-                    let p = t.pose();
-                    let mm = p.translation.vector * 1e3;
-                    let axis = p.rotation * mocomp_geom::nalgebra::Vector3::z();
-                    if json {
-                        let v = serde_json::json!({
-                            "name": t.name,
-                            "position_mm": [mm.x, mm.y, mm.z],
-                            "axis": [axis.x, axis.y, axis.z],
-                            "head_from_coil": t.head_from_coil,
-                            "taught_at": t.taught_at,
-                            "note": t.note,
-                        });
-                        writeln!(out, "{v}")?;
-                    } else {
-                        writeln!(
-                            out,
-                            "{:<20} [{:8.2} {:8.2} {:8.2}] mm  axis [{:6.3} {:6.3} {:6.3}]  {}  {}",
-                            t.name, mm.x, mm.y, mm.z, axis.x, axis.y, axis.z, t.taught_at, t.note
-                        )?;
-                    }
+                    writeln!(out, "{}", if json { t.json() } else { t.line() })?;
                 }
             }
             TargetsCommand::Delete { name } => {

@@ -3,7 +3,6 @@
 
 use clap::Args;
 use mocomp_app::config::Setup;
-use mocomp_geom::{rotation_error, translation_error, ur_pose_from_iso};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -38,45 +37,7 @@ impl TeachCmd {
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let setup = Setup::load(&self.config)?;
         let t = mocomp_app::teach::teach(&setup, self.samples, out)?;
-        let six = |v: [f64; 6]| {
-            v.iter()
-                .map(|x| format!("{x:.6}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        writeln!(
-            out,
-            "head samples: {} averaged, spread {:.3} mm, {:.3}° RMS",
-            t.samples,
-            t.spread.0 * 1e3,
-            t.spread.1.to_degrees()
-        )?;
-        write!(
-            out,
-            "coil face {:.1} mm from the head model",
-            t.distance_m * 1e3
-        )?;
-        if let Some(old) = &t.previous {
-            write!(
-                out,
-                "; {:.1} mm and {:.2}° from the previous goal",
-                translation_error(&t.head_from_coil, old) * 1e3,
-                rotation_error(&t.head_from_coil, old).to_degrees()
-            )?;
-        }
-        writeln!(out)?;
-        writeln!(
-            out,
-            "goal.head_from_coil = [{}]",
-            six(ur_pose_from_iso(&t.head_from_coil))
-        )?;
-        if let Some(old) = &t.previous {
-            writeln!(
-                out,
-                "previous            = [{}]",
-                six(ur_pose_from_iso(old))
-            )?;
-        }
+        write!(out, "{}", t.text())?;
         if let Some(name) = &self.name {
             let file = mocomp_app::targets::session_file(&setup);
             if self.dry_run {

@@ -7,7 +7,6 @@ use mocomp_kin::Model;
 use mocomp_ursim::Sim;
 use std::io::Write;
 use std::net::IpAddr;
-use std::time::{Duration, Instant};
 
 /// A simulated UR controller on a loopback address, for mocomp or any UR client.
 ///
@@ -89,7 +88,8 @@ impl UrsimCmd {
                     });
                 })?;
         }
-        serve(out, &sim, self.model, self.seconds)
+        mocomp_app::world::serve_simulator(out, &sim, self.model, self.seconds)?;
+        Ok(())
     }
 }
 
@@ -100,41 +100,4 @@ pub fn start(model: Model, host: IpAddr, options: &SimulatorOptions) -> Result<S
         eprintln!("warning: {w}");
     }
     Ok(sim)
-}
-
-fn serve(out: &mut dyn Write, sim: &Sim, model: Model, seconds: Option<f64>) -> Result<()> {
-    let a = sim.addrs();
-    let v = sim.with(|c| c.config().version());
-    writeln!(
-        out,
-        "simulated {model} (controller {v}, {:.0} Hz): RTDE {}, dashboard {}, script {} / {} / {}",
-        1.0 / sim.with(|c| c.period_s()),
-        a.rtde,
-        a.dashboard,
-        a.primary,
-        a.secondary,
-        a.realtime
-    )?;
-    out.flush()?;
-    let start = Instant::now();
-    let mut seen = 0;
-    loop {
-        std::thread::sleep(Duration::from_millis(50));
-        let (events, total) = sim.with(|c| c.events());
-        let new = (total - seen) as usize;
-        for e in events.iter().skip(events.len().saturating_sub(new)) {
-            writeln!(out, "[{:10.3} s] {}", e.time_s, e.text)?;
-        }
-        seen = total;
-        out.flush()?;
-        if seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s) {
-            let st = sim.stats();
-            writeln!(
-                out,
-                "{} cycles, {} inputs, {} outputs ({} skipped), {} bad packages, {} overruns",
-                st.ticks, st.inputs, st.outputs, st.outputs_skipped, st.bad_packages, st.overruns
-            )?;
-            return Ok(());
-        }
-    }
 }

@@ -744,6 +744,17 @@ pub enum Phase {
     Compensating(Controller),
 }
 
+impl std::fmt::Display for Phase {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Connecting => f.write_str("starting the simulators"),
+            Self::CalibratingCoilRobot => f.write_str("calibrating the coil robot"),
+            Self::CalibratingHeadRobot => f.write_str("calibrating the head robot"),
+            Self::Compensating(c) => write!(f, "compensating: {}", c.name()),
+        }
+    }
+}
+
 /// A front end watching the experiment as it runs (`mocomp demo --dashboard`, `--record`): each
 /// controller's cycles are told to an observer, and the operator's hold and stop reach it; for a
 /// console each run is paced in real time (one second of the stepped clock per second of the

@@ -24,6 +24,7 @@ pub mod metrics;
 pub mod pose;
 pub mod sample;
 pub mod seqlock;
+pub mod text;
 pub mod units;
 
 pub use error::GeomError;

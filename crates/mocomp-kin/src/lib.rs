@@ -27,6 +27,7 @@ pub mod dh;
 pub mod error;
 pub mod ik;
 pub mod model;
+pub mod report;
 pub mod select;
 
 pub use arm::{Arm, JointLimits, Singularity, fk_nominal};

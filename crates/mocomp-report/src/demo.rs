@@ -292,6 +292,27 @@ pub struct Written {
     pub figures: Vec<PathBuf>,
 }
 
+impl Written {
+    /// The line that says what was written where (`dir`, the output directory).
+    pub fn files_line(&self, dir: &Path) -> String {
+        let names: Vec<&str> = self
+            .figures
+            .iter()
+            .filter_map(|f| f.file_stem()?.to_str())
+            .step_by(2)
+            .collect();
+        format!(
+            "wrote {}, {}, {} and {} figures (PNG and SVG: {}) in {}",
+            self.csv.display(),
+            self.markdown_path.display(),
+            self.config.display(),
+            self.figures.len() / 2,
+            names.join(", "),
+            dir.display()
+        )
+    }
+}
+
 /// Why the record could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {

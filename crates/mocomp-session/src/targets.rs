@@ -33,6 +33,43 @@ pub struct Target {
 }
 
 impl Target {
+    /// One line for a person: name, position (mm) and approach axis in the head marker's
+    /// frame, when taught, note.
+    pub fn line(&self) -> String {
+        let p = self.pose();
+        let mm = p.translation.vector * 1e3;
+        let axis = p.rotation * Vector3::z();
+        format!(
+            "{:<20} [{:8.2} {:8.2} {:8.2}] mm  axis [{:6.3} {:6.3} {:6.3}]  {}  {}",
+            self.name, mm.x, mm.y, mm.z, axis.x, axis.y, axis.z, self.taught_at, self.note
+        )
+    }
+
+    /// One JSON object: `name`, `position_mm`, `axis`, `head_from_coil`, `taught_at`, `note`.
+    pub fn json(&self) -> String {
+        #[derive(Serialize)]
+        struct Line<'a> {
+            name: &'a str,
+            position_mm: [f64; 3],
+            axis: [f64; 3],
+            head_from_coil: [f64; 6],
+            taught_at: &'a str,
+            note: &'a str,
+        }
+        let p = self.pose();
+        let mm = p.translation.vector * 1e3;
+        let axis = p.rotation * Vector3::z();
+        let line = Line {
+            name: &self.name,
+            position_mm: [mm.x, mm.y, mm.z],
+            axis: [axis.x, axis.y, axis.z],
+            head_from_coil: self.head_from_coil,
+            taught_at: &self.taught_at,
+            note: &self.note,
+        };
+        serde_json::to_string(&line).unwrap_or_default()
+    }
+
     /// A target from a pose.
     pub fn new(name: &str, head_from_coil: &Isometry3<f64>, note: &str, taught_at: &str) -> Self {
         let t = head_from_coil.translation.vector;

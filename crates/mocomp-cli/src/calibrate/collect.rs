@@ -3,7 +3,7 @@
 
 use crate::dashboard::DashboardArgs;
 use clap::Args;
-use mocomp_app::collect::{Collected, Progress};
+use mocomp_app::collect::Progress;
 use mocomp_app::config::Setup;
 use mocomp_app::frontend::Controls;
 use std::io::Write;
@@ -56,29 +56,20 @@ impl CollectCmd {
                 if let Some(c) = &console {
                     c.calibration_progress(&p);
                 }
+                if let Some(text) = p.announcement() {
+                    // Before the arm moves, whether or not the bar shows (standard output is
+                    // `out`, held by this thread: the lock is reentrant and the order kept).
+                    bar.suspend(|| println!("{text}"));
+                }
                 match p {
-                    Progress::Waiting { poses } => {
-                        bar.suspend(|| {
-                        println!("{poses} calibration poses planned: press Start in the console (the arm will move)");
-                    });
-                    }
-                    Progress::Planned { poses, center } => {
-                        // Before the arm moves, whether or not the bar shows (standard output is
-                        // `out`, held by this thread: the lock is reentrant and the order kept).
-                        bar.suspend(|| {
-                        println!(
-                            "{poses} calibration poses around the flange at [{}]; the arm will move: keep the space clear",
-                            crate::print::row(&mocomp_geom::ur_pose_from_iso(&center))
-                        );
-                    });
-                        bar.set_length(poses as u64);
-                    }
+                    Progress::Planned { poses, .. } => bar.set_length(poses as u64),
                     Progress::Pose { index, seen } => {
                         if !seen {
                             bar.set_message(format!("marker not seen at pose {}", index + 1));
                         }
                         bar.inc(1);
                     }
+                    Progress::Waiting { .. } => {}
                 }
             },
             console.as_ref().map(|_| controls.as_ref()),
@@ -86,64 +77,11 @@ impl CollectCmd {
         bar.finish_and_clear();
         if let Some(c) = &console {
             c.calibration_finished(match &result {
-                Ok(got) => Ok(format!(
-                    "{} of {} poses measured; residuals {:.3} mm, {:.3}° RMS; saved {}",
-                    got.pairs.len(),
-                    got.planned,
-                    got.solved.rms_mm,
-                    got.solved.rms_deg,
-                    got.out.display()
-                )),
+                Ok(got) => Ok(got.one_line()),
                 Err(e) => Err(e.to_string()),
             });
         }
-        print(out, &result?, &setup)
+        write!(out, "{}", result?.text(&setup))?;
+        Ok(())
     }
-}
-
-fn print(out: &mut dyn Write, c: &Collected, setup: &Setup) -> anyhow::Result<()> {
-    writeln!(
-        out,
-        "measured {} of {} poses{}",
-        c.pairs.len(),
-        c.planned,
-        if c.missed.is_empty() {
-            String::new()
-        } else {
-            format!("; marker not seen at pose(s) {:?}", c.missed)
-        }
-    )?;
-    super::solve::print_report(out, &c.solved, c.pairs.len())?;
-    writeln!(out, "wrote {}", c.out.display())?;
-    if let Some(p) = &c.pairs_csv {
-        writeln!(
-            out,
-            "wrote {} (re-solve with: mocomp calibrate solve --pairs {} --robot {})",
-            p.display(),
-            p.display(),
-            setup.model
-        )?;
-    }
-    writeln!(
-        out,
-        "Y against the configured base_from_tracker: {:.2} mm, {:.3}°",
-        c.y_change.0 * 1e3,
-        c.y_change.1.to_degrees()
-    )?;
-    if let Some((y, x)) = c.against_truth {
-        writeln!(
-            out,
-            "against the simulation's truth: Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}°",
-            y.0 * 1e3,
-            y.1.to_degrees(),
-            x.0 * 1e3,
-            x.1.to_degrees()
-        )?;
-    }
-    writeln!(
-        out,
-        "to use it: set calibration.file = {:?} in the configuration",
-        setup.file.calibrate.out
-    )?;
-    Ok(())
 }

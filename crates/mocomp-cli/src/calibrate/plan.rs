@@ -3,24 +3,9 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use mocomp_calib::plan::{PlanOptions, TrackerView, plan, start_at_center, tour_time};
-use mocomp_geom::ur_pose_from_iso;
+use mocomp_calib::summary::PlanReport;
 use mocomp_kin::{Arm, Model};
-use serde::Serialize;
 use std::io::Write;
-
-#[derive(Serialize)]
-struct PlannedJson {
-    joints: [f64; 6],
-    pose: [f64; 6],
-    rotation_deg: f64,
-}
-
-#[derive(Serialize)]
-struct PlanJson {
-    current: [f64; 6],
-    poses: Vec<PlannedJson>,
-    tour_time_s: f64,
-}
 
 /// Propose robot poses for a calibration run around a centre flange pose.
 #[derive(Debug, Clone, Args)]
@@ -90,48 +75,7 @@ impl PlanCmd {
         o.tracker = tracker.map(TrackerView::typical);
         let poses = plan(&arm, &o)?;
         let tour = tour_time(&arm, &current, &poses);
-        if args.json {
-            let j = PlanJson {
-                current,
-                poses: poses
-                    .iter()
-                    .map(|p| PlannedJson {
-                        joints: p.joints,
-                        pose: ur_pose_from_iso(&p.base_from_flange),
-                        rotation_deg: p.rotation_rad.to_degrees(),
-                    })
-                    .collect(),
-                tour_time_s: tour,
-            };
-            writeln!(out, "{}", serde_json::to_string(&j)?)?;
-            return Ok(());
-        }
-        writeln!(
-            out,
-            "{} calibration poses for {} from [{}] (radians; flange pose in m, rotation vector)",
-            poses.len(),
-            arm.model(),
-            crate::print::row(&current)
-        )?;
-        for (i, p) in poses.iter().enumerate() {
-            writeln!(
-                out,
-                "{:>3}  q [{}]  pose [{}]  {:>5.1}°",
-                i + 1,
-                crate::print::row(&p.joints),
-                crate::print::row(&ur_pose_from_iso(&p.base_from_flange)),
-                p.rotation_rad.to_degrees()
-            )?;
-        }
-        writeln!(
-            out,
-            "moves at full joint speed: {tour:.1} s in all{}",
-            if args.tracker.is_some() {
-                "; every marker pose inside the tracker's view"
-            } else {
-                "; no --tracker given, visibility not checked"
-            }
-        )?;
-        Ok(())
+        let r = PlanReport::new(arm.model(), current, &poses, tour, args.tracker.is_some());
+        crate::print::report(out, &r, args.json)
     }
 }

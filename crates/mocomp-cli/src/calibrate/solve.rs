@@ -1,44 +1,11 @@
-//! `mocomp calibrate solve`: X and Y from a pairs file, and the report printed (also by
-//! `calibrate collect`).
+//! `mocomp calibrate solve`: X and Y from a pairs file, and the report printed.
 
 use anyhow::{Context, Result};
 use clap::Args;
-use mocomp_calib::{Calibration, Method, SolveOptions, parse_pairs_csv, solve};
-use mocomp_geom::rows_from_iso;
+use mocomp_calib::{Method, SolveOptions, parse_pairs_csv, solve};
 use mocomp_kin::Model;
-use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
-
-#[derive(Serialize)]
-struct ResidualJson {
-    pair: usize,
-    line: Option<usize>,
-    translation_mm: f64,
-    rotation_deg: f64,
-    normalized: f64,
-    outlier: bool,
-    used: bool,
-}
-
-#[derive(Serialize)]
-struct SolveJson {
-    method: &'static str,
-    pairs: usize,
-    #[serde(rename = "X")]
-    x: [[f64; 4]; 4],
-    #[serde(rename = "Y")]
-    y: [[f64; 4]; 4],
-    rms_mm: f64,
-    rms_deg: f64,
-    max_mm: f64,
-    max_deg: f64,
-    outliers: Vec<usize>,
-    condition: f64,
-    axis_spread: f64,
-    uncertainty: mocomp_calib::Uncertainty,
-    residuals: Vec<ResidualJson>,
-}
 
 /// Solve for X and Y from a pairs file (CSV; see README.md for its columns).
 #[derive(Debug, Clone, Args)]
@@ -100,127 +67,13 @@ impl SolveCmd {
                 .with_context(|| format!("--out {}: cannot write", path.display()))?;
         }
         if args.json {
-            let j = SolveJson {
-                method: c.method.name(),
-                pairs: pairs.len(),
-                x: rows_from_iso(&c.flange_from_marker),
-                y: rows_from_iso(&c.base_from_tracker),
-                rms_mm: c.rms_mm,
-                rms_deg: c.rms_deg,
-                max_mm: c.max_mm,
-                max_deg: c.max_deg,
-                outliers: file.outliers.clone(),
-                condition: c.condition,
-                axis_spread: c.checks.axis_spread,
-                uncertainty: c.uncertainty,
-                residuals: c
-                    .residuals
-                    .iter()
-                    .map(|r| ResidualJson {
-                        pair: r.index + 1,
-                        line: r.line,
-                        translation_mm: r.translation_mm,
-                        rotation_deg: r.rotation_deg,
-                        normalized: r.normalized,
-                        outlier: r.outlier,
-                        used: r.used,
-                    })
-                    .collect(),
-            };
-            writeln!(out, "{}", serde_json::to_string(&j)?)?;
+            writeln!(out, "{}", serde_json::to_string(&c.summary())?)?;
             return Ok(());
         }
-        print_report(out, &c, pairs.len())?;
+        write!(out, "{c}")?;
         if let Some(path) = &args.out {
             writeln!(out, "wrote {}", path.display())?;
         }
         Ok(())
     }
-}
-
-pub(crate) fn print_report(out: &mut dyn Write, c: &Calibration, n: usize) -> Result<()> {
-    writeln!(
-        out,
-        "method {}, {n} pairs ({} nonlinear iterations)",
-        c.method, c.iterations
-    )?;
-    crate::print::transform(
-        out,
-        "X = flange_from_marker (metres)",
-        &c.flange_from_marker,
-        true,
-    )?;
-    crate::print::transform(
-        out,
-        "Y = base_from_tracker (metres)",
-        &c.base_from_tracker,
-        true,
-    )?;
-    writeln!(
-        out,
-        "residuals over the pairs used: RMS {:.3} mm, {:.3}°; max {:.3} mm, {:.3}°",
-        c.rms_mm, c.rms_deg, c.max_mm, c.max_deg
-    )?;
-    let u = &c.uncertainty;
-    writeln!(
-        out,
-        "uncertainty (1σ): X {:.3}°, {:.3} mm; Y {:.3}°, {:.3} mm",
-        u.x_rotation_deg, u.x_translation_mm, u.y_rotation_deg, u.y_translation_mm
-    )?;
-    writeln!(
-        out,
-        "pose set: largest rotation {:.1}°, axis spread {:.2} (0 = one axis), condition {:.1}",
-        c.checks.max_rotation_deg, c.checks.axis_spread, c.condition
-    )?;
-    let mut worst: Vec<_> = c.residuals.iter().collect();
-    worst.sort_by(|a, b| b.normalized.total_cmp(&a.normalized));
-    writeln!(out, "largest residuals:")?;
-    for r in worst.iter().take(5) {
-        let place = r
-            .line
-            .map(|l| format!("line {l}"))
-            .unwrap_or_else(|| format!("pair {}", r.index + 1));
-        writeln!(
-            out,
-            "  {place:<10} {:>8.3} mm {:>7.3}°  normalised {:>6.2}{}{}",
-            r.translation_mm,
-            r.rotation_deg,
-            r.normalized,
-            if r.outlier { "  OUTLIER" } else { "" },
-            if r.used { "" } else { " (left out)" }
-        )?;
-    }
-    if !c.checks.suspect.is_empty() {
-        let names: Vec<String> = c
-            .checks
-            .suspect
-            .iter()
-            .map(|&i| {
-                c.residuals[i]
-                    .line
-                    .map(|l| format!("line {l}"))
-                    .unwrap_or_else(|| format!("pair {}", i + 1))
-            })
-            .collect();
-        writeln!(
-            out,
-            "before solving, these pairs' motion disagreed with most others: {}",
-            names.join(", ")
-        )?;
-    }
-    if c.outliers.is_empty() {
-        writeln!(out, "outliers: none")?;
-    } else {
-        writeln!(
-            out,
-            "outliers: {} pair(s){}",
-            c.outliers.len(),
-            if c.residuals.iter().any(|r| !r.used) {
-                ", left out"
-            } else {
-                "; use --reject-outliers to leave them out"
-            }
-        )?;
-    }
-    Ok(())
 }

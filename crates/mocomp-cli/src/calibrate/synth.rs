@@ -2,9 +2,8 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use mocomp_calib::synth::{SynthOptions, synthesize};
-use mocomp_calib::{PairsFormat, write_pairs_csv};
-use mocomp_geom::ur_pose_from_iso;
+use mocomp_calib::synth::{SynthOptions, pairs_file, synthesize};
+use mocomp_geom::text::transform;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -54,30 +53,13 @@ impl SynthCmd {
             o.base_from_tracker = crate::args::pose("--y", y)?;
         }
         let pairs = synthesize(&o)?;
-        let mut text = String::new();
-        text.push_str(&format!(
-        "# mocomp synthetic calibration pairs: seed {}, {} pairs\n# true X = flange_from_marker: {:?}\n# true Y = base_from_tracker: {:?}\n",
-        o.seed,
-        o.count,
-        ur_pose_from_iso(&o.flange_from_marker),
-        ur_pose_from_iso(&o.base_from_tracker)
-    ));
-        text.push_str(&write_pairs_csv(&pairs, PairsFormat::Pose)?);
+        let text = pairs_file(&o, &pairs)?;
         std::fs::write(&self.out, text)
             .with_context(|| format!("--out {}: cannot write", self.out.display()))?;
         writeln!(out, "wrote {} pairs to {}", pairs.len(), self.out.display())?;
-        crate::print::transform(
-            out,
-            "true X = flange_from_marker",
-            &o.flange_from_marker,
-            true,
-        )?;
-        crate::print::transform(
-            out,
-            "true Y = base_from_tracker",
-            &o.base_from_tracker,
-            true,
-        )?;
+        let x = transform("true X = flange_from_marker", &o.flange_from_marker, true);
+        let y = transform("true Y = base_from_tracker", &o.base_from_tracker, true);
+        write!(out, "{x}{y}")?;
         Ok(())
     }
 }

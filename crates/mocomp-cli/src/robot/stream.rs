@@ -2,7 +2,7 @@
 
 use anyhow::{Result, bail};
 use clap::Args;
-use mocomp_app::servo_check::{StreamOptions, StreamReport, stream};
+use mocomp_app::servo_check::{StreamOptions, stream};
 use mocomp_kin::Model;
 use std::io::Write;
 use std::net::IpAddr;
@@ -66,40 +66,10 @@ impl StreamCmd {
             gain: self.gain,
         };
         let r = stream(self.model, self.host, o, &mut std::io::stderr())?;
-        print(out, &r, self.json)
+        crate::print::report(out, &r, self.json)?;
+        if let Some((t, f)) = &r.fault {
+            bail!("the stream ended in a fault at {t:.3} s: {f}");
+        }
+        Ok(())
     }
-}
-
-fn print(out: &mut dyn Write, r: &StreamReport, json: bool) -> Result<()> {
-    if json {
-        writeln!(out, "{}", serde_json::to_string(r)?)?;
-    } else {
-        writeln!(
-            out,
-            "{} ({} at {:.0} Hz): {} cycles in {} s\n  period median {:.3} ms, p99 {:.3} ms, max {:.3} ms, missed {}\n  servo call median {:.1} us, p99 {:.1} us\n  command → acknowledged in state: median {:.2} ms, p99 {:.2} ms\n  tracking vs current target: joint max {:.4} rad (rms {:.4}; servo lag expected ≈ lookahead × speed = {:.4}), TCP max {:.2} mm (rms {:.2})\n  vs target one lookahead earlier: joint max {:.5} rad",
-            r.model,
-            r.controller,
-            r.rate_hz,
-            r.cycles,
-            r.seconds,
-            r.period_median_ms,
-            r.period_p99_ms,
-            r.period_max_ms,
-            r.missed_cycles,
-            r.servo_call_median_us,
-            r.servo_call_p99_us,
-            r.ack_latency_median_ms,
-            r.ack_latency_p99_ms,
-            r.tracking_joint_max_rad,
-            r.tracking_joint_rms_rad,
-            r.expected_lag_rad,
-            r.tracking_tcp_max_mm,
-            r.tracking_tcp_rms_mm,
-            r.lag_compensated_joint_max_rad,
-        )?;
-    }
-    if let Some((t, f)) = &r.fault {
-        bail!("the stream ended in a fault at {t:.3} s: {f}");
-    }
-    Ok(())
 }

@@ -7,27 +7,9 @@ mod render;
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use mocomp_app::{frames, k4a};
-use mocomp_geom::units::m_to_mm;
 use mocomp_vision::{FrameResult, TrackParams, Tracker};
-use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
-
-#[derive(Serialize)]
-struct FrameJson<'a> {
-    frame: &'a str,
-    /// A recording's capture: its device timestamp, µs.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    device_usec: Option<u64>,
-    found: bool,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    tracker_from_marker: Option<[[f64; 4]; 4]>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    fre_mm: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    reason: Option<String>,
-    blobs: usize,
-}
 
 /// Fiducial tracking in IR + depth frames (directories of 16-bit PNG pairs, or an Azure Kinect
 /// recording).
@@ -112,7 +94,6 @@ impl TrackCmd {
                 &mut |t| {
                     found += usize::from(t.result.detection.is_some());
                     print(&mut *out, t.name, Some(t.device_usec), t.result, json)
-                        .map_err(|e| mocomp_app::AppError::failed("writing the output", e))
                 },
             )?;
             let tail = format!(
@@ -135,7 +116,6 @@ impl TrackCmd {
                 &mut |name, result| {
                     found += usize::from(result.detection.is_some());
                     print(&mut *out, name, None, result, json)
-                        .map_err(|e| mocomp_app::AppError::failed("writing the output", e))
                 },
             )?;
             (n, String::new())
@@ -153,37 +133,11 @@ fn print(
     device_usec: Option<u64>,
     result: &FrameResult,
     json: bool,
-) -> std::io::Result<()> {
-    if json {
-        let j = FrameJson {
-            frame: name,
-            device_usec,
-            found: result.detection.is_some(),
-            tracker_from_marker: result
-                .detection
-                .as_ref()
-                .map(|d| frames::rows_mm(&d.tracker_from_marker)),
-            fre_mm: result.detection.as_ref().map(|d| m_to_mm(d.fre_m)),
-            reason: result.not_found.as_ref().map(|r| r.to_string()),
-            blobs: result.blobs.len(),
-        };
-        let line = serde_json::to_string(&j).map_err(std::io::Error::other)?;
-        return writeln!(out, "{line}");
-    }
-    match (&result.detection, &result.not_found) {
-        (Some(d), _) => {
-            let t = d.tracker_from_marker.translation.vector;
-            writeln!(
-                out,
-                "{name}: found at ({:.1}, {:.1}, {:.1}) mm, FRE {:.2} mm, {} blobs",
-                m_to_mm(t.x),
-                m_to_mm(t.y),
-                m_to_mm(t.z),
-                m_to_mm(d.fre_m),
-                result.blobs.len()
-            )
-        }
-        (None, Some(r)) => writeln!(out, "{name}: not found: {r} ({} blobs)", result.blobs.len()),
-        (None, None) => writeln!(out, "{name}: not found"),
-    }
+) -> Result<(), mocomp_app::AppError> {
+    writeln!(
+        out,
+        "{}",
+        frames::frame_line(name, device_usec, result, json)
+    )
+    .map_err(|e| mocomp_app::AppError::failed("writing the output", e))
 }
