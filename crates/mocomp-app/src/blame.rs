@@ -42,6 +42,7 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
         || e.is::<mocomp_control::GoalError>()
         || e.is::<mocomp_sim::MotionError>()
         || e.is::<mocomp_sim::trace::TraceError>()
+        || e.is::<mocomp_head::HeadError>()
         || e.is::<toml::de::Error>()
         || e.is::<serde_json::Error>()
     {

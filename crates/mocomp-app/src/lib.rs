@@ -29,6 +29,7 @@ pub mod demo_options;
 pub mod demo_record;
 pub mod experiment_config;
 pub mod frames;
+pub mod head_file;
 pub mod k4a;
 pub mod k4a_record;
 pub mod listen;

@@ -10,6 +10,7 @@ mod config;
 mod dashboard;
 mod demo;
 mod fk;
+mod head;
 mod ik;
 mod listen;
 mod models;
@@ -50,6 +51,7 @@ enum Command {
     Config(config::ConfigCmd),
     Robot(robot::RobotCmd),
     Calibrate(calibrate::CalibrateCmd),
+    Head(head::HeadCmd),
 }
 
 /// Exit code for bad input (arguments, files).
@@ -76,6 +78,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Config(c) => c.run(out)?,
         Command::Robot(c) => c.run(out)?,
         Command::Calibrate(c) => c.run(out)?,
+        Command::Head(c) => c.run(out)?,
     }
     out.flush()?;
     Ok(())

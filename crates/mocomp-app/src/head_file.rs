@@ -1,0 +1,49 @@
+//! A head surface file from disk (`mocomp head inspect`, `[head] mesh`): read with a size limit,
+//! decoded and mended by [`mocomp_head`], and what was made of it written back out.
+
+use crate::{AppError, Context};
+use mocomp_geom::LengthUnit;
+use mocomp_head::inspect::Inspection;
+use mocomp_head::render::{Picture, three_views};
+use mocomp_head::{Mesh, formats};
+use std::io::Read;
+use std::path::Path;
+
+/// The largest head file read, bytes: a 5 M-triangle binary STL is 250 MB; ASCII twice that.
+pub const MAX_FILE_BYTES: u64 = 600 << 20;
+
+/// Reads `path` (refusing a file over [`MAX_FILE_BYTES`] before reading it), decodes it in
+/// `unit` when its format has none, and mends it.
+pub fn inspect_file(path: &Path, unit: Option<LengthUnit>) -> Result<(Mesh, Inspection), AppError> {
+    let name = path.display().to_string();
+    let file = std::fs::File::open(path).what(|| format!("{name}: cannot open"))?;
+    let size = file
+        .metadata()
+        .what(|| format!("{name}: cannot read its size"))?
+        .len();
+    if size > MAX_FILE_BYTES {
+        return Err(AppError::Config(format!(
+            "{name}: {size} bytes, more than the {MAX_FILE_BYTES} a head file may have"
+        )));
+    }
+    let mut bytes = Vec::with_capacity(size as usize);
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .what(|| format!("{name}: cannot read"))?;
+    mocomp_head::inspect::inspect(&name, &bytes, unit)
+        .map_err(|e| AppError::failed("reading the head", e))
+}
+
+/// Writes `mesh` (metres) to `path` as binary PLY in millimetres.
+pub fn write_mesh(path: &Path, mesh: &Mesh) -> Result<(), AppError> {
+    let bytes = formats::write_ply(mesh, 1e3).map_err(|e| AppError::failed("PLY", e))?;
+    std::fs::write(path, bytes).what(|| format!("{}: cannot write", path.display()))
+}
+
+/// Draws `mesh` from three sides (`size` pixels each) into the PNG `path`.
+pub fn write_views(path: &Path, mesh: &Mesh, size: u32) -> Result<(), AppError> {
+    let Picture { width, height, rgb } = three_views(mesh, size);
+    let png = mocomp_vision::codec::encode_rgb_png(width, height, &rgb, "the head's views")
+        .map_err(|e| AppError::failed("drawing the head", e))?;
+    std::fs::write(path, png).what(|| format!("{}: cannot write", path.display()))
+}

@@ -1,0 +1,152 @@
+//! What the head's queries cost: the ellipsoid against the fsaverage scalp (4 k triangles, from
+//! MNE through the interop peer) and that scalp subdivided to 65 k and 260 k triangles (the
+//! 100 k of a clinical scalp lies between), and what building the hierarchy costs.
+//! `cargo bench -p mocomp-head` (needs the peers in .venv: `scripts/test.sh` installs them).
+#![allow(
+    missing_docs,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::print_stderr
+)]
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
+use mocomp_head::{CoilSolid, Ellipsoid, HeadShape, Mesh, MeshHead, repair};
+use mocomp_testkit::{PythonPeer, SplitMix64};
+use serde_json::json;
+use std::hint::black_box;
+
+fn fsaverage() -> Mesh {
+    let mut peer = PythonPeer::start(
+        "head_peer.py",
+        "mne, nibabel, trimesh",
+        "mne 1.13.2, nibabel 5.4.2, trimesh 5.2.0",
+    );
+    let a = peer.request(&json!({"op": "fsaverage_head"}));
+    let num = |v: &serde_json::Value| v.as_f64().unwrap();
+    let vertices = a["vertices_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| Point3::new(num(&p[0]), num(&p[1]), num(&p[2])))
+        .collect();
+    let triangles = a["triangles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| [0, 1, 2].map(|k| t[k].as_u64().unwrap() as u32))
+        .collect();
+    repair(
+        Mesh {
+            vertices,
+            triangles,
+        },
+        "fsaverage",
+    )
+    .unwrap()
+    .0
+}
+
+/// Points within ±30 mm of the surface (where the loop asks), and coil poses there facing it.
+fn queries(head: &MeshHead, n: usize) -> (Vec<Point3<f64>>, Vec<Isometry3<f64>>) {
+    let mut rng = SplitMix64(7);
+    let v = head.vertices();
+    let mut points = Vec::with_capacity(n);
+    let mut poses = Vec::with_capacity(n);
+    for _ in 0..n {
+        let p = v[(rng.next_u64() % v.len() as u64) as usize];
+        let s = head.nearest(&Point3::from(p.coords * 1.05));
+        let off = (rng.next_f64() - 0.5) * 0.06;
+        points.push(s.point + s.normal.into_inner() * off);
+        // The coil's face 5–25 mm out, its +z into the head.
+        let out = 0.005 + rng.next_f64() * 0.02;
+        let face = s.point + s.normal.into_inner() * out;
+        let rot = mocomp_geom::nalgebra::UnitQuaternion::rotation_between(
+            &Vector3::z(),
+            &-s.normal.into_inner(),
+        )
+        .unwrap_or_default();
+        poses.push(Isometry3::from_parts(face.coords.into(), rot));
+    }
+    (points, poses)
+}
+
+fn bench(c: &mut Criterion) {
+    let base = fsaverage();
+    let coil = CoilSolid::new(0.04, 0.03).unwrap();
+    let ellipsoid = Ellipsoid::new(
+        Isometry3::translation(0.0, -0.01, -0.03),
+        Vector3::new(0.085, 0.11, 0.13),
+    )
+    .unwrap();
+    let meshes = [
+        ("fsaverage 4k", base.clone()),
+        ("fsaverage x4 65k", base.subdivided().subdivided()),
+        (
+            "fsaverage x4^3 260k",
+            base.subdivided().subdivided().subdivided(),
+        ),
+    ];
+    let mut g = c.benchmark_group("head query");
+    let probe = MeshHead::new(base.clone(), "fsaverage").unwrap();
+    let (points, poses) = queries(&probe, 256);
+    g.bench_function("ellipsoid signed distance", |b| {
+        let mut i = 0;
+        b.iter(|| {
+            i = (i + 1) % points.len();
+            black_box(ellipsoid.signed_distance(&points[i]))
+        })
+    });
+    g.bench_function("ellipsoid coil clearance", |b| {
+        let mut i = 0;
+        b.iter(|| {
+            i = (i + 1) % poses.len();
+            black_box(ellipsoid.coil_clearance(&poses[i], &coil))
+        })
+    });
+    for (name, mesh) in &meshes {
+        let head = MeshHead::new(mesh.clone(), name).unwrap();
+        g.bench_with_input(
+            BenchmarkId::new("mesh signed distance", name),
+            &head,
+            |b, h| {
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % points.len();
+                    black_box(h.signed_distance(&points[i]))
+                })
+            },
+        );
+        g.bench_with_input(
+            BenchmarkId::new("mesh coil clearance", name),
+            &head,
+            |b, h| {
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % poses.len();
+                    black_box(h.coil_clearance(&poses[i], &coil))
+                })
+            },
+        );
+        eprintln!(
+            "{name}: {} triangles, about {:.1} MB",
+            head.triangles().len(),
+            head.memory_bytes() as f64 / 1e6
+        );
+    }
+    g.finish();
+    let mut g = c.benchmark_group("head build");
+    g.sample_size(10);
+    for (name, mesh) in &meshes {
+        g.bench_with_input(BenchmarkId::new("repair and index", name), mesh, |b, m| {
+            b.iter(|| {
+                let (m, _) = repair(m.clone(), name).unwrap();
+                black_box(MeshHead::new(m, name).unwrap())
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
