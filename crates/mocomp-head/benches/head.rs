@@ -1,6 +1,7 @@
 //! What the head's queries cost: the ellipsoid against the fsaverage scalp (4 k triangles, from
 //! MNE through the interop peer) and that scalp subdivided to 65 k and 260 k triangles (the
-//! 100 k of a clinical scalp lies between), and what building the hierarchy costs.
+//! 100 k of a clinical scalp lies between), by the distance field and by parry's BVH, and what
+//! building both costs.
 //! `cargo bench -p mocomp-head` (needs the peers in .venv: `scripts/test.sh` installs them).
 #![allow(
     missing_docs,
@@ -114,6 +115,17 @@ fn bench(c: &mut Criterion) {
                 b.iter(|| {
                     i = (i + 1) % points.len();
                     black_box(h.signed_distance(&points[i]))
+                })
+            },
+        );
+        g.bench_with_input(
+            BenchmarkId::new("mesh signed distance by the BVH", name),
+            &head,
+            |b, h| {
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % points.len();
+                    black_box(h.exact(&points[i]))
                 })
             },
         );

@@ -14,6 +14,7 @@
 
 pub mod ellipsoid;
 pub mod error;
+pub mod field;
 pub mod formats;
 pub mod inspect;
 pub mod mesh;

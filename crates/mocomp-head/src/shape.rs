@@ -101,18 +101,9 @@ impl CoilSolid {
         parry3d_f64::shape::Cylinder::new(self.thickness / 2.0, self.radius)
     }
 
-    /// `head_from_cylinder` for the coil at `head_from_coil`: the cylinder's centre half its
-    /// thickness behind the face, its y turned onto the coil's z.
-    pub(crate) fn head_from_cylinder(&self, head_from_coil: &Isometry3<f64>) -> Isometry3<f64> {
-        let coil_from_cylinder = Isometry3::from_parts(
-            Translation3::new(0.0, 0.0, -self.thickness / 2.0),
-            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
-        );
-        head_from_coil * coil_from_cylinder
-    }
-
-    /// The face's and back's centres and their rims every 45°, head frame: the points where a
-    /// coil that cuts into the head is deepest, to measure how deep.
+    /// The face's and back's centres and their rims every 45°, head frame: where a coil facing
+    /// the head is nearest it, to seed the exact search and to measure how deep a coil cutting
+    /// in goes.
     pub(crate) fn sample_points(&self, head_from_coil: &Isometry3<f64>) -> [Point3<f64>; 18] {
         const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
         const RIM: [(f64, f64); 9] = [
@@ -132,6 +123,16 @@ impl CoilSolid {
             let z = if i < 9 { 0.0 } else { -self.thickness };
             head_from_coil * Point3::new(r * c, r * s, z)
         })
+    }
+
+    /// `head_from_cylinder` for the coil at `head_from_coil`: the cylinder's centre half its
+    /// thickness behind the face, its y turned onto the coil's z.
+    pub(crate) fn head_from_cylinder(&self, head_from_coil: &Isometry3<f64>) -> Isometry3<f64> {
+        let coil_from_cylinder = Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, -self.thickness / 2.0),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
+        );
+        head_from_coil * coil_from_cylinder
     }
 }
 
@@ -191,4 +192,14 @@ pub trait HeadShape {
             self.coil_clearance(head_from_coil, coil)
         }
     }
+}
+
+/// What a distance query knows at a point: the exact signed distance, or only a lower bound
+/// of it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Known {
+    /// The exact signed distance.
+    Exact(f64),
+    /// A lower bound of the signed distance.
+    Below(f64),
 }

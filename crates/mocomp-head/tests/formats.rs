@@ -122,6 +122,37 @@ fn the_fsaverage_head_reads_back_the_same_in_every_format() {
     }
 }
 
+/// On a real, non-convex head (nose, chin, ears), the distance field the loop asks is the
+/// hierarchy's exact answer everywhere around the scalp, inside and out.
+#[test]
+fn the_field_is_exact_on_the_fsaverage_head() {
+    let mut peer = PythonPeer::start("head_peer.py", "mne, nibabel, trimesh", PEERS);
+    let dir = TempDir::new("head-field");
+    let (name, bytes, _) = written(&mut peer, &dir, "ply", "ply", 1000.0, "");
+    let (mesh, _) = inspect(&name, &bytes, Some(LengthUnit::Millimetre)).unwrap();
+    let vertices = mesh.vertices.clone();
+    let head = MeshHead::new(mesh, &name).unwrap();
+    let mut rng = mocomp_testkit::SplitMix64(31);
+    let mut inside = 0;
+    for n in 0..3000 {
+        // Around a random vertex, up to 40 mm in or out, and in the box around the head.
+        let v = vertices[(rng.next_u64() % vertices.len() as u64) as usize];
+        let off = mocomp_geom::nalgebra::Vector3::new(
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+        ) * if n % 3 == 0 { 0.08 } else { 0.02 };
+        let p = v + off;
+        let (field, exact) = (head.signed_distance(&p), head.exact(&p));
+        inside += usize::from(exact < 0.0);
+        assert!(
+            (field - exact).abs() < 1e-9,
+            "{p}: field {field}, hierarchy {exact}"
+        );
+    }
+    assert!(inside > 500, "{inside}");
+}
+
 #[test]
 fn units_are_read_given_or_refused_by_name() {
     let mut peer = PythonPeer::start("head_peer.py", "mne, nibabel, trimesh", PEERS);

@@ -1,0 +1,620 @@
+//! The scalp's distance field for the control loop: a regular grid around the head whose every
+//! node knows its nearest triangle, so a query is a handful of exact point-to-triangle distances
+//! (the triangles its cell's corners know, then a walk across edges to ever nearer ones) rather
+//! than a descent through a hierarchy: its cost does not grow with the mesh. The sign comes from
+//! angle-weighted pseudo-normals (Bærentzen and Aanæs, 2005), exact for a closed, outward mesh.
+//!
+//! Building: the nodes next to each triangle are seeded exactly, then eight sweeps (one per
+//! octant's order, Zhao's fast sweeping) pass each node the better of its upwind neighbours'
+//! triangles. A node's triangle may then be near its nearest rather than it; the query's walk
+//! makes the answer exact, except on the surface's medial axis (two parts of the scalp equally
+//! near), where two walks are taken; the tests measure it against the BVH everywhere in the grid.
+
+use mocomp_geom::nalgebra::{Point3, Vector3};
+
+/// A mesh's vertices and triangles, as the field reads them.
+#[derive(Clone, Copy)]
+struct Surface<'a> {
+    vertices: &'a [Point3<f64>],
+    triangles: &'a [[u32; 3]],
+}
+
+/// The grid's spacing, m.
+pub const SPACING_M: f64 = 0.0025;
+/// How far the grid reaches beyond the head's box, m (beyond it a query is the BVH's).
+pub const MARGIN_M: f64 = 0.04;
+/// No triangle: a node beyond the band.
+const NONE: u32 = u32::MAX;
+
+/// Which part of a triangle a point is nearest: a vertex, an edge (from vertex k to k+1) or
+/// the face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Feature {
+    Vertex(u8),
+    Edge(u8),
+    Face,
+}
+
+/// The point of triangle (a, b, c) nearest `p`, and which feature it lies on (Ericson,
+/// Real-Time Collision Detection, 5.1.5).
+pub(crate) fn closest_on_triangle(
+    p: &Point3<f64>,
+    a: &Point3<f64>,
+    b: &Point3<f64>,
+    c: &Point3<f64>,
+) -> (Point3<f64>, Feature) {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(&ap);
+    let d2 = ac.dot(&ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (*a, Feature::Vertex(0));
+    }
+    let bp = p - b;
+    let d3 = ab.dot(&bp);
+    let d4 = ac.dot(&bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return (*b, Feature::Vertex(1));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (a + ab * v, Feature::Edge(0));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(&cp);
+    let d6 = ac.dot(&cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return (*c, Feature::Vertex(2));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (a + ac * w, Feature::Edge(2));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (b + (c - b) * w, Feature::Edge(1));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    (a + ab * v + ac * w, Feature::Face)
+}
+
+/// The mesh's distance field.
+#[derive(Debug, Clone)]
+pub struct DistanceField {
+    vertices: Vec<Point3<f64>>,
+    triangles: Vec<[u32; 3]>,
+    /// Angle-weighted pseudo-normal per vertex.
+    vertex_normals: Vec<Vector3<f64>>,
+    /// Per triangle, per edge k (k to k+1): the sum of the two faces' normals.
+    edge_normals: Vec<[Vector3<f64>; 3]>,
+    face_normals: Vec<Vector3<f64>>,
+    /// Per triangle, the triangle across each edge (NONE at a border).
+    across: Vec<[u32; 3]>,
+    /// Per triangle, the centre of its vertices and the radius of the ball about it that holds
+    /// it: a cheap lower bound before an exact distance.
+    spheres: Vec<(Point3<f64>, f64)>,
+    /// Per vertex, the triangles around it: `ring[ring_at[v]..ring_at[v + 1]]`.
+    ring_at: Vec<u32>,
+    ring: Vec<u32>,
+    origin: Point3<f64>,
+    dims: [usize; 3],
+    /// Per node: its nearest triangle (or one near it).
+    nearest: Vec<u32>,
+}
+
+impl DistanceField {
+    /// The field of `mesh` (closed, outward, one shell: a repaired mesh), built on the threads
+    /// this machine has.
+    pub fn new(vertices: &[Point3<f64>], triangles: &[[u32; 3]]) -> Self {
+        let mesh = &Surface {
+            vertices,
+            triangles,
+        };
+        let (vertex_normals, edge_normals, face_normals) = pseudo_normals(mesh);
+        let b = crate::shape::Aabb::around(vertices).unwrap_or(crate::shape::Aabb {
+            min: Point3::origin(),
+            max: Point3::origin(),
+        });
+        let margin = MARGIN_M;
+        let origin = b.min - Vector3::repeat(margin);
+        let size = b.max - b.min + Vector3::repeat(2.0 * margin);
+        let dims = [0, 1, 2].map(|k| (size[k] / SPACING_M).ceil() as usize + 1);
+        let across = adjacency(mesh);
+        let (ring_at, ring) = rings(mesh);
+        let spheres = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+                let m = Point3::from((a.coords + b.coords + c.coords) / 3.0);
+                (m, (a - m).norm().max((b - m).norm()).max((c - m).norm()))
+            })
+            .collect();
+        let mut field = Self {
+            spheres,
+            across,
+            ring_at,
+            ring,
+            vertices: vertices.to_vec(),
+            triangles: triangles.to_vec(),
+            vertex_normals,
+            edge_normals,
+            face_normals,
+            origin,
+            dims,
+            nearest: vec![NONE; dims[0] * dims[1] * dims[2]],
+        };
+        field.seed();
+        field.sweep();
+        field
+    }
+
+    /// Bytes the field holds.
+    pub fn memory_bytes(&self) -> usize {
+        self.nearest.len() * 4
+            + self.vertices.len() * 48
+            + self.triangles.len() * (12 + 96 + 12 + 12 + 32)
+    }
+
+    /// Grid nodes.
+    pub fn nodes(&self) -> usize {
+        self.nearest.len()
+    }
+
+    fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        (k * self.dims[1] + j) * self.dims[0] + i
+    }
+
+    fn node(&self, i: usize, j: usize, k: usize) -> Point3<f64> {
+        self.origin + Vector3::new(i as f64, j as f64, k as f64) * SPACING_M
+    }
+
+    /// Each triangle's own cells: the nodes within a cell of it take it if it is the nearest
+    /// yet.
+    fn seed(&mut self) {
+        let mut dist = vec![f64::INFINITY; self.nearest.len()];
+        let cell = |x: f64, k: usize, up: bool| -> usize {
+            let v = (x - self.origin[k]) / SPACING_M;
+            let v = if up { v.ceil() } else { v.floor() };
+            (v.max(0.0) as usize).min(self.dims[k] - 1)
+        };
+        for (t, tri) in self.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
+            let lo = a.inf(&b).inf(&c) - Vector3::repeat(SPACING_M);
+            let hi = a.sup(&b).sup(&c) + Vector3::repeat(SPACING_M);
+            for k in cell(lo.z, 2, false)..=cell(hi.z, 2, true) {
+                for j in cell(lo.y, 1, false)..=cell(hi.y, 1, true) {
+                    for i in cell(lo.x, 0, false)..=cell(hi.x, 0, true) {
+                        let p = self.node(i, j, k);
+                        let d = (p - closest_on_triangle(&p, &a, &b, &c).0).norm_squared();
+                        let at = self.index(i, j, k);
+                        if d < dist[at] {
+                            dist[at] = d;
+                            self.nearest[at] = t as u32;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Fast sweeping: in each of the eight orders, every node takes the nearest of its own and
+    /// its three upwind neighbours' triangles. The grid is cut into slabs of z, one a thread,
+    /// each swept on its own: a node near a cut may keep a triangle near its nearest rather than
+    /// it, which the query's walk corrects.
+    fn sweep(&mut self) {
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(8);
+        let nz = self.dims[2];
+        let per = nz.div_ceil(threads);
+        let slab = self.dims[0] * self.dims[1];
+        let this = &*self;
+        let swept: Vec<(usize, Vec<u32>)> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..threads)
+                .map(|t| (t * per, ((t + 1) * per).min(nz)))
+                .filter(|(k0, k1)| k0 < k1)
+                .map(|(k0, k1)| s.spawn(move || (k0, this.sweep_slab(k0, k1))))
+                .collect();
+            handles.into_iter().filter_map(|h| h.join().ok()).collect()
+        });
+        for (k0, nearest) in swept {
+            let at = k0 * slab;
+            self.nearest[at..at + nearest.len()].copy_from_slice(&nearest);
+        }
+    }
+
+    /// The eight sweeps over the nodes with k0 ≤ k < k1; their triangles.
+    fn sweep_slab(&self, k0: usize, k1: usize) -> Vec<u32> {
+        let [nx, ny, _] = self.dims;
+        let nz = k1 - k0;
+        let local = |i: usize, j: usize, k: usize| (k * ny + j) * nx + i;
+        let mut nearest = self.nearest[k0 * nx * ny..k1 * nx * ny].to_vec();
+        let mut dist: Vec<f64> = (0..nearest.len())
+            .map(|at| {
+                let t = nearest[at];
+                if t == NONE {
+                    f64::INFINITY
+                } else {
+                    let (i, j, k) = (at % nx, (at / nx) % ny, at / (nx * ny));
+                    self.distance_to(&self.node(i, j, k + k0), t)
+                }
+            })
+            .collect();
+        let order = |n: usize, up: bool| -> Box<dyn Iterator<Item = usize>> {
+            if up {
+                Box::new(0..n)
+            } else {
+                Box::new((0..n).rev())
+            }
+        };
+        let back = |v: usize, up: bool, n: usize| -> Option<usize> {
+            if up {
+                v.checked_sub(1)
+            } else {
+                (v + 1 < n).then_some(v + 1)
+            }
+        };
+        for octant in 0..8 {
+            let (ux, uy, uz) = (octant & 1 == 0, octant & 2 == 0, octant & 4 == 0);
+            for k in order(nz, uz) {
+                for j in order(ny, uy) {
+                    for i in order(nx, ux) {
+                        let at = local(i, j, k);
+                        let (mut best, mut best_t) = (dist[at], nearest[at]);
+                        let neighbours = [
+                            back(i, ux, nx).map(|a| local(a, j, k)),
+                            back(j, uy, ny).map(|b| local(i, b, k)),
+                            back(k, uz, nz).map(|c| local(i, j, c)),
+                        ];
+                        let p = self.node(i, j, k + k0);
+                        for n in neighbours.into_iter().flatten() {
+                            let t = nearest[n];
+                            if t == NONE || t == best_t {
+                                continue;
+                            }
+                            let d = self.distance_to(&p, t);
+                            if d < best {
+                                (best, best_t) = (d, t);
+                            }
+                        }
+                        dist[at] = best;
+                        nearest[at] = best_t;
+                    }
+                }
+            }
+        }
+        nearest
+    }
+
+    /// The distance from `p` to triangle `t`.
+    fn distance_to(&self, p: &Point3<f64>, t: u32) -> f64 {
+        let [a, b, c] = self.triangles[t as usize].map(|i| self.vertices[i as usize]);
+        (p - closest_on_triangle(p, &a, &b, &c).0).norm()
+    }
+
+    /// From triangle `t` at distance `d`, across edges to ever nearer triangles; the last one.
+    fn walk(&self, p: &Point3<f64>, mut d: f64, mut t: u32) -> (f64, u32) {
+        // A walk on a closed mesh cannot revisit with a falling distance; the cap only guards
+        // against a mesh that was not repaired.
+        for _ in 0..256 {
+            let mut moved = false;
+            for &n in &self.across[t as usize] {
+                if n == NONE {
+                    continue;
+                }
+                let dn = self.distance_to(p, n);
+                if dn < d {
+                    (d, t, moved) = (dn, n, true);
+                }
+            }
+            if !moved {
+                break;
+            }
+        }
+        (d, t)
+    }
+
+    /// The signed distance from `p` to triangle `t`, signed by the pseudo-normal of the feature
+    /// nearest `p`.
+    fn signed_to(&self, p: &Point3<f64>, t: u32) -> f64 {
+        let tri = self.triangles[t as usize];
+        let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
+        let (q, feature) = closest_on_triangle(p, &a, &b, &c);
+        let n = match feature {
+            Feature::Vertex(k) => self.vertex_normals[tri[k as usize] as usize],
+            Feature::Edge(k) => self.edge_normals[t as usize][k as usize],
+            Feature::Face => self.face_normals[t as usize],
+        };
+        let off = p - q;
+        let d = off.norm();
+        if off.dot(&n) < 0.0 { -d } else { d }
+    }
+
+    /// The signed distance at `p`, or `None` outside the grid.
+    pub fn signed_distance(&self, p: &Point3<f64>) -> Option<f64> {
+        self.nearest_triangle(p).map(|(d, _)| d)
+    }
+
+    /// The signed distance at `p` and the triangle where it is attained, or `None` outside the
+    /// grid.
+    pub fn nearest_triangle(&self, p: &Point3<f64>) -> Option<(f64, u32)> {
+        let g = (p - self.origin) / SPACING_M;
+        let [nx, ny, nz] = self.dims;
+        if !(g.x >= 0.0 && g.y >= 0.0 && g.z >= 0.0)
+            || g.x >= (nx - 1) as f64
+            || g.y >= (ny - 1) as f64
+            || g.z >= (nz - 1) as f64
+        {
+            return None;
+        }
+        let (i, j, k) = (g.x as usize, g.y as usize, g.z as usize);
+        let mut start = [(f64::INFINITY, NONE); 8];
+        let mut n_start = 0;
+        for (di, dj, dk) in [
+            (0, 0, 0),
+            (1, 0, 0),
+            (0, 1, 0),
+            (1, 1, 0),
+            (0, 0, 1),
+            (1, 0, 1),
+            (0, 1, 1),
+            (1, 1, 1),
+        ] {
+            let t = self.nearest[self.index(i + di, j + dj, k + dk)];
+            if t == NONE || start[..n_start].iter().any(|s| s.1 == t) {
+                continue;
+            }
+            start[n_start] = (self.distance_to(p, t), t);
+            n_start += 1;
+        }
+        // The corners' triangles are near p's nearest, not always it: from each that could be,
+        // walk across edges while the distance falls (on a smooth surface the nearest triangle is
+        // the only local minimum; two minima only on the medial axis, and each side's corners
+        // seed its own walk).
+        let first = start[..n_start]
+            .iter()
+            .map(|s| s.0)
+            .fold(f64::INFINITY, f64::min);
+        // Walks from the best candidate, and from any other within a hair of it (p on the
+        // medial axis, two parts of the surface equally near).
+        let slack = 1e-4;
+        let (mut best, mut best_t) = (f64::INFINITY, NONE);
+        for &(d0, t0) in &start[..n_start] {
+            if d0 > first + slack {
+                continue;
+            }
+            let (d, t) = self.walk(p, d0, t0);
+            if d < best {
+                (best, best_t) = (d, t);
+            }
+        }
+        (best_t != NONE).then(|| (self.signed_to(p, best_t), best_t))
+    }
+
+    /// The least distance from the cylinder at `head_from_cylinder` to the surface (0 when they
+    /// meet): from each seed triangle, across edges while the exact triangle-to-cylinder
+    /// distance (GJK) falls. A convex coil over a smooth scalp has one such minimum near its
+    /// nearest sampled point; seeds from several points catch a second (an ear beside the skull).
+    pub fn cylinder_distance(
+        &self,
+        head_from_cylinder: &mocomp_geom::nalgebra::Isometry3<f64>,
+        cylinder: &parry3d_f64::shape::Cylinder,
+        seeds: &[u32],
+    ) -> f64 {
+        use parry3d_f64::query::details::distance_support_map_support_map;
+        let cylinder_from_head = head_from_cylinder.inverse();
+        let (r, half) = (cylinder.radius, cylinder.half_height);
+        // The distance from a point to the cylinder, in closed form (its axis is its own y).
+        let to_point = |p: &Point3<f64>| {
+            let q = cylinder_from_head * p;
+            let radial = (q.x.hypot(q.z) - r).max(0.0);
+            let axial = (q.y.abs() - half).max(0.0);
+            radial.hypot(axial)
+        };
+        let to = |t: u32| {
+            let [a, b, c] = self.triangles[t as usize].map(|i| self.vertices[i as usize]);
+            let tri = parry3d_f64::shape::Triangle::new(a, b, c);
+            distance_support_map_support_map(head_from_cylinder, &tri, cylinder)
+        };
+        let mut best = f64::INFINITY;
+        for &seed in seeds {
+            let (mut d, mut t) = (to(seed), seed);
+            // Across every triangle sharing a vertex, not only an edge: a cylinder nearest a
+            // vertex of one triangle may be nearer still to another around that vertex that
+            // shares no edge with it.
+            for _ in 0..256 {
+                if d <= 0.0 {
+                    break;
+                }
+                let mut moved = false;
+                for &v in &self.triangles[t as usize] {
+                    let (a, b) = (self.ring_at[v as usize], self.ring_at[v as usize + 1]);
+                    for &n in &self.ring[a as usize..b as usize] {
+                        if n == t {
+                            continue;
+                        }
+                        // Nothing of the triangle is nearer than its ball allows.
+                        let (centre, radius) = self.spheres[n as usize];
+                        if to_point(&centre) - radius >= d {
+                            continue;
+                        }
+                        let dn = to(n);
+                        if dn < d {
+                            (d, t, moved) = (dn, n, true);
+                        }
+                    }
+                }
+                if !moved {
+                    break;
+                }
+            }
+            best = best.min(d);
+        }
+        best
+    }
+}
+
+/// The triangles around each vertex, as offsets into one list.
+fn rings(mesh: &Surface<'_>) -> (Vec<u32>, Vec<u32>) {
+    let mut count = vec![0u32; mesh.vertices.len() + 1];
+    for t in mesh.triangles {
+        for &v in t {
+            count[v as usize + 1] += 1;
+        }
+    }
+    for v in 0..mesh.vertices.len() {
+        count[v + 1] += count[v];
+    }
+    let mut fill = count.clone();
+    let mut ring = vec![0u32; mesh.triangles.len() * 3];
+    for (i, t) in mesh.triangles.iter().enumerate() {
+        for &v in t {
+            ring[fill[v as usize] as usize] = i as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    (count, ring)
+}
+
+/// The triangle across each edge of each triangle.
+fn adjacency(mesh: &Surface<'_>) -> Vec<[u32; 3]> {
+    let mut by_edge: std::collections::HashMap<(u32, u32), [u32; 2]> =
+        std::collections::HashMap::with_capacity(mesh.triangles.len() * 2);
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let e = by_edge.entry((a.min(b), a.max(b))).or_insert([NONE; 2]);
+            if e[0] == NONE {
+                e[0] = t as u32;
+            } else {
+                e[1] = t as u32;
+            }
+        }
+    }
+    mesh.triangles
+        .iter()
+        .enumerate()
+        .map(|(t, tri)| {
+            std::array::from_fn(|k| {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                let e = by_edge
+                    .get(&(a.min(b), a.max(b)))
+                    .copied()
+                    .unwrap_or([NONE; 2]);
+                if e[0] == t as u32 { e[1] } else { e[0] }
+            })
+        })
+        .collect()
+}
+
+/// Angle-weighted vertex normals, edge normals (the sum of the two faces') and face normals.
+type Normals = (Vec<Vector3<f64>>, Vec<[Vector3<f64>; 3]>, Vec<Vector3<f64>>);
+
+fn pseudo_normals(mesh: &Surface<'_>) -> Normals {
+    let v = &mesh.vertices;
+    let faces: Vec<Vector3<f64>> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| v[i as usize]);
+            (b - a)
+                .cross(&(c - a))
+                .try_normalize(1e-300)
+                .unwrap_or_else(Vector3::z)
+        })
+        .collect();
+    let mut vertex = vec![Vector3::zeros(); v.len()];
+    let mut by_edge: std::collections::HashMap<(u32, u32), Vector3<f64>> =
+        std::collections::HashMap::with_capacity(mesh.triangles.len() * 2);
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b, c) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            let e1 = v[b as usize] - v[a as usize];
+            let e2 = v[c as usize] - v[a as usize];
+            let angle = e1.angle(&e2);
+            vertex[a as usize] += faces[t] * angle;
+            *by_edge.entry((a.min(b), a.max(b))).or_default() += faces[t];
+        }
+    }
+    let edges = mesh
+        .triangles
+        .iter()
+        .map(|tri| {
+            std::array::from_fn(|k| {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                by_edge
+                    .get(&(a.min(b), a.max(b)))
+                    .copied()
+                    .unwrap_or_default()
+            })
+        })
+        .collect();
+    (vertex, edges, faces)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)] // test code
+    use super::*;
+    use crate::MeshHead;
+    use crate::mesh::tests::ellipsoid_mesh;
+    use parry3d_f64::query::PointQuery;
+    use parry3d_f64::shape::Triangle;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The closest point agrees with parry's projection onto the triangle.
+        #[test]
+        fn the_closest_point_on_a_triangle_is_parrys(
+            c in proptest::collection::vec(-1.0..1.0f64, 12),
+        ) {
+            let pt = |i: usize| Point3::new(c[i], c[i + 1], c[i + 2]);
+            let (p, a, b, cc) = (pt(0), pt(3), pt(6), pt(9));
+            let (q, _) = closest_on_triangle(&p, &a, &b, &cc);
+            let r = Triangle::new(a, b, cc).project_local_point(&p, true).point;
+            prop_assert!((q - r).norm() < 1e-9, "{q} {r}");
+        }
+    }
+
+    /// Everywhere in its grid the field is the mesh's exact signed distance (the BVH's).
+    #[test]
+    fn the_field_is_the_exact_distance_everywhere_in_its_grid() {
+        let radii = Vector3::new(0.075, 0.095, 0.11);
+        let mesh = ellipsoid_mesh(&radii, 5);
+        let field = DistanceField::new(&mesh.vertices, &mesh.triangles);
+        let exact = MeshHead::new(mesh, "e").unwrap();
+        let mut rng = mocomp_testkit::SplitMix64(11);
+        let mut next = || rng.next_f64() - 0.5;
+        let (mut inside, mut outside_grid) = (0, 0);
+        for n in 0..4000 {
+            let mut p = Point3::new(0.4 * next(), 0.45 * next(), 0.5 * next());
+            if n % 2 == 0 {
+                // Half of them near the surface, where the loop asks.
+                let on = p.coords.normalize().component_mul(&radii);
+                p = Point3::from(on * (1.0 + 0.3 * next()));
+            }
+            let truth = exact.exact(&p);
+            match field.signed_distance(&p) {
+                Some(d) => {
+                    inside += usize::from(d < 0.0);
+                    assert!((d - truth).abs() < 1e-9, "{p}: {d} against {truth}");
+                }
+                None => {
+                    outside_grid += 1;
+                    assert!(truth > MARGIN_M, "{p}");
+                }
+            }
+        }
+        assert!(
+            inside > 800 && outside_grid > 100,
+            "{inside} {outside_grid}"
+        );
+    }
+}
