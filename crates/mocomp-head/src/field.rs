@@ -426,33 +426,75 @@ impl DistanceField {
         let mut best = f64::INFINITY;
         for &seed in seeds {
             let (mut d, mut t) = (to(seed), seed);
-            // Across every triangle sharing a vertex, not only an edge: a cylinder nearest a
-            // vertex of one triangle may be nearer still to another around that vertex that
-            // shares no edge with it.
-            for _ in 0..256 {
+            // Jumps first: the cylinder's point nearest the triangle, and that point's nearest
+            // triangle, until it stays (each a long stride across a fine mesh).
+            for _ in 0..32 {
+                use parry3d_f64::query::ClosestPoints;
+                use parry3d_f64::query::details::closest_points_support_map_support_map;
+                let [a, b, c] = self.triangles[t as usize].map(|i| self.vertices[i as usize]);
+                let tri = parry3d_f64::shape::Triangle::new(a, b, c);
+                let ClosestPoints::WithinMargin(_, on_cylinder) =
+                    closest_points_support_map_support_map(
+                        head_from_cylinder,
+                        &tri,
+                        cylinder,
+                        f64::MAX,
+                    )
+                else {
+                    break;
+                };
+                let q = head_from_cylinder * on_cylinder;
+                let Some((_, n)) = self.nearest_triangle(&q) else {
+                    break;
+                };
+                if n == t {
+                    break;
+                }
+                let dn = to(n);
+                if dn >= d {
+                    break;
+                }
+                (d, t) = (dn, n);
+            }
+            // Across edges while that helps (three distances a step), then across every
+            // triangle sharing a vertex, which settles it: a cylinder nearest a vertex of one
+            // triangle may be nearer still to another around that vertex sharing no edge with it.
+            let better = |d: f64, n: u32| {
+                let (centre, radius) = self.spheres[n as usize];
+                // Nothing of the triangle is nearer than its ball allows.
+                if to_point(&centre) - radius >= d {
+                    return None;
+                }
+                let dn = to(n);
+                (dn < d).then_some(dn)
+            };
+            for _ in 0..512 {
                 if d <= 0.0 {
                     break;
                 }
-                let mut moved = false;
-                for &v in &self.triangles[t as usize] {
-                    let (a, b) = (self.ring_at[v as usize], self.ring_at[v as usize + 1]);
-                    for &n in &self.ring[a as usize..b as usize] {
-                        if n == t {
-                            continue;
-                        }
-                        // Nothing of the triangle is nearer than its ball allows.
-                        let (centre, radius) = self.spheres[n as usize];
-                        if to_point(&centre) - radius >= d {
-                            continue;
-                        }
-                        let dn = to(n);
-                        if dn < d {
-                            (d, t, moved) = (dn, n, true);
+                let mut next = None;
+                for &n in &self.across[t as usize] {
+                    if n != NONE
+                        && let Some(dn) = better(next.map_or(d, |(b, _)| b), n)
+                    {
+                        next = Some((dn, n));
+                    }
+                }
+                if next.is_none() {
+                    for &v in &self.triangles[t as usize] {
+                        let (a, b) = (self.ring_at[v as usize], self.ring_at[v as usize + 1]);
+                        for &n in &self.ring[a as usize..b as usize] {
+                            if n != t
+                                && let Some(dn) = better(next.map_or(d, |(b, _)| b), n)
+                            {
+                                next = Some((dn, n));
+                            }
                         }
                     }
                 }
-                if !moved {
-                    break;
+                match next {
+                    Some((dn, n)) => (d, t) = (dn, n),
+                    None => break,
                 }
             }
             best = best.min(d);
