@@ -42,39 +42,9 @@ impl HeadModel {
     }
 }
 
-/// Distance from `p` (ellipsoid frame) to the ellipsoid with semi-axes `r`.
-pub fn ellipsoid_distance(p: &Vector3<f64>, r: &Vector3<f64>) -> f64 {
-    let s = (p.x / r.x).powi(2) + (p.y / r.y).powi(2) + (p.z / r.z).powi(2);
-    let rmin = r.x.min(r.y).min(r.z);
-    if s <= 1.0 {
-        return -(1.0 - s.sqrt()) * rmin;
-    }
-    // Closest point y_i = r_i² p_i / (t + r_i²), with t ≥ 0 the root of
-    // f(t) = Σ (r_i p_i / (t + r_i²))² − 1, decreasing and convex: Newton from t = 0 converges
-    // monotonically.
-    let a = [r.x * r.x, r.y * r.y, r.z * r.z];
-    let q = [p.x, p.y, p.z];
-    let mut t = 0.0;
-    for _ in 0..40 {
-        let mut f = -1.0;
-        let mut df = 0.0;
-        for i in 0..3 {
-            let u = r[i] * q[i] / (t + a[i]);
-            f += u * u;
-            df += -2.0 * u * u / (t + a[i]);
-        }
-        if f.abs() < 1e-14 || df == 0.0 {
-            break;
-        }
-        t -= f / df;
-    }
-    let y = Vector3::new(
-        a[0] * q[0] / (t + a[0]),
-        a[1] * q[1] / (t + a[1]),
-        a[2] * q[2] / (t + a[2]),
-    );
-    (p - y).norm()
-}
+/// Distance from `p` (ellipsoid frame) to the ellipsoid with semi-axes `r`: exact outside, a
+/// lower bound of the depth inside (the head crate's, which the mesh head sits beside).
+pub use mocomp_head::ellipsoid_distance;
 
 /// The coil: spheres along its approach axis (+z of the coil frame points into the head; the
 /// coil's face is the origin).
@@ -102,23 +72,11 @@ impl CoilModel {
         cutoff: f64,
     ) -> f64 {
         // The rim at every 45° and the centre, as unit offsets (no trigonometry per call: this
-        // runs several times a control cycle).
-        const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
-        const RIM: [(f64, f64); 9] = [
-            (1.0, 0.0),
-            (H, H),
-            (0.0, 1.0),
-            (-H, H),
-            (-1.0, 0.0),
-            (-H, -H),
-            (0.0, -1.0),
-            (H, -H),
-            (0.0, 0.0),
-        ];
+        // runs several times a control cycle); the same points the head crate samples.
         let r = self.radius;
         let mut nearest = f64::INFINITY;
         for z in [0.0, -self.thickness] {
-            for (c, s) in RIM {
+            for (c, s) in mocomp_head::shape::COIL_RIM {
                 let p = Point3::new(r * c, r * s, z);
                 nearest = nearest.min(head.distance_below(&(head_from_coil * p), cutoff));
             }

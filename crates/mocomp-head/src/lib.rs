@@ -9,8 +9,9 @@
 //!
 //! **Limits.** This crate does no I/O and keeps no clock: the caller reads the file and hands
 //! over its bytes. Coordinates are metres in whatever frame the caller gives (the head marker's
-//! frame once registered); a file's millimetres are converted once, on reading. A query
-//! allocates nothing. Volumes (NIfTI) are not read here yet.
+//! frame once registered); a file's millimetres are converted once, on reading. A query in the
+//! distance field's grid allocates nothing (beyond it, parry's traversal keeps a small stack that
+//! may spill to the heap). Volumes (NIfTI) are not read here yet.
 
 pub mod ellipsoid;
 pub mod error;

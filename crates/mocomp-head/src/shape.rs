@@ -67,6 +67,23 @@ impl Aabb {
     }
 }
 
+/// The coil's rim every 45° and its centre, as (cos, sin) offsets of its radius: the points a
+/// coil is sampled at, on its face and on its back.
+pub const COIL_RIM: [(f64, f64); 9] = {
+    const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
+    [
+        (1.0, 0.0),
+        (H, H),
+        (0.0, 1.0),
+        (-H, H),
+        (-1.0, 0.0),
+        (-H, -H),
+        (0.0, -1.0),
+        (H, -H),
+        (0.0, 0.0),
+    ]
+};
+
 /// The coil as the solid it is: a cylinder (a disc with thickness) in the coil frame, its face
 /// at the origin, +z (its approach axis) into the head, its body behind the face (z from
 /// `-thickness` to 0), `radius` as seen from the head.
@@ -105,21 +122,9 @@ impl CoilSolid {
     /// the head is nearest it, to seed the exact search and to measure how deep a coil cutting
     /// in goes.
     pub(crate) fn sample_points(&self, head_from_coil: &Isometry3<f64>) -> [Point3<f64>; 18] {
-        const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
-        const RIM: [(f64, f64); 9] = [
-            (1.0, 0.0),
-            (H, H),
-            (0.0, 1.0),
-            (-H, H),
-            (-1.0, 0.0),
-            (-H, -H),
-            (0.0, -1.0),
-            (H, -H),
-            (0.0, 0.0),
-        ];
         let r = self.radius;
         std::array::from_fn(|i| {
-            let (c, s) = RIM[i % 9];
+            let (c, s) = COIL_RIM[i % 9];
             let z = if i < 9 { 0.0 } else { -self.thickness };
             head_from_coil * Point3::new(r * c, r * s, z)
         })
@@ -137,7 +142,7 @@ impl CoilSolid {
 }
 
 /// A head's shape. Implementations answer in the head frame, metres, and allocate nothing per
-/// query (the control loop asks several times a cycle).
+/// query where the loop asks (near the head; see the crate's limits).
 pub trait HeadShape {
     /// Signed distance from `p` to the surface: positive outside, negative inside.
     fn signed_distance(&self, p: &Point3<f64>) -> f64;

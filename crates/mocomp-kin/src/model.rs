@@ -54,7 +54,7 @@ impl Series {
 
 /// The six non-zero DH parameters of the UR family's nominal geometry (standard DH, metres):
 /// `α = [π/2, 0, 0, π/2, −π/2, 0]`, `a1 = a4 = a5 = a6 = 0`, `d2 = d3 = 0`, all joint offsets 0.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct UrGeometry {
     /// Base height (shoulder axis above the base frame).
     pub d1: f64,

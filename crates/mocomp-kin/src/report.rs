@@ -1,7 +1,7 @@
 //! What `fk`, `ik` and the model table report, as values: each serialises to the JSON a tool
 //! reads and displays as the text a person reads, so every front end prints the same thing.
 
-use crate::{Arm, Choice, KinError, MODELS, Metric, Selection, Solutions};
+use crate::{Arm, Choice, KinError, MODELS, Metric, Selection, Solutions, UrGeometry};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::text::{row, transform};
 use mocomp_geom::{rows_from_iso, ur_pose_from_iso};
@@ -228,18 +228,9 @@ impl fmt::Display for IkReport {
 pub struct ModelRow {
     /// The model's name.
     pub name: &'static str,
-    /// DH `d1`, metres.
-    pub d1: f64,
-    /// DH `a2`, metres.
-    pub a2: f64,
-    /// DH `a3`, metres.
-    pub a3: f64,
-    /// DH `d4`, metres.
-    pub d4: f64,
-    /// DH `d5`, metres.
-    pub d5: f64,
-    /// DH `d6`, metres.
-    pub d6: f64,
+    /// DH `d1`, `a2`, `a3`, `d4`, `d5`, `d6`, metres (as keys of the row).
+    #[serde(flatten)]
+    pub geometry: UrGeometry,
     /// Maximum joint speeds, rad/s.
     pub max_speed_rad_s: [f64; 6],
     /// Lower joint limits, rad (`None`: unlimited).
@@ -265,12 +256,7 @@ impl ModelTable {
                 .iter()
                 .map(|m| ModelRow {
                     name: m.name,
-                    d1: m.geometry.d1,
-                    a2: m.geometry.a2,
-                    a3: m.geometry.a3,
-                    d4: m.geometry.d4,
-                    d5: m.geometry.d5,
-                    d6: m.geometry.d6,
+                    geometry: m.geometry,
                     max_speed_rad_s: m.max_speed,
                     lower_limits_rad: finite(&m.lower_limits),
                     upper_limits_rad: finite(&m.upper_limits),
@@ -298,12 +284,12 @@ impl fmt::Display for ModelTable {
                 f,
                 "{:<6} {:>8.5} {:>8.5} {:>8.5} {:>8.5} {:>8.5} {:>8.5}  {:<26} {:.0} ms",
                 m.name,
-                m.d1,
-                m.a2,
-                m.a3,
-                m.d4,
-                m.d5,
-                m.d6,
+                m.geometry.d1,
+                m.geometry.a2,
+                m.geometry.a3,
+                m.geometry.d4,
+                m.geometry.d5,
+                m.geometry.d6,
                 speeds.join(","),
                 m.control_period_s * 1000.0
             )?;
