@@ -541,14 +541,28 @@ pub const SIM_FLANGE_FROM_COIL: [f64; 6] = [0.0, 0.0, 0.05, 0.0, 0.0, 0.0];
 /// The simulated head's goal: on top, 3 mm off the scalp, +z into the head: head_from_coil.
 pub const SIM_HEAD_FROM_COIL: [f64; 6] = [0.0, 0.0, 0.113, std::f64::consts::PI, 0.0, 0.0];
 
-/// `[head]`: an ellipsoid in the head marker's frame.
+/// `[head]`: the patient's scalp from a scan (`mesh`), or else an ellipsoid, in the head
+/// marker's frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct HeadSection {
-    /// head_from_ellipsoid.
+    /// head_from_ellipsoid (without a mesh).
     pub head_from_ellipsoid: Pose,
-    /// Semi-axes, m.
+    /// Semi-axes, m (without a mesh).
     pub radii_m: [f64; 3],
+    /// The scalp's surface file (STL, OBJ, PLY, GIfTI, FreeSurfer; relative to the
+    /// configuration's directory): the head model instead of the ellipsoid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<PathBuf>,
+    /// The unit of a mesh format that carries none (STL, OBJ, PLY): "mm" or "m".
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub units: Option<String>,
+    /// head_from_image: the mesh file's frame (an MRI's RAS) in the head marker's frame, until
+    /// registration measures it.
+    pub head_from_image: Pose,
+    /// The mesh as read, mended and built ([`Config::load_head`]); not part of the file.
+    #[serde(skip)]
+    pub loaded: Option<HeadModel>,
 }
 
 impl Default for HeadSection {
@@ -556,6 +570,10 @@ impl Default for HeadSection {
         Self {
             head_from_ellipsoid: pose_const([0.0; 6]),
             radii_m: [0.075, 0.095, 0.11],
+            mesh: None,
+            units: None,
+            head_from_image: pose_const([0.0; 6]),
+            loaded: None,
         }
     }
 }
@@ -993,18 +1011,51 @@ impl Config {
             gain: self.servo.gain,
         };
         cfg.predictor = self.predictor;
-        cfg.head = self.head_model();
+        cfg.head = self.head_model()?;
         cfg.coil = self.coil_model();
         cfg.params = self.params;
         Ok(cfg)
     }
 
-    /// `[head]` as the loop's model.
-    pub fn head_model(&self) -> HeadModel {
-        HeadModel {
-            head_from_ellipsoid: self.head.head_from_ellipsoid.iso(),
-            radii: Vector3::from(self.head.radii_m),
+    /// `[head]` as the loop's model: the scalp [`Self::load_head`] built, or the ellipsoid.
+    pub fn head_model(&self) -> Result<HeadModel, AppError> {
+        if let Some(head) = &self.head.loaded {
+            return Ok(head.clone());
         }
+        if let Some(mesh) = &self.head.mesh {
+            return Err(AppError::Config(format!(
+                "head.mesh = {}: not loaded (the configuration was not read through a setup)",
+                mesh.display()
+            )));
+        }
+        HeadModel::ellipsoid(
+            self.head.head_from_ellipsoid.iso(),
+            Vector3::from(self.head.radii_m),
+        )
+        .map_err(|e| AppError::Config(format!("head.radii_m: {e}")))
+    }
+
+    /// Reads, mends and builds `[head] mesh` (relative to `dir`) once, in the head marker's
+    /// frame; the path becomes the one read. Nothing to do without a mesh or once loaded.
+    pub fn load_head(&mut self, dir: &Path) -> Result<(), AppError> {
+        let Some(mesh) = &self.head.mesh else {
+            return Ok(());
+        };
+        if self.head.loaded.is_some() {
+            return Ok(());
+        }
+        let path = dir.join(mesh);
+        let units = match self.head.units.as_deref() {
+            None => None,
+            Some(u) => Some(
+                mocomp_head::formats::parse_unit(u)
+                    .map_err(|e| AppError::Config(format!("head.units = {u:?}: {e}")))?,
+            ),
+        };
+        let head = crate::head_file::load_head(&path, units, &self.head.head_from_image.iso())?;
+        self.head.mesh = Some(path);
+        self.head.loaded = Some(head);
+        Ok(())
     }
 
     /// `[coil]` as the loop's model.
@@ -1185,8 +1236,9 @@ impl Setup {
     }
 
     /// A setup of a configuration already read (its relative paths relative to `dir`).
-    pub fn new(file: Config, path: Option<PathBuf>, dir: PathBuf) -> Result<Self, AppError> {
+    pub fn new(mut file: Config, path: Option<PathBuf>, dir: PathBuf) -> Result<Self, AppError> {
         file.check()?;
+        file.load_head(&dir)?;
         let model = file.robot.model;
         let base_from_tracker = file.base_from_tracker(&dir)?;
         // The coil's mounting, named now rather than once the robot moves (the goal may be

@@ -82,6 +82,9 @@ pub fn demo_config(file: Option<&Path>, o: &DemoOverrides) -> Result<DemoConfig,
     overlay(&mut cfg, o);
     motion(&mut cfg.tracker.simulated, o)?;
     cfg.check()?;
+    // A scalp file is relative to the configuration's directory.
+    let dir = file.and_then(Path::parent).unwrap_or(Path::new(""));
+    cfg.load_head(dir)?;
     notes.extend(cfg.predictor_note());
     Ok(DemoConfig { config: cfg, notes })
 }

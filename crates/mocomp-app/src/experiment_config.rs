@@ -50,7 +50,7 @@ pub fn from_config(cfg: &Config) -> Result<ExperimentConfig, AppError> {
         loop_params: cfg.params,
         predictor: cfg.predictor,
         servo: (cfg.servo.lookahead_s, cfg.servo.gain),
-        head: cfg.head_model(),
+        head: cfg.head_model()?,
         coil: cfg.coil_model(),
         contact: ContactParams {
             noise_n: mocomp_sim::contact::SIMULATED_SENSOR_NOISE_N,

@@ -2,10 +2,12 @@
 //! decoded and mended by [`mocomp_head`], and what was made of it written back out.
 
 use crate::{AppError, Context};
+use mocomp_control::HeadModel;
 use mocomp_geom::LengthUnit;
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_head::inspect::Inspection;
 use mocomp_head::render::{Picture, three_views};
-use mocomp_head::{Mesh, formats};
+use mocomp_head::{Head, Mesh, MeshHead, formats};
 use std::io::Read;
 use std::path::Path;
 
@@ -46,4 +48,18 @@ pub fn write_views(path: &Path, mesh: &Mesh, size: u32) -> Result<(), AppError> 
     let png = mocomp_vision::codec::encode_rgb_png(width, height, &rgb, "the head's views")
         .map_err(|e| AppError::failed("drawing the head", e))?;
     std::fs::write(path, png).what(|| format!("{}: cannot write", path.display()))
+}
+
+/// The head model of the surface at `path` (see [`inspect_file`]), its points carried by
+/// `head_from_image` into the head marker's frame, with the distance field the loop asks built.
+pub fn load_head(
+    path: &Path,
+    unit: Option<LengthUnit>,
+    head_from_image: &Isometry3<f64>,
+) -> Result<HeadModel, AppError> {
+    let (mesh, _) = inspect_file(path, unit)?;
+    let name = path.display().to_string();
+    let head = MeshHead::new(mesh.transformed(head_from_image), &name)
+        .map_err(|e| AppError::failed("building the head", e))?;
+    Ok(HeadModel::new(Head::Mesh(std::sync::Arc::new(head))))
 }

@@ -474,7 +474,7 @@ pub fn select_target(
     };
     let goal = targets[index].1;
     mocomp_control::check_goal(
-        &config.head_model(),
+        &config.head_model()?,
         &config.coil_model(),
         &goal,
         config.params.goal_min_distance_m(),

@@ -40,7 +40,7 @@ pub fn add_grid(
     p: &GridParams,
 ) -> Result<Vec<String>, AppError> {
     targets
-        .add_grid(&setup.file.head_model(), name, p, &now())
+        .add_grid(&setup.file.head_model()?, name, p, &now())
         .map_err(input)
 }
 

@@ -178,7 +178,7 @@ fn goal_from(setup: &Setup, heads: &[Isometry3<f64>], q: &[f64; 6]) -> Result<Ta
     // The loop's own goal check (the whole coil model against the head model, the approach axis
     // into the head), so a goal taught here is never one the loop refuses.
     let distance_m = match check_goal(
-        &file.head_model(),
+        &file.head_model()?,
         &file.coil_model(),
         &head_from_coil,
         file.params.goal_min_distance_m(),

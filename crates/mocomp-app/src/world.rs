@@ -293,7 +293,7 @@ fn scalp_contact(setup: &Setup, head_t0: Arc<OnceLock<Instant>>) -> Result<ToolL
             noise_n: mocomp_sim::contact::SIMULATED_SENSOR_NOISE_N,
             ..ContactParams::default()
         },
-        file.head_model(),
+        file.head_model()?,
         file.coil_model(),
         s.model.seed,
     );

@@ -206,8 +206,21 @@ function drawScene() {
   for (const [x, y] of [[-60, -20], [60, -20], [60, 20], [-60, 20], [-60, -20]]) box.push(apply(tr, [x, y, 0]));
   polyline(g, P, box, "#444", 2);
   if (s.scene.head) polyline(g, P, [tr.p_mm, s.scene.head.p_mm], "#bbb", 1, [2, 4]);
-  // The head model: the ellipsoid's meridians and parallels.
-  if (s.scene.head) {
+  // The head model: the patient's scalp as a wireframe of its (decimated) triangles, each edge
+  // once; or the ellipsoid's meridians and parallels.
+  if (s.scene.head && sc.head_mesh) {
+    const v = sc.head_mesh.vertices_mm.map((p) => P(apply(s.scene.head, p))), seen = new Set();
+    g.strokeStyle = "#c7a98f"; g.lineWidth = 1; g.beginPath();
+    for (const t of sc.head_mesh.triangles) {
+      for (let k = 0; k < 3; k++) {
+        const a = t[k], b = t[(k + 1) % 3], key = a < b ? a * 1e6 + b : b * 1e6 + a;
+        if (seen.has(key)) continue;
+        seen.add(key);
+        g.moveTo(v[a][0], v[a][1]); g.lineTo(v[b][0], v[b][1]);
+      }
+    }
+    g.stroke();
+  } else if (s.scene.head) {
     const e = sc.head_from_ellipsoid, [a, b, cc] = sc.head_radii_mm;
     const at = (u, v) => apply(s.scene.head, apply(e, [a * Math.cos(v) * Math.cos(u), b * Math.cos(v) * Math.sin(u), cc * Math.sin(v)]));
     for (let m = 0; m < 12; m++) {

@@ -6,8 +6,9 @@
 
 use mocomp_app::config::{Config, Setup};
 use mocomp_app::frontend::{Controls, Observer, Status, mode_name};
-use mocomp_control::{CycleRecord, Event, LoopConfig, Mode, Reason};
+use mocomp_control::{CycleRecord, Event, HeadModel, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
+use mocomp_head::{Head, Mesh};
 use mocomp_kin::Arm;
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -248,10 +249,59 @@ pub struct SceneJson {
     pub head_from_ellipsoid: PoseJson,
     /// The ellipsoid's semi-axes, mm.
     pub head_radii_mm: [f64; 3],
+    /// The patient's scalp instead of the ellipsoid, decimated for the page (head marker's
+    /// frame, mm).
+    pub head_mesh: Option<MeshJson>,
     /// The coil's radius, mm.
     pub coil_radius_mm: f64,
     /// The coil's thickness, mm.
     pub coil_thickness_mm: f64,
+}
+
+/// A head mesh for the page: vertices (mm) and triangles.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeshJson {
+    /// Vertices, mm, rounded to 0.1 mm.
+    pub vertices_mm: Vec<[f32; 3]>,
+    /// Triangles, indices into the vertices.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// The most triangles the page draws of a scalp.
+pub const PAGE_TRIANGLES: usize = 3000;
+
+/// What the page draws of `head`: the ellipsoid's pose and semi-axes (mm), or the scalp.
+fn head_json(head: &HeadModel) -> (PoseJson, [f64; 3], Option<MeshJson>) {
+    if let Some(e) = head.as_ellipsoid() {
+        let r = e.radii() * 1e3;
+        return (
+            PoseJson::from_iso(e.head_from_ellipsoid()),
+            [r.x, r.y, r.z],
+            None,
+        );
+    }
+    let mesh = match head.shape() {
+        Head::Mesh(m) => Mesh {
+            vertices: m.vertices().to_vec(),
+            triangles: m.triangles().to_vec(),
+        }
+        .decimated(PAGE_TRIANGLES),
+        Head::Ellipsoid(_) => Mesh::default(),
+    };
+    let round = |x: f64| ((x * 1e4).round() / 10.0) as f32;
+    let json = MeshJson {
+        vertices_mm: mesh
+            .vertices
+            .iter()
+            .map(|p| [round(p.x), round(p.y), round(p.z)])
+            .collect(),
+        triangles: mesh.triangles,
+    };
+    (
+        PoseJson::from_iso(&Isometry3::identity()),
+        [0.0; 3],
+        Some(json),
+    )
 }
 
 #[derive(Debug)]
@@ -299,7 +349,14 @@ impl Shared {
         let status = StatusJson::starting();
         let text: Arc<str> = serde_json::to_string(&status).unwrap_or_default().into();
         let (status_tx, _) = watch::channel(Published { version: 0, text });
-        let radii = file.head.radii_m;
+        let (head_from_ellipsoid, head_radii_mm, head_mesh) = match file.head_model() {
+            Ok(h) => head_json(&h),
+            Err(_) => (
+                PoseJson::from_iso(&file.head.head_from_ellipsoid.iso()),
+                file.head.radii_m.map(|r| r * 1e3),
+                None,
+            ),
+        };
         Arc::new(Self {
             controls,
             setup: setup.clone(),
@@ -307,8 +364,9 @@ impl Shared {
                 version: 0,
                 robot: setup.model.to_string(),
                 tracker: PoseJson::from_iso(&setup.base_from_tracker),
-                head_from_ellipsoid: PoseJson::from_iso(&file.head.head_from_ellipsoid.iso()),
-                head_radii_mm: radii.map(|r| r * 1e3),
+                head_from_ellipsoid,
+                head_radii_mm,
+                head_mesh,
                 coil_radius_mm: file.coil.radius_m * 1e3,
                 coil_thickness_mm: file.coil.thickness_m * 1e3,
             }),
@@ -337,13 +395,14 @@ impl Shared {
     /// models; its version moves on, so a page fetches it again.
     pub fn set_scene(&self, robot: String, loop_cfg: &LoopConfig) {
         let mut s = self.scene.lock().unwrap_or_else(PoisonError::into_inner);
-        let r = loop_cfg.head.radii;
+        let (head_from_ellipsoid, head_radii_mm, head_mesh) = head_json(&loop_cfg.head);
         *s = SceneJson {
             version: s.version + 1,
             robot,
             tracker: PoseJson::from_iso(&loop_cfg.base_from_tracker),
-            head_from_ellipsoid: PoseJson::from_iso(&loop_cfg.head.head_from_ellipsoid),
-            head_radii_mm: [r.x * 1e3, r.y * 1e3, r.z * 1e3],
+            head_from_ellipsoid,
+            head_radii_mm,
+            head_mesh,
             coil_radius_mm: loop_cfg.coil.radius * 1e3,
             coil_thickness_mm: loop_cfg.coil.thickness * 1e3,
         };
@@ -698,5 +757,57 @@ impl Drop for ConsoleObserver {
         last.reason = None;
         last.rate_hz = 0.0;
         self.shared.publish(last, None, Some(Vec::new()));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)] // test code
+    use super::*;
+    use mocomp_geom::nalgebra::Point3;
+    use mocomp_head::MeshHead;
+
+    #[test]
+    fn the_page_gets_a_scalp_as_its_triangles_and_an_ellipsoid_as_its_axes() {
+        let (_, radii, mesh) = head_json(&HeadModel::adult());
+        assert_eq!(radii, [75.0, 95.0, 110.0]);
+        assert!(mesh.is_none());
+        // An octahedron of radius 100 mm, wound outward.
+        let r = 0.1;
+        let vertices = vec![
+            Point3::new(r, 0.0, 0.0),
+            Point3::new(-r, 0.0, 0.0),
+            Point3::new(0.0, r, 0.0),
+            Point3::new(0.0, -r, 0.0),
+            Point3::new(0.0, 0.0, r),
+            Point3::new(0.0, 0.0, -r),
+        ];
+        let mut triangles = Vec::new();
+        for (a, sa) in [(0u32, 1.0), (1, -1.0)] {
+            for (b, sb) in [(2u32, 1.0), (3, -1.0)] {
+                for (c, sc) in [(4u32, 1.0), (5, -1.0)] {
+                    triangles.push(if sa * sb * sc > 0.0 {
+                        [a, b, c]
+                    } else {
+                        [a, c, b]
+                    });
+                }
+            }
+        }
+        let head = MeshHead::new(
+            Mesh {
+                vertices,
+                triangles,
+            },
+            "octahedron",
+        )
+        .unwrap();
+        let (_, _, mesh) = head_json(&HeadModel::new(Head::Mesh(Arc::new(head))));
+        let mesh = mesh.unwrap();
+        assert_eq!((mesh.vertices_mm.len(), mesh.triangles.len()), (6, 8));
+        for v in &mesh.vertices_mm {
+            let n = v.iter().map(|x| x * x).sum::<f32>().sqrt();
+            assert!((n - 100.0).abs() < 0.01, "{v:?}");
+        }
     }
 }

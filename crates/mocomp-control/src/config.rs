@@ -4,7 +4,7 @@
 
 use crate::geometry::{CoilModel, HeadModel};
 use crate::predict::PredictorConfig;
-use mocomp_geom::nalgebra::{Isometry3, Vector3};
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_ur::ServoParams;
 use serde::{Deserialize, Serialize};
 
@@ -447,10 +447,7 @@ impl LoopConfig {
                 gain: 1500.0,
             },
             predictor: PredictorConfig::default(),
-            head: HeadModel {
-                head_from_ellipsoid: Isometry3::identity(),
-                radii: Vector3::new(0.075, 0.095, 0.11),
-            },
+            head: HeadModel::adult(),
             coil: CoilModel {
                 radius: 0.04,
                 thickness: 0.03,

@@ -1,43 +1,99 @@
-//! The collision model: the head as an ellipsoid in the head marker's frame, the coil as spheres
-//! along its approach axis, the arm's links as capsules between DH frames. Distances are exact
-//! for points against the ellipsoid (Newton on the standard secular equation); capsules are
-//! sampled as spheres along their axis.
+//! The collision model: the head (an ellipsoid or the patient's scalp, the head crate's
+//! [`Head`]) in the head marker's frame, the coil as points spread over its surface, the arm's
+//! links as capsules between DH frames. Distances to the ellipsoid are exact for points outside
+//! (Newton on the standard secular equation) and a cheap lower bound of the depth inside; to the
+//! scalp, exact through its distance field.
 
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
+use mocomp_head::{CoilSolid, Ellipsoid, Head, HeadError, HeadShape};
 
-/// The head: an ellipsoid in the head (marker) frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The head the loop keeps the coil from, in the head (marker) frame. Clones share a mesh.
+#[derive(Debug, Clone)]
 pub struct HeadModel {
-    /// `head_from_ellipsoid`: the ellipsoid's centre and axes in the head frame.
-    pub head_from_ellipsoid: Isometry3<f64>,
-    /// Semi-axes, m.
-    pub radii: Vector3<f64>,
+    shape: Head,
 }
 
 impl HeadModel {
+    /// The ellipsoid with semi-axes `radii` (m) about `head_from_ellipsoid`.
+    pub fn ellipsoid(
+        head_from_ellipsoid: Isometry3<f64>,
+        radii: Vector3<f64>,
+    ) -> Result<Self, HeadError> {
+        Ellipsoid::new(head_from_ellipsoid, radii).map(|e| Self {
+            shape: Head::Ellipsoid(e),
+        })
+    }
+
+    /// The default adult head: semi-axes 75, 95 and 110 mm about the marker's origin.
+    pub fn adult() -> Self {
+        Self {
+            shape: Head::Ellipsoid(Ellipsoid::adult()),
+        }
+    }
+
+    /// The head `shape` (an ellipsoid, or a scalp mesh read and built at start-up).
+    pub fn new(shape: Head) -> Self {
+        Self { shape }
+    }
+
+    /// The shape, for the questions only it answers (rays, nearest points, the shell's radius).
+    pub fn shape(&self) -> &Head {
+        &self.shape
+    }
+
+    /// The ellipsoid, when the head is one.
+    pub fn as_ellipsoid(&self) -> Option<&Ellipsoid> {
+        match &self.shape {
+            Head::Ellipsoid(e) => Some(e),
+            Head::Mesh(_) => None,
+        }
+    }
+
     /// Signed distance (m) from a point in the head frame to the surface: positive outside,
-    /// negative inside (inside: a lower bound of the depth).
+    /// negative inside (inside the ellipsoid: a lower bound of the depth).
     pub fn distance(&self, p_head: &Point3<f64>) -> f64 {
-        let p = self
-            .head_from_ellipsoid
-            .inverse_transform_point(p_head)
-            .coords;
-        ellipsoid_distance(&p, &self.radii)
+        match &self.shape {
+            Head::Ellipsoid(e) => {
+                let p = e
+                    .head_from_ellipsoid()
+                    .inverse_transform_point(p_head)
+                    .coords;
+                ellipsoid_distance(&p, e.radii())
+            }
+            Head::Mesh(m) => m.signed_distance(p_head),
+        }
     }
 
     /// [`Self::distance`] where it is below `cutoff`; elsewhere a lower bound of it that is at
-    /// least `cutoff` (the distance to the ellipsoid's bounding sphere), which spares the exact
-    /// solve for the many points a check only needs to know are far enough.
+    /// least `cutoff` (the distance to the ellipsoid's bounding sphere, or to the scalp's box),
+    /// which spares the exact solve for the many points a check only needs to know are far
+    /// enough.
     pub fn distance_below(&self, p_head: &Point3<f64>, cutoff: f64) -> f64 {
-        let p = self
-            .head_from_ellipsoid
-            .inverse_transform_point(p_head)
-            .coords;
-        let bound = p.norm() - self.radii.max();
-        if bound >= cutoff {
-            bound
-        } else {
-            ellipsoid_distance(&p, &self.radii)
+        match &self.shape {
+            Head::Ellipsoid(e) => {
+                let p = e
+                    .head_from_ellipsoid()
+                    .inverse_transform_point(p_head)
+                    .coords;
+                let bound = p.norm() - e.radii().max();
+                if bound >= cutoff {
+                    bound
+                } else {
+                    ellipsoid_distance(&p, e.radii())
+                }
+            }
+            Head::Mesh(m) => m.distance_below(p_head, cutoff),
+        }
+    }
+}
+
+/// Two ellipsoids are equal by their axes; two scalps only when they are the same one.
+impl PartialEq for HeadModel {
+    fn eq(&self, other: &Self) -> bool {
+        match (&self.shape, &other.shape) {
+            (Head::Ellipsoid(a), Head::Ellipsoid(b)) => a == b,
+            (Head::Mesh(a), Head::Mesh(b)) => std::sync::Arc::ptr_eq(a, b),
+            _ => false,
         }
     }
 }
@@ -46,8 +102,8 @@ impl HeadModel {
 /// lower bound of the depth inside (the head crate's, which the mesh head sits beside).
 pub use mocomp_head::ellipsoid_distance;
 
-/// The coil: spheres along its approach axis (+z of the coil frame points into the head; the
-/// coil's face is the origin).
+/// The coil: a cylinder behind its face (+z of the coil frame points into the head; the coil's
+/// face is the origin).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CoilModel {
     /// Coil radius seen from the head, m.
@@ -57,10 +113,25 @@ pub struct CoilModel {
 }
 
 impl CoilModel {
-    /// Signed distance (m) from the coil at `head_from_coil` to `head`: the nearest of its
-    /// face's and back's centres and rims (eight points each); negative when inside the head.
+    /// Signed distance (m) from the coil at `head_from_coil` to `head`; negative when inside the
+    /// head. Against the ellipsoid, the nearest of its face's and back's centres and rims (eight
+    /// points each: a convex head meets a coil facing it there first); against a scalp, the
+    /// nearest of points every few millimetres over its face, side and back rim
+    /// ([`mocomp_head::sampled`]), which an ear or a nose between the rim points cannot hide
+    /// from, less what the scalp may bulge between them
+    /// ([`mocomp_head::sampled::BETWEEN_SAMPLES_M`]): never more room than there is.
     pub fn distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
         self.distance_below(head, head_from_coil, f64::INFINITY)
+    }
+
+    /// The distance a report measures the true coil by: against a scalp, the exact clearance of
+    /// the coil's cylinder (parry's, a fraction of a millisecond at 4 k triangles: not for the
+    /// loop); against the ellipsoid, [`Self::distance`], as reports always measured it.
+    pub fn measured_distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
+        match (&head.shape, CoilSolid::new(self.radius, self.thickness)) {
+            (Head::Mesh(m), Ok(solid)) => m.coil_clearance(head_from_coil, &solid),
+            _ => self.distance(head, head_from_coil),
+        }
     }
 
     /// [`Self::distance`] where it is below `cutoff`; elsewhere some value of at least `cutoff`
@@ -71,6 +142,17 @@ impl CoilModel {
         head_from_coil: &Isometry3<f64>,
         cutoff: f64,
     ) -> f64 {
+        if let Head::Mesh(m) = &head.shape {
+            return match CoilSolid::new(self.radius, self.thickness) {
+                Ok(solid) => {
+                    let margin = mocomp_head::sampled::BETWEEN_SAMPLES_M;
+                    m.coil_clearance_sampled(head_from_coil, &solid, cutoff + margin) - margin
+                }
+                // Not a solid (the configuration refuses such a coil): as if cutting in, so
+                // every rule keeps it away.
+                Err(_) => f64::NEG_INFINITY,
+            };
+        }
         // The rim at every 45° and the centre, as unit offsets (no trigonometry per call: this
         // runs several times a control cycle); the same points the head crate samples.
         let r = self.radius;
@@ -89,14 +171,10 @@ impl CoilModel {
 #[cfg(test)]
 pub(crate) mod fixtures {
     use super::{CoilModel, HeadModel};
-    use mocomp_geom::nalgebra::{Isometry3, Vector3};
 
     /// An adult head: semi-axes 75, 95 and 110 mm, centred on the head frame.
     pub(crate) fn head() -> HeadModel {
-        HeadModel {
-            head_from_ellipsoid: Isometry3::identity(),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        }
+        HeadModel::adult()
     }
 
     /// A figure-8 coil's envelope: 40 mm radius, 30 mm thick.
@@ -116,13 +194,14 @@ mod tests {
     /// nearer than it is (points and coil poses all around the head, cutoffs from inside to far).
     #[test]
     fn distance_below_is_exact_below_the_cutoff_and_a_bound_above() {
-        let head = HeadModel {
-            head_from_ellipsoid: Isometry3::new(
+        let head = HeadModel::ellipsoid(
+            Isometry3::new(
                 Vector3::new(0.01, -0.02, 0.005),
                 Vector3::new(0.1, 0.2, -0.3),
             ),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        };
+            Vector3::new(0.075, 0.095, 0.11),
+        )
+        .unwrap();
         let coil = CoilModel {
             radius: 0.04,
             thickness: 0.03,

@@ -1,6 +1,10 @@
 //! Safe paths to a goal near the head: retreat along the coil's axis to a shell around the head,
 //! travel on the shell, approach the goal along its axis.
 //!
+//! The shell is the head's farthest reach from its centre along each direction
+//! ([`mocomp_head::HeadShape::radius_along`]) plus a margin, so around a scalp it passes outside
+//! the ears and the nose, not through them.
+//!
 //! A [`ShellPath`] lives in the head frame (`head_from_coil` poses), so it moves with the head:
 //! the loop maps it through the newest predicted head pose every cycle, which replans it
 //! continuously for head motion. It is parametrised by arc length σ (m; rotation counts as
@@ -10,6 +14,7 @@
 use crate::geometry::HeadModel;
 use mocomp_geom::interp::slerp;
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use mocomp_head::HeadShape;
 
 /// How many metres of path one radian of coil rotation counts as.
 pub const ROTATION_LENGTH_M: f64 = 0.1;
@@ -29,23 +34,20 @@ pub enum PlanError {
     NoRetreat(f64),
 }
 
-/// Retreat, shell travel and approach, in the head frame.
+/// Retreat, shell travel and approach, in the head frame, around the head it was planned for
+/// (which each pose query is given again: the path holds no copy of a scalp).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShellPath {
-    head: HeadModel,
+    /// The head's centre the shell is built around.
+    centre: Point3<f64>,
     start: Isometry3<f64>,
     retreat: Isometry3<f64>,
     pre: Isometry3<f64>,
     goal: Isometry3<f64>,
-    /// Radial excess over the ellipsoid at the retreat point and at the pre-approach point, m.
+    /// Radial excess over the head's reach at the retreat point and at the pre-approach point, m.
     excess: (f64, f64),
     /// Segment lengths: retreat, shell, approach (m of path).
     lengths: [f64; 3],
-}
-
-/// Radius of the ellipsoid (semi-axes `r`) along the unit direction `d`.
-fn radial(d: &Vector3<f64>, r: &Vector3<f64>) -> f64 {
-    1.0 / ((d.x / r.x).powi(2) + (d.y / r.y).powi(2) + (d.z / r.z).powi(2)).sqrt()
 }
 
 /// Spherical interpolation of unit vectors (a perpendicular detour when they are opposite).
@@ -103,8 +105,7 @@ impl ShellPath {
         } else {
             let back = -axis_of(start);
             let radial_out = {
-                let c = head.head_from_ellipsoid.translation.vector;
-                let v = start_p - c;
+                let v = start_p - head.shape().centre().coords;
                 if v.norm() > 1e-9 {
                     v.normalize()
                 } else {
@@ -129,7 +130,7 @@ impl ShellPath {
         };
         let retreat = Isometry3::from_parts(Translation3::from(retreat_p), start.rotation);
         let mut path = Self {
-            head: *head,
+            centre: head.shape().centre(),
             start: *start,
             retreat,
             pre,
@@ -138,15 +139,15 @@ impl ShellPath {
             lengths: [0.0; 3],
         };
         path.excess = (
-            path.radial_excess(&retreat_p),
-            path.radial_excess(&pre.translation.vector),
+            path.radial_excess(head, &retreat_p),
+            path.radial_excess(head, &pre.translation.vector),
         );
         path.lengths[0] = (retreat_p - start_p).norm();
         path.lengths[2] = (goal_p - pre_p).norm();
         let mut shell = 0.0;
-        let mut prev = path.shell_at(0.0);
+        let mut prev = path.shell_at(head, 0.0);
         for k in 1..=SHELL_SAMPLES {
-            let next = path.shell_at(k as f64 / SHELL_SAMPLES as f64);
+            let next = path.shell_at(head, k as f64 / SHELL_SAMPLES as f64);
             shell += (next.translation.vector - prev.translation.vector).norm();
             prev = next;
         }
@@ -175,42 +176,35 @@ impl ShellPath {
         self.pre
     }
 
-    fn radial_excess(&self, p_head: &Vector3<f64>) -> f64 {
-        let p = self
-            .head
-            .head_from_ellipsoid
-            .inverse_transform_point(&Point3::from(*p_head))
-            .coords;
+    fn radial_excess(&self, head: &HeadModel, p_head: &Vector3<f64>) -> f64 {
+        let p = p_head - self.centre.coords;
         let n = p.norm();
         if n < 1e-12 {
             return 0.0;
         }
-        n - radial(&(p / n), &self.head.radii)
+        n - head.shape().radius_along(&(p / n))
     }
 
-    /// The shell segment at u ∈ [0, 1]: the direction from the ellipsoid's centre turns on a
-    /// great circle, the radial excess over the ellipsoid goes linearly from the retreat point's
-    /// to the pre-approach point's, the orientation slerps.
-    fn shell_at(&self, u: f64) -> Isometry3<f64> {
-        let e = &self.head.head_from_ellipsoid;
-        let a = e
-            .inverse_transform_point(&Point3::from(self.retreat.translation.vector))
-            .coords;
-        let b = e
-            .inverse_transform_point(&Point3::from(self.pre.translation.vector))
-            .coords;
+    /// The shell segment at u ∈ [0, 1]: the direction from the head's centre turns on a great
+    /// circle, the radial excess over the head's reach goes linearly from the retreat point's to
+    /// the pre-approach point's, the orientation slerps.
+    fn shell_at(&self, head: &HeadModel, u: f64) -> Isometry3<f64> {
+        let c = self.centre.coords;
+        let a = self.retreat.translation.vector - c;
+        let b = self.pre.translation.vector - c;
         let (na, nb) = (a.norm().max(1e-12), b.norm().max(1e-12));
         let d = slerp_dir(&(a / na), &(b / nb), u);
         let excess = self.excess.0 + (self.excess.1 - self.excess.0) * u;
-        let p = e.transform_point(&Point3::from(d * (radial(&d, &self.head.radii) + excess)));
+        let p = c + d * (head.shape().radius_along(&d) + excess);
         Isometry3::from_parts(
-            Translation3::from(p.coords),
+            Translation3::from(p),
             slerp(&self.retreat.rotation, &self.goal.rotation, u),
         )
     }
 
-    /// The pose at arc length `sigma` (clamped to the path), `head_from_coil`.
-    pub fn pose_at(&self, sigma: f64) -> Isometry3<f64> {
+    /// The pose at arc length `sigma` (clamped to the path), `head_from_coil`, around `head`
+    /// (the one it was planned for).
+    pub fn pose_at(&self, head: &HeadModel, sigma: f64) -> Isometry3<f64> {
         let [l0, l1, l2] = self.lengths;
         let s = sigma.clamp(0.0, self.length());
         let lerp = |a: &Isometry3<f64>, b: &Isometry3<f64>, u: f64| {
@@ -222,7 +216,7 @@ impl ShellPath {
         if s < l0 {
             lerp(&self.start, &self.retreat, s / l0)
         } else if s < l0 + l1 {
-            self.shell_at((s - l0) / l1)
+            self.shell_at(head, (s - l0) / l1)
         } else if l2 > 0.0 {
             lerp(&self.pre, &self.goal, ((s - l0 - l1) / l2).min(1.0))
         } else {
@@ -248,10 +242,7 @@ mod tests {
     use super::*;
 
     fn head() -> HeadModel {
-        HeadModel {
-            head_from_ellipsoid: Isometry3::identity(),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        }
+        HeadModel::adult()
     }
 
     /// A coil pose at `p` (head frame) with its +z pointing at the head's centre.
@@ -270,8 +261,8 @@ mod tests {
         let start = facing(Vector3::new(0.078, 0.0, 0.0));
         let goal = facing(Vector3::new(0.0, 0.0, 0.113));
         let p = ShellPath::plan(&h, &start, &goal, 0.05).unwrap();
-        assert!((p.pose_at(0.0).translation.vector - start.translation.vector).norm() < 1e-12);
-        let end = p.pose_at(p.length());
+        assert!((p.pose_at(&h, 0.0).translation.vector - start.translation.vector).norm() < 1e-12);
+        let end = p.pose_at(&h, p.length());
         assert!((end.translation.vector - goal.translation.vector).norm() < 1e-12);
         assert!(end.rotation.angle_to(&goal.rotation) < 1e-9);
         // The retreat is along the start's axis, the approach along the goal's.
@@ -281,10 +272,10 @@ mod tests {
         assert!(a.normalize().dot(&(goal.rotation * Vector3::z())) > 0.999_999);
         // Everywhere: outside the head; on the shell segment: at least near the shell.
         let n = 400;
-        let mut prev = p.pose_at(0.0);
+        let mut prev = p.pose_at(&h, 0.0);
         for k in 0..=n {
             let s = p.length() * k as f64 / n as f64;
-            let q = p.pose_at(s);
+            let q = p.pose_at(&h, s);
             let d = h.distance(&Point3::from(q.translation.vector));
             assert!(d > 0.002, "σ {s}: {d}");
             if p.segment(s) == 1 {
@@ -306,7 +297,7 @@ mod tests {
         assert_eq!(p.retreat_end(), start);
         for k in 0..=200 {
             let s = p.length() * f64::from(k) / 200.0;
-            let q = p.pose_at(s).translation.vector;
+            let q = p.pose_at(&h, s).translation.vector;
             assert!(h.distance(&Point3::from(q)) > 0.002);
         }
     }

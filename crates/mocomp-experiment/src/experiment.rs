@@ -849,7 +849,7 @@ impl Rig {
         ));
         let sensor = Arc::new(Mutex::new(Contact::new(
             cfg.contact,
-            cfg.head,
+            cfg.head.clone(),
             cfg.coil,
             cfg.tracker.seed,
         )));
@@ -962,7 +962,7 @@ impl Rig {
             t_prev: 0.0,
             base1_from_head,
             sensor,
-            contact: Contact::new(cfg.contact, cfg.head, cfg.coil, 0),
+            contact: Contact::new(cfg.contact, cfg.head.clone(), cfg.coil, 0),
             bump: None,
         };
         // One step so the states carry the stepped clock's time.
@@ -1443,7 +1443,7 @@ impl Rig {
         let rest = self.scene.world_from_head_rest;
         let head_from_e2 = self.scene.e2_from_head.inverse();
         let head_servo = ServoParams::for_period(self.period);
-        let (head, coil) = (loop_cfg.head, loop_cfg.coil);
+        let (head, coil) = (loop_cfg.head.clone(), loop_cfg.coil);
         let mut ctl: Box<dyn mocomp_control::Controller> = match controller {
             Controller::Mocomp => Box::new(Compensator::new(loop_cfg, self.arm1, self.period)),
             Controller::Paper => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
@@ -1740,7 +1740,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             horizon_s: rec.horizon_s,
             mode: rec.mode,
             event: rec.event,
-            coil_clearance_m: self.coil.distance(&self.head, &head_from_coil),
+            coil_clearance_m: self.coil.measured_distance(&self.head, &head_from_coil),
             contact_force_n: w.contact.force_n(&head_from_coil),
             drift,
             target,
@@ -1830,7 +1830,7 @@ pub fn run_experiment_watched(
     loop_cfg.params = cfg.loop_params;
     loop_cfg.predictor = cfg.predictor;
     (loop_cfg.servo.lookahead_s, loop_cfg.servo.gain) = cfg.servo;
-    loop_cfg.head = cfg.head;
+    loop_cfg.head = cfg.head.clone();
     loop_cfg.coil = cfg.coil;
     let mut runs = Vec::with_capacity(order.len());
     for &c in order {

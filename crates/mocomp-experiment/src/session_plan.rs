@@ -107,13 +107,15 @@ mod tests {
 
     #[test]
     fn a_three_by_three_walk_has_a_hand_pulse_while_travelling_and_gated_ones_later() {
-        let head = HeadModel {
-            head_from_ellipsoid: Isometry3::translation(0.0, 0.01, 0.02),
-            radii: mocomp_geom::nalgebra::Vector3::new(0.075, 0.095, 0.11),
-        };
-        let goal = head.head_from_ellipsoid
+        let placed = Isometry3::translation(0.0, 0.01, 0.02);
+        let head = HeadModel::ellipsoid(
+            placed,
+            mocomp_geom::nalgebra::Vector3::new(0.075, 0.095, 0.11),
+        )
+        .unwrap();
+        let goal = placed
             * Isometry3::new(
-                mocomp_geom::nalgebra::Vector3::new(0.0, 0.0, head.radii.z + 0.003),
+                mocomp_geom::nalgebra::Vector3::new(0.0, 0.0, 0.11 + 0.003),
                 mocomp_geom::nalgebra::Vector3::x() * std::f64::consts::PI,
             );
         let p = SessionPlan::grid(&head, &goal, &GridParams::default(), 2.0, 3).unwrap();

@@ -1,7 +1,8 @@
 //! What the head's queries cost: the ellipsoid against the fsaverage scalp (4 k triangles, from
 //! MNE through the interop peer) and that scalp subdivided to 65 k and 260 k triangles (the
 //! 100 k of a clinical scalp lies between), by the distance field and by parry's BVH, and what
-//! building both costs.
+//! building both costs; the coil's clearance sampled as the loop asks it, and exact as reports
+//! measure it.
 //! `cargo bench -p mocomp-head` (needs the peers in .venv: `scripts/test.sh` installs them).
 #![allow(
     missing_docs,
@@ -130,7 +131,18 @@ fn bench(c: &mut Criterion) {
             },
         );
         g.bench_with_input(
-            BenchmarkId::new("mesh coil clearance", name),
+            BenchmarkId::new("mesh coil clearance sampled (the loop's)", name),
+            &head,
+            |b, h| {
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % poses.len();
+                    black_box(h.coil_clearance_sampled(&poses[i], &coil, f64::INFINITY))
+                })
+            },
+        );
+        g.bench_with_input(
+            BenchmarkId::new("mesh coil clearance exact (parry)", name),
             &head,
             |b, h| {
                 let mut i = 0;

@@ -32,6 +32,15 @@ impl Ellipsoid {
         }
     }
 
+    /// The adult head mocomp assumes without a scan: semi-axes 75, 95 and 110 mm (x left-right,
+    /// y front-back, z up) about the head frame's origin.
+    pub fn adult() -> Self {
+        Self {
+            head_from_ellipsoid: Isometry3::identity(),
+            radii: Vector3::new(0.075, 0.095, 0.11),
+        }
+    }
+
     /// Its centre and axes in the head frame.
     pub fn head_from_ellipsoid(&self) -> &Isometry3<f64> {
         &self.head_from_ellipsoid
@@ -225,6 +234,15 @@ impl HeadShape for Ellipsoid {
             min: c - half,
             max: c + half,
         }
+    }
+
+    fn centre(&self) -> Point3<f64> {
+        Point3::from(self.head_from_ellipsoid.translation.vector)
+    }
+
+    fn radius_along(&self, d: &Vector3<f64>) -> f64 {
+        let d = self.head_from_ellipsoid.inverse_transform_vector(d);
+        1.0 / d.component_div(&self.radii).norm()
     }
 
     fn coil_clearance(&self, head_from_coil: &Isometry3<f64>, coil: &CoilSolid) -> f64 {

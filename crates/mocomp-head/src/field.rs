@@ -25,6 +25,9 @@ pub const SPACING_M: f64 = 0.0025;
 pub const MARGIN_M: f64 = 0.04;
 /// No triangle: a node beyond the band.
 const NONE: u32 = u32::MAX;
+/// Nodes nearer the surface than this hold their exact signed distance, m (the coil's sampled
+/// query interpolates them; a coil this far from the scalp is clear of any rule's threshold).
+pub const EXACT_BAND_M: f64 = 0.03;
 
 /// Which part of a triangle a point is nearest: a vertex, an edge (from vertex k to k+1) or
 /// the face.
@@ -96,16 +99,14 @@ pub struct DistanceField {
     face_normals: Vec<Vector3<f64>>,
     /// Per triangle, the triangle across each edge (NONE at a border).
     across: Vec<[u32; 3]>,
-    /// Per triangle, the centre of its vertices and the radius of the ball about it that holds
-    /// it: a cheap lower bound before an exact distance.
-    spheres: Vec<(Point3<f64>, f64)>,
-    /// Per vertex, the triangles around it: `ring[ring_at[v]..ring_at[v + 1]]`.
-    ring_at: Vec<u32>,
-    ring: Vec<u32>,
     origin: Point3<f64>,
     dims: [usize; 3],
     /// Per node: its nearest triangle (or one near it).
     nearest: Vec<u32>,
+    /// Per node: its signed distance, exact within [`EXACT_BAND_M`] of the surface (beyond,
+    /// the distance to its triangle, which the sweep made near its nearest), for the
+    /// interpolated query.
+    values: Vec<f32>,
 }
 
 impl DistanceField {
@@ -126,21 +127,8 @@ impl DistanceField {
         let size = b.max - b.min + Vector3::repeat(2.0 * margin);
         let dims = [0, 1, 2].map(|k| (size[k] / SPACING_M).ceil() as usize + 1);
         let across = adjacency(mesh);
-        let (ring_at, ring) = rings(mesh);
-        let spheres = mesh
-            .triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
-                let m = Point3::from((a.coords + b.coords + c.coords) / 3.0);
-                (m, (a - m).norm().max((b - m).norm()).max((c - m).norm()))
-            })
-            .collect();
         let mut field = Self {
-            spheres,
             across,
-            ring_at,
-            ring,
             vertices: vertices.to_vec(),
             triangles: triangles.to_vec(),
             vertex_normals,
@@ -149,17 +137,90 @@ impl DistanceField {
             origin,
             dims,
             nearest: vec![NONE; dims[0] * dims[1] * dims[2]],
+            values: Vec::new(),
         };
         field.seed();
         field.sweep();
+        field.values = field.node_values();
         field
+    }
+
+    /// Every node's signed distance (see `values`), on the threads this machine has.
+    fn node_values(&self) -> Vec<f32> {
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(8);
+        let per = self.nearest.len().div_ceil(threads).max(1);
+        let [nx, ny, _] = self.dims;
+        std::thread::scope(|s| {
+            let handles: Vec<_> = self
+                .nearest
+                .chunks(per)
+                .enumerate()
+                .map(|(c, chunk)| {
+                    let h = s.spawn(move || {
+                        chunk
+                            .iter()
+                            .enumerate()
+                            .map(|(o, &t)| {
+                                if t == NONE {
+                                    return f32::INFINITY;
+                                }
+                                let at = c * per + o;
+                                let p = self.node(at % nx, (at / nx) % ny, at / (nx * ny));
+                                let d = self.distance_to(&p, t);
+                                let t = if d < EXACT_BAND_M {
+                                    self.walk(&p, d, t).1
+                                } else {
+                                    t
+                                };
+                                self.signed_to(&p, t) as f32
+                            })
+                            .collect::<Vec<f32>>()
+                    });
+                    (chunk.len(), h)
+                })
+                .collect();
+            // A thread that failed leaves its nodes "inside": every rule then keeps away.
+            handles
+                .into_iter()
+                .flat_map(|(n, h)| h.join().unwrap_or_else(|_| vec![f32::NEG_INFINITY; n]))
+                .collect()
+        })
+    }
+
+    /// The signed distance at `p` interpolated (trilinearly) from the grid's nodes, or `None`
+    /// outside the grid: a few nanoseconds, within a fraction of the spacing of the exact
+    /// distance where the surface is smooth at the grid's scale (the sampled coil query ranks
+    /// its points by it and refines the nearest exactly).
+    pub fn interpolated(&self, p: &Point3<f64>) -> Option<f64> {
+        let g = (p - self.origin) / SPACING_M;
+        let [nx, ny, nz] = self.dims;
+        if !(g.x >= 0.0 && g.y >= 0.0 && g.z >= 0.0)
+            || g.x >= (nx - 1) as f64
+            || g.y >= (ny - 1) as f64
+            || g.z >= (nz - 1) as f64
+        {
+            return None;
+        }
+        let (i, j, k) = (g.x as usize, g.y as usize, g.z as usize);
+        let (fx, fy, fz) = (g.x - i as f64, g.y - j as f64, g.z - k as f64);
+        let at = self.index(i, j, k);
+        let (sy, sz) = (nx, nx * ny);
+        let v = |o: usize| f64::from(self.values[at + o]);
+        let lerp = |a: f64, b: f64, f: f64| a + (b - a) * f;
+        let y0 = lerp(lerp(v(0), v(1), fx), lerp(v(sy), v(sy + 1), fx), fy);
+        let y1 = lerp(
+            lerp(v(sz), v(sz + 1), fx),
+            lerp(v(sz + sy), v(sz + sy + 1), fx),
+            fy,
+        );
+        Some(lerp(y0, y1, fz))
     }
 
     /// Bytes the field holds.
     pub fn memory_bytes(&self) -> usize {
-        self.nearest.len() * 4
-            + self.vertices.len() * 48
-            + self.triangles.len() * (12 + 96 + 12 + 12 + 32)
+        self.nearest.len() * 8 + self.vertices.len() * 48 + self.triangles.len() * (12 + 96 + 12)
     }
 
     /// Grid nodes.
@@ -397,132 +458,6 @@ impl DistanceField {
         }
         (best_t != NONE).then(|| (self.signed_to(p, best_t), best_t))
     }
-
-    /// The least distance from the cylinder at `head_from_cylinder` to the surface (0 when they
-    /// meet): from each seed triangle, across edges while the exact triangle-to-cylinder
-    /// distance (GJK) falls. A convex coil over a smooth scalp has one such minimum near its
-    /// nearest sampled point; seeds from several points catch a second (an ear beside the skull).
-    pub fn cylinder_distance(
-        &self,
-        head_from_cylinder: &mocomp_geom::nalgebra::Isometry3<f64>,
-        cylinder: &parry3d_f64::shape::Cylinder,
-        seeds: &[u32],
-    ) -> f64 {
-        use parry3d_f64::query::details::distance_support_map_support_map;
-        let cylinder_from_head = head_from_cylinder.inverse();
-        let (r, half) = (cylinder.radius, cylinder.half_height);
-        // The distance from a point to the cylinder, in closed form (its axis is its own y).
-        let to_point = |p: &Point3<f64>| {
-            let q = cylinder_from_head * p;
-            let radial = (q.x.hypot(q.z) - r).max(0.0);
-            let axial = (q.y.abs() - half).max(0.0);
-            radial.hypot(axial)
-        };
-        let to = |t: u32| {
-            let [a, b, c] = self.triangles[t as usize].map(|i| self.vertices[i as usize]);
-            let tri = parry3d_f64::shape::Triangle::new(a, b, c);
-            distance_support_map_support_map(head_from_cylinder, &tri, cylinder)
-        };
-        let mut best = f64::INFINITY;
-        for &seed in seeds {
-            let (mut d, mut t) = (to(seed), seed);
-            // Jumps first: the cylinder's point nearest the triangle, and that point's nearest
-            // triangle, until it stays (each a long stride across a fine mesh).
-            for _ in 0..32 {
-                use parry3d_f64::query::ClosestPoints;
-                use parry3d_f64::query::details::closest_points_support_map_support_map;
-                let [a, b, c] = self.triangles[t as usize].map(|i| self.vertices[i as usize]);
-                let tri = parry3d_f64::shape::Triangle::new(a, b, c);
-                let ClosestPoints::WithinMargin(_, on_cylinder) =
-                    closest_points_support_map_support_map(
-                        head_from_cylinder,
-                        &tri,
-                        cylinder,
-                        f64::MAX,
-                    )
-                else {
-                    break;
-                };
-                let q = head_from_cylinder * on_cylinder;
-                let Some((_, n)) = self.nearest_triangle(&q) else {
-                    break;
-                };
-                if n == t {
-                    break;
-                }
-                let dn = to(n);
-                if dn >= d {
-                    break;
-                }
-                (d, t) = (dn, n);
-            }
-            // Across edges while that helps (three distances a step), then across every
-            // triangle sharing a vertex, which settles it: a cylinder nearest a vertex of one
-            // triangle may be nearer still to another around that vertex sharing no edge with it.
-            let better = |d: f64, n: u32| {
-                let (centre, radius) = self.spheres[n as usize];
-                // Nothing of the triangle is nearer than its ball allows.
-                if to_point(&centre) - radius >= d {
-                    return None;
-                }
-                let dn = to(n);
-                (dn < d).then_some(dn)
-            };
-            for _ in 0..512 {
-                if d <= 0.0 {
-                    break;
-                }
-                let mut next = None;
-                for &n in &self.across[t as usize] {
-                    if n != NONE
-                        && let Some(dn) = better(next.map_or(d, |(b, _)| b), n)
-                    {
-                        next = Some((dn, n));
-                    }
-                }
-                if next.is_none() {
-                    for &v in &self.triangles[t as usize] {
-                        let (a, b) = (self.ring_at[v as usize], self.ring_at[v as usize + 1]);
-                        for &n in &self.ring[a as usize..b as usize] {
-                            if n != t
-                                && let Some(dn) = better(next.map_or(d, |(b, _)| b), n)
-                            {
-                                next = Some((dn, n));
-                            }
-                        }
-                    }
-                }
-                match next {
-                    Some((dn, n)) => (d, t) = (dn, n),
-                    None => break,
-                }
-            }
-            best = best.min(d);
-        }
-        best
-    }
-}
-
-/// The triangles around each vertex, as offsets into one list.
-fn rings(mesh: &Surface<'_>) -> (Vec<u32>, Vec<u32>) {
-    let mut count = vec![0u32; mesh.vertices.len() + 1];
-    for t in mesh.triangles {
-        for &v in t {
-            count[v as usize + 1] += 1;
-        }
-    }
-    for v in 0..mesh.vertices.len() {
-        count[v + 1] += count[v];
-    }
-    let mut fill = count.clone();
-    let mut ring = vec![0u32; mesh.triangles.len() * 3];
-    for (i, t) in mesh.triangles.iter().enumerate() {
-        for &v in t {
-            ring[fill[v as usize] as usize] = i as u32;
-            fill[v as usize] += 1;
-        }
-    }
-    (count, ring)
 }
 
 /// The triangle across each edge of each triangle.

@@ -19,8 +19,10 @@ pub mod field;
 pub mod formats;
 pub mod inspect;
 pub mod mesh;
+pub mod radial;
 pub mod render;
 pub mod repair;
+pub mod sampled;
 pub mod shape;
 
 pub use ellipsoid::{Ellipsoid, ellipsoid_distance};
@@ -67,6 +69,12 @@ impl HeadShape for Head {
     }
     fn bounds(&self) -> Aabb {
         self.shape().bounds()
+    }
+    fn centre(&self) -> Point3<f64> {
+        self.shape().centre()
+    }
+    fn radius_along(&self, d: &Vector3<f64>) -> f64 {
+        self.shape().radius_along(d)
     }
     fn coil_clearance(&self, head_from_coil: &Isometry3<f64>, coil: &CoilSolid) -> f64 {
         self.shape().coil_clearance(head_from_coil, coil)

@@ -5,11 +5,13 @@
 //! exact everywhere but its point query grows with the mesh (2 µs at 4 k triangles, 19 µs at
 //! 260 k) and its cylinder-against-mesh distance is far too slow for the loop (milliseconds);
 //! the [`DistanceField`] answers anywhere in its grid in one to two microseconds whatever the
-//! mesh's size, and seeds the coil's exact clearance (GJK over the triangles near it). The BVH
-//! stays for ray casts and for points beyond the grid.
+//! mesh's size, and its interpolated values rank the coil's sampled points in nanoseconds
+//! ([`crate::sampled`]). The BVH stays for ray casts, the exact coil clearance (to measure by)
+//! and points beyond the grid.
 
 use crate::error::HeadError;
 use crate::field::DistanceField;
+use crate::radial::RadialMap;
 use crate::shape::{Aabb, CoilSolid, HeadShape, Known, RayHit, SurfacePoint};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Unit, Vector3};
 use parry3d_f64::query::{PointQueryWithLocation, Ray, RayCast};
@@ -73,6 +75,61 @@ impl Mesh {
     }
 }
 
+impl Mesh {
+    /// A coarser copy for drawing, at most about `max_triangles`: vertices clustered on a grid
+    /// (each cell's vertices become their mean), triangles whose corners share a cell dropped,
+    /// the cell grown until few enough remain. Not a surface to compute with.
+    pub fn decimated(&self, max_triangles: usize) -> Self {
+        let Some(b) = self.bounds() else {
+            return Self::default();
+        };
+        let mut cell = b.extent() / 64.0;
+        loop {
+            let out = self.clustered(&b.min, cell);
+            if out.triangles.len() <= max_triangles || cell > b.extent() {
+                return out;
+            }
+            cell *= 1.25;
+        }
+    }
+
+    fn clustered(&self, origin: &Point3<f64>, cell: f64) -> Self {
+        let mut index = std::collections::HashMap::new();
+        let mut sums: Vec<(Vector3<f64>, f64)> = Vec::new();
+        let map: Vec<u32> = self
+            .vertices
+            .iter()
+            .map(|p| {
+                let k = ((p - origin) / cell).map(|x| x.floor() as i64);
+                let at = *index.entry((k.x, k.y, k.z)).or_insert_with(|| {
+                    sums.push((Vector3::zeros(), 0.0));
+                    (sums.len() - 1) as u32
+                });
+                let s = &mut sums[at as usize];
+                s.0 += p.coords;
+                s.1 += 1.0;
+                at
+            })
+            .collect();
+        let mut seen = std::collections::HashSet::new();
+        let triangles = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| map[v as usize]))
+            .filter(|[a, b, c]| a != b && b != c && a != c)
+            .filter(|t| {
+                let mut k = *t;
+                k.sort_unstable();
+                seen.insert(k)
+            })
+            .collect();
+        Self {
+            vertices: sums.iter().map(|(s, n)| Point3::from(s / *n)).collect(),
+            triangles,
+        }
+    }
+}
+
 fn nalgebra_mid(a: &Point3<f64>, b: &Point3<f64>) -> Point3<f64> {
     Point3::from((a.coords + b.coords) / 2.0)
 }
@@ -82,12 +139,10 @@ fn nalgebra_mid(a: &Point3<f64>, b: &Point3<f64>) -> Point3<f64> {
 pub struct MeshHead {
     mesh: TriMesh,
     field: DistanceField,
+    radial: RadialMap,
     bounds: Aabb,
     triangles: usize,
 }
-
-/// How much farther than the nearest sampled point another may be and still seed a walk, m.
-const SECOND_SEED_M: f64 = 0.003;
 
 impl std::fmt::Debug for MeshHead {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -113,12 +168,26 @@ impl MeshHead {
                 file: file.into(),
                 what: format!("the mesh cannot be indexed: {e}"),
             })?;
+        // The radial map about the box's centre: a ray from beyond the head back towards the
+        // centre first meets the head at its farthest point on that side.
+        let centre = nalgebra_mid(&bounds.min, &bounds.max);
+        let far = (bounds.max - bounds.min).norm() + 0.01;
+        let radial = RadialMap::new(centre, |d| {
+            let ray = Ray::new(centre + d * far, -d);
+            mesh.cast_local_ray(&ray, far, false).map(|t| far - t)
+        });
         Ok(Self {
             mesh,
             field,
+            radial,
             bounds,
             triangles,
         })
+    }
+
+    /// The distance field (the sampled coil query reads it).
+    pub(crate) fn field(&self) -> &DistanceField {
+        &self.field
     }
 
     /// Its vertices.
@@ -222,54 +291,35 @@ impl HeadShape for MeshHead {
         self.bounds
     }
 
-    /// The coil's clearance: exact (GJK against the triangles) while the coil is clear and
-    /// within the field's grid; cutting in, as deep as its deepest face or rim point.
+    fn centre(&self) -> Point3<f64> {
+        self.radial.centre()
+    }
+
+    fn radius_along(&self, d: &Vector3<f64>) -> f64 {
+        self.radial.radius_along(d)
+    }
+
+    /// The coil's clearance, exact: parry's cylinder against the mesh through its hierarchy
+    /// (a millisecond at 100 k triangles: for measuring, not for the loop, which asks
+    /// [`MeshHead::coil_clearance_sampled`]); cutting in, as deep as its deepest face or rim
+    /// point.
     fn coil_clearance(&self, head_from_coil: &Isometry3<f64>, coil: &CoilSolid) -> f64 {
-        let points = coil.sample_points(head_from_coil);
-        // The three nearest sampled points' triangles seed the walk; any point inside means
-        // the coil cuts in.
-        let mut seeds = [(f64::INFINITY, u32::MAX); 3];
-        let mut deepest = f64::INFINITY;
-        for p in &points {
-            let Some((d, t)) = self.field.nearest_triangle(p) else {
-                deepest = deepest.min(self.bounds.distance(p).max(0.0));
-                continue;
-            };
-            deepest = deepest.min(d);
-            if d < seeds[2].0 && !seeds.iter().any(|s| s.1 == t) {
-                seeds[2] = (d, t);
-                seeds.sort_by(|a, b| a.0.total_cmp(&b.0));
-            }
-        }
+        let deepest = coil
+            .sample_points(head_from_coil)
+            .iter()
+            .map(|p| self.distance_below(p, 0.0))
+            .fold(f64::INFINITY, f64::min);
         if deepest <= 0.0 {
             return deepest;
         }
-        // A seed much farther than the nearest would walk across the scalp to the same minimum;
-        // only those near it start walks (a second minimum, an ear beside the skull, has its
-        // own near sample).
-        let near = seeds[0].0 + SECOND_SEED_M;
-        let n = seeds
-            .iter()
-            .filter(|s| s.1 != u32::MAX && s.0 <= near)
-            .count();
-        if n == 0 {
-            // Wholly beyond the grid (40 mm past the head's box): parry's exact distance, which
-            // prunes well this far out. A cut-off query never gets here: the box clears it.
-            return parry3d_f64::query::distance(
-                &coil.head_from_cylinder(head_from_coil),
-                &coil.cylinder(),
-                &Isometry3::identity(),
-                &self.mesh,
-            )
-            // The pair is one parry's dispatcher handles; were it not, touching, never clear.
-            .unwrap_or(0.0);
-        }
-        let ids = [seeds[0].1, seeds[1].1, seeds[2].1];
-        self.field.cylinder_distance(
+        parry3d_f64::query::distance(
             &coil.head_from_cylinder(head_from_coil),
             &coil.cylinder(),
-            &ids[..n],
+            &Isometry3::identity(),
+            &self.mesh,
         )
+        // The pair is one parry's dispatcher handles; were it not, touching, never clear.
+        .unwrap_or(0.0)
     }
 }
 
@@ -319,6 +369,23 @@ pub(crate) mod tests {
 
     /// The mesh of an ellipsoid answers as the ellipsoid does, within the mesh's own
     /// approximation (its chords cut at most a fraction of a millimetre inside).
+    #[test]
+    fn a_decimated_mesh_is_smaller_and_stays_on_the_shape() {
+        let radii = Vector3::new(0.075, 0.095, 0.11);
+        let fine = ellipsoid_mesh(&radii, 5);
+        let coarse = fine.decimated(1500);
+        assert!(coarse.triangles.len() <= 1500 && coarse.triangles.len() > 300);
+        let e = Ellipsoid::new(Isometry3::identity(), radii).unwrap();
+        for p in &coarse.vertices {
+            // Cluster means lie just inside the surface they came from.
+            let d = e.signed_distance(p);
+            assert!(d < 1e-9 && d > -0.004, "{p}: {d}");
+        }
+        for t in &coarse.triangles {
+            assert!(t.iter().all(|&v| (v as usize) < coarse.vertices.len()));
+        }
+    }
+
     #[test]
     fn a_fine_mesh_of_an_ellipsoid_agrees_with_the_ellipsoid() {
         let radii = Vector3::new(0.075, 0.095, 0.11);

@@ -162,6 +162,14 @@ pub trait HeadShape {
     /// A box that holds the whole head.
     fn bounds(&self) -> Aabb;
 
+    /// The point the planner's shell is built around: the ellipsoid's centre, the middle of a
+    /// mesh's box.
+    fn centre(&self) -> Point3<f64>;
+
+    /// How far the head reaches from [`Self::centre`] along the unit direction `d` (its
+    /// farthest surface point on that ray), m.
+    fn radius_along(&self, d: &Vector3<f64>) -> f64;
+
     /// The coil's least distance to the head, as the solid it is: positive when clear, 0 when
     /// touching, negative when it cuts into the head (then as deep as its deepest face or rim
     /// point, a lower bound of the depth).

@@ -3,15 +3,16 @@
 //! Motor mapping stimulates a grid of points around the hotspot. From a target (`head_from_coil`,
 //! its +z the approach axis into the head) the grid is centred where the target's axis meets the
 //! head model's surface: `rows × cols` points, its rows along the target's x axis. The points are
-//! walked on the surface (in 0.5 mm steps, each taken back onto the surface, the direction kept
-//! tangent): first along the target's y to the row, then along its x to the column, so that
+//! walked on the surface (in 0.5 mm steps, each taken back onto the surface at its nearest point,
+//! the direction kept tangent): first along the target's y to the row, then along its x to the column, so that
 //! neighbours in a row are `spacing_m` apart on the surface. Each coil is aimed along the
 //! surface normal there (+z into the head), its x axis the walking direction, and backed off the
 //! surface by the target's own standoff (its distance along its axis to the surface). The centre
 //! point is the target re-aimed along the normal.
 
 use mocomp_control::HeadModel;
-use mocomp_geom::nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
+use mocomp_geom::nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Unit, UnitQuaternion, Vector3};
+use mocomp_head::{Head, HeadShape};
 
 /// The grid's shape.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -97,83 +98,73 @@ pub fn grid_around(
     if !finite {
         return Err(GridError::NotFinite);
     }
-    let r = head.radii;
-    // In the ellipsoid's frame, where it is |x / r| = 1.
-    let e_from_coil = head.head_from_ellipsoid.inverse() * target;
-    let origin = e_from_coil.translation.vector;
-    let axis = e_from_coil.rotation * Vector3::z();
-    let standoff = ray_hit(&origin, &axis, &r).ok_or(GridError::AxisMissesHead)?;
-    let hit = origin + axis * standoff;
-    let n = normal(&hit, &r);
-    let x_target = e_from_coil.rotation * Vector3::x();
+    let shape = head.shape();
+    let origin = Point3::from(target.translation.vector);
+    let axis = Unit::new_normalize(target.rotation * Vector3::z());
+    // From outside only: a target inside the head has no standoff to keep.
+    if shape.signed_distance(&origin) < 0.0 {
+        return Err(GridError::AxisMissesHead);
+    }
+    let hit = shape
+        .ray_hit(&origin, &axis, MAX_REACH_M)
+        .ok_or(GridError::AxisMissesHead)?;
+    let standoff = hit.distance;
+    let n = hit.normal.into_inner();
+    let x_target = target.rotation * Vector3::x();
     let tx = tangent(&x_target, &n).ok_or(GridError::AxisMissesHead)?;
     let ty = n.cross(&tx);
     let mut out = Vec::with_capacity(p.rows * p.cols);
     for row in 0..p.rows {
         let v = (row as f64 - (p.rows - 1) as f64 / 2.0) * p.spacing_m;
-        let (row_start, y_dir) = walk(&hit, &ty, v, &r)?;
+        let (row_start, y_dir, row_normal) = walk(shape, &hit.point, &ty, v)?;
         // The row runs along the target's x carried to the row's start.
-        let x_row = y_dir.cross(&normal(&row_start, &r));
+        let x_row = y_dir.cross(&row_normal);
         for col in 0..p.cols {
             let u = (col as f64 - (p.cols - 1) as f64 / 2.0) * p.spacing_m;
-            let (q, x_dir) = walk(&row_start, &x_row, u, &r)?;
-            let nq = normal(&q, &r);
+            let (q, x_dir, nq) = walk(shape, &row_start, &x_row, u)?;
             let x = tangent(&x_dir, &nq).ok_or(GridError::AxisMissesHead)?;
             let z = -nq;
             let y = z.cross(&x);
             let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
-            let e_from_point = Isometry3::from_parts(
-                (q + nq * standoff).into(),
-                UnitQuaternion::from_rotation_matrix(&rot),
-            );
             out.push(GridPoint {
                 row,
                 col,
-                head_from_coil: head.head_from_ellipsoid * e_from_point,
+                head_from_coil: Isometry3::from_parts(
+                    (q + nq * standoff).into(),
+                    UnitQuaternion::from_rotation_matrix(&rot),
+                ),
             });
         }
     }
     Ok(out)
 }
 
-/// Walks `dist` (m, negative: backwards) on the ellipsoid's surface from `start` in direction
-/// `dir` (tangent), in steps of at most 0.5 mm, each taken back onto the surface along the ray
-/// from the centre; returns the end and the direction there.
+/// How far along its axis a target may be from the head, m.
+const MAX_REACH_M: f64 = 1.0;
+
+/// Where a walk on the surface ends: the point, the walking direction and the outward normal.
+type WalkEnd = (Point3<f64>, Vector3<f64>, Vector3<f64>);
+
+/// Walks `dist` (m, negative: backwards) on the head's surface from `start` in direction `dir`
+/// (tangent), in steps of at most 0.5 mm, each taken back onto the surface at its nearest point,
+/// the direction kept tangent; returns the end, the direction and the outward normal there.
 fn walk(
-    start: &Vector3<f64>,
+    shape: &Head,
+    start: &Point3<f64>,
     dir: &Vector3<f64>,
     dist: f64,
-    r: &Vector3<f64>,
-) -> Result<(Vector3<f64>, Vector3<f64>), GridError> {
+) -> Result<WalkEnd, GridError> {
     let n = (dist.abs() / 5e-4).ceil().max(1.0);
     let step = dist / n;
-    let (mut p, mut d) = (*start, *dir);
+    let at = shape.nearest(start);
+    let (mut p, mut d, mut normal) = (at.point, *dir, at.normal.into_inner());
     for _ in 0..n as usize {
-        let next = p + d * step;
-        let next = next / next.component_div(r).norm();
-        d = tangent(&d, &normal(&next, r)).ok_or(GridError::AxisMissesHead)?;
-        p = next;
+        let next = shape.nearest(&(p + d * step));
+        normal = next.normal.into_inner();
+        d = tangent(&d, &normal).ok_or(GridError::AxisMissesHead)?;
+        p = next.point;
     }
-    Ok((p, d))
-}
-
-/// The first `t ≥ 0` where `o + t·d` meets the ellipsoid `|x / r| = 1` from outside.
-fn ray_hit(o: &Vector3<f64>, d: &Vector3<f64>, r: &Vector3<f64>) -> Option<f64> {
-    let (os, ds) = (o.component_div(r), d.component_div(r));
-    let a = ds.norm_squared();
-    let b = 2.0 * os.dot(&ds);
-    let c = os.norm_squared() - 1.0;
-    let disc = b * b - 4.0 * a * c;
-    if a <= 0.0 || disc < 0.0 {
-        return None;
-    }
-    let t = (-b - disc.sqrt()) / (2.0 * a);
-    (t >= 0.0).then_some(t)
-}
-
-/// The outward unit normal of the ellipsoid at a point on it.
-fn normal(p: &Vector3<f64>, r: &Vector3<f64>) -> Vector3<f64> {
-    p.component_div(&r.component_mul(r)).normalize()
+    Ok((p, d, normal))
 }
 
 /// `v` projected onto the plane normal to `n`, unit length.
@@ -185,11 +176,13 @@ fn tangent(v: &Vector3<f64>, n: &Vector3<f64>) -> Option<Vector3<f64>> {
 /// The point a coil's approach axis meets the head at, in the head's frame (for reports and
 /// tests).
 pub fn surface_point(head: &HeadModel, head_from_coil: &Isometry3<f64>) -> Option<Point3<f64>> {
-    let e_from_coil = head.head_from_ellipsoid.inverse() * head_from_coil;
-    let o = e_from_coil.translation.vector;
-    let d = e_from_coil.rotation * Vector3::z();
-    let t = ray_hit(&o, &d, &head.radii)?;
-    Some(head.head_from_ellipsoid * Point3::from(o + d * t))
+    let shape = head.shape();
+    let o = Point3::from(head_from_coil.translation.vector);
+    if shape.signed_distance(&o) < 0.0 {
+        return None;
+    }
+    let axis = Unit::new_normalize(head_from_coil.rotation * Vector3::z());
+    shape.ray_hit(&o, &axis, MAX_REACH_M).map(|h| h.point)
 }
 
 #[cfg(test)]
@@ -198,36 +191,40 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    fn placed() -> Isometry3<f64> {
+        Isometry3::new(Vector3::new(0.0, 0.01, 0.02), Vector3::new(0.0, 0.0, 0.1))
+    }
+
     fn head() -> HeadModel {
-        HeadModel {
-            head_from_ellipsoid: Isometry3::new(
-                Vector3::new(0.0, 0.01, 0.02),
-                Vector3::new(0.0, 0.0, 0.1),
-            ),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        }
+        HeadModel::ellipsoid(placed(), Vector3::new(0.075, 0.095, 0.11)).unwrap()
+    }
+
+    /// Where the axis of `pose` meets the head, and the outward normal there.
+    fn axis_hit(h: &HeadModel, pose: &Isometry3<f64>) -> (f64, Vector3<f64>) {
+        let axis = Unit::new_normalize(pose.rotation * Vector3::z());
+        let hit = h
+            .shape()
+            .ray_hit(&Point3::from(pose.translation.vector), &axis, 1.0)
+            .unwrap();
+        (hit.distance, hit.normal.into_inner())
     }
 
     /// On top of the head, 3 mm off, tilted forward by `tilt` (rad) about the head's x.
     fn target(tilt: f64) -> Isometry3<f64> {
-        let h = head();
         let up = Isometry3::rotation(Vector3::x() * tilt)
             * Isometry3::from_parts(
                 mocomp_geom::nalgebra::Translation3::new(0.0, 0.0, 0.113),
                 UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
             );
-        h.head_from_ellipsoid * up
+        placed() * up
     }
 
     fn check(grid: &[GridPoint], h: &HeadModel, standoff: f64, spacing: f64, cols: usize) {
         for g in grid {
             // Aimed along the normal: the axis meets the surface at the standoff, square.
-            let e = h.head_from_ellipsoid.inverse() * g.head_from_coil;
-            let o = e.translation.vector;
-            let z = e.rotation * Vector3::z();
-            let t = ray_hit(&o, &z, &h.radii).unwrap();
+            let (t, n) = axis_hit(h, &g.head_from_coil);
             assert!((t - standoff).abs() < 1e-9, "standoff {t} vs {standoff}");
-            let n = normal(&(o + z * t), &h.radii);
+            let z = g.head_from_coil.rotation * Vector3::z();
             assert!((z + n).norm() < 1e-9, "not along the normal");
         }
         // Neighbours in a row `spacing` apart on the surface (their chord is shorter by the
@@ -247,12 +244,7 @@ mod tests {
         let t = target(0.2);
         let grid = grid_around(&h, &t, &GridParams::default()).unwrap();
         assert_eq!(grid.len(), 9);
-        let standoff = ray_hit(
-            &(h.head_from_ellipsoid.inverse() * t).translation.vector,
-            &((h.head_from_ellipsoid.inverse() * t).rotation * Vector3::z()),
-            &h.radii,
-        )
-        .unwrap();
+        let standoff = axis_hit(&h, &t).0;
         check(&grid, &h, standoff, 0.01, 3);
         // The centre point meets the surface where the target's axis does.
         let c = surface_point(&h, &grid[4].head_from_coil).unwrap();
@@ -314,8 +306,7 @@ mod tests {
             let p = GridParams { spacing_m: spacing, rows, cols };
             let grid = grid_around(&h, &t, &p).unwrap();
             prop_assert_eq!(grid.len(), rows * cols);
-            let e = h.head_from_ellipsoid.inverse() * t;
-            let standoff = ray_hit(&e.translation.vector, &(e.rotation * Vector3::z()), &h.radii).unwrap();
+            let standoff = axis_hit(&h, &t).0;
             check(&grid, &h, standoff, spacing, cols);
         }
     }

@@ -292,10 +292,7 @@ mod tests {
 
     #[test]
     fn a_grid_is_added_as_named_targets_around_one() {
-        let head = HeadModel {
-            head_from_ellipsoid: Isometry3::identity(),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        };
+        let head = HeadModel::adult();
         let mut t = Targets::default();
         let top = Isometry3::from_parts(
             mocomp_geom::nalgebra::Translation3::new(0.0, 0.0, 0.113),

@@ -19,6 +19,7 @@
 
 use mocomp_control::{CoilModel, HeadModel};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
+use mocomp_head::{CoilSolid, Head};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -94,7 +95,16 @@ impl Contact {
 
     /// How deep the coil at `head_from_coil` is below the scalp, m (0 when clear).
     pub fn depth(&self, head_from_coil: &Isometry3<f64>) -> f64 {
-        (-self.coil.distance(&self.head, head_from_coil)).max(0.0)
+        // The world's own scalp as it is: a mesh's sampled distance without the margin the
+        // loop keeps for what may lie between the samples.
+        let d = match self.head.shape() {
+            Head::Mesh(m) => CoilSolid::new(self.coil.radius, self.coil.thickness)
+                .map_or(f64::INFINITY, |solid| {
+                    m.coil_clearance_sampled(head_from_coil, &solid, f64::INFINITY)
+                }),
+            Head::Ellipsoid(_) => self.coil.distance(&self.head, head_from_coil),
+        };
+        (-d).max(0.0)
     }
 
     /// The springs' force at `depth` (m), N: scalp, then skull.
@@ -156,10 +166,7 @@ mod tests {
     use super::*;
 
     fn head() -> HeadModel {
-        HeadModel {
-            head_from_ellipsoid: Isometry3::identity(),
-            radii: Vector3::new(0.075, 0.095, 0.11),
-        }
+        HeadModel::adult()
     }
 
     fn coil() -> CoilModel {

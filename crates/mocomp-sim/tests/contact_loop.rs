@@ -11,7 +11,7 @@
 //! force (the law's springs at the measured coil pose) is recorded, which is what the patient
 //! feels, not what the loop read.
 
-use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode, Reason};
+use mocomp_control::{Compensator, CycleRecord, Event, HeadModel, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use mocomp_geom::{Clock, SteppedClock};
 use mocomp_kin::{Arm, Model, Selection};
@@ -164,15 +164,19 @@ fn run(sc: Scenario) -> Outcome {
         .unwrap()
         .joints;
     // The scalp the contact law sees.
-    let mut true_head = cfg.head;
-    true_head.radii += Vector3::from_element(sc.true_head_grow_m);
+    let e = cfg.head.as_ellipsoid().unwrap();
+    let true_head = HeadModel::ellipsoid(
+        *e.head_from_ellipsoid(),
+        e.radii() + Vector3::from_element(sc.true_head_grow_m),
+    )
+    .unwrap();
     let contact = |seed| {
         Contact::new(
             ContactParams {
                 noise_n: SIMULATED_SENSOR_NOISE_N,
                 ..ContactParams::default()
             },
-            true_head,
+            true_head.clone(),
             cfg.coil,
             seed,
         )

@@ -105,7 +105,8 @@ impl Compensator {
         let n = PATH_CHECKS;
         for k in 1..=n {
             let sigma = path.length() * k as f64 / n as f64;
-            let flange = base_from_head * path.pose_at(sigma) * self.coil_from_flange;
+            let flange =
+                base_from_head * path.pose_at(&self.cfg.head, sigma) * self.coil_from_flange;
             let next = self
                 .arm
                 .ik_closest(
@@ -259,7 +260,9 @@ impl Compensator {
         let dt = self.cmd.dt;
         let p = &self.cfg.params;
         let a = p.approach_accel_m_s2;
-        let here = base_from_head * path.pose_at(self.approach.sigma) * self.coil_from_flange;
+        let here = base_from_head
+            * path.pose_at(&self.cfg.head, self.approach.sigma)
+            * self.coil_from_flange;
         let lag =
             (self.arm.fk_flange(&self.cmd.q).translation.vector - here.translation.vector).norm();
         let remaining = (path.length() - self.approach.sigma).max(0.0);
@@ -275,7 +278,7 @@ impl Compensator {
             s.sigma_dot = 0.0;
         }
         s.sigma = (s.sigma + s.sigma_dot * dt).min(path.length());
-        base_from_head * path.pose_at(s.sigma) * self.coil_from_flange
+        base_from_head * path.pose_at(&self.cfg.head, s.sigma) * self.coil_from_flange
     }
 
     /// Takes a new plan, with progress from its start.
