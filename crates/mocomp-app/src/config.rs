@@ -721,6 +721,39 @@ pub struct ExperimentSection {
     /// `mocomp` holds `loop.contact_force_n` there by its admittance (`force_sensing` and
     /// `contact_mode` on), the `paper` controller holds the pose.
     pub contact: bool,
+    /// Where on the head the goal puts the coil: over the scalp point nearest this point (head
+    /// marker's frame, mm), 3 mm off, its axis along the scalp's normal there (the phantom is
+    /// mounted on the head robot so that the paper's goal does it). [on top of the head]
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub goal_near_mm: Option<[f64; 3]>,
+    /// The head model the controllers believe: "head" (the phantom's own) or
+    /// "fitted-ellipsoid" (the ellipsoid fitted to the phantom's scalp, while the world stays
+    /// the scalp: what an ellipsoid lets through). ["head"]
+    pub loop_head: LoopHead,
+}
+
+/// The head model the experiment's controllers believe.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LoopHead {
+    /// The phantom's own head model.
+    #[default]
+    Head,
+    /// The ellipsoid fitted to the phantom's scalp.
+    FittedEllipsoid,
+}
+
+impl LoopHead {
+    /// From its name in the file ("head", "fitted-ellipsoid").
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "head" => Ok(Self::Head),
+            "fitted-ellipsoid" => Ok(Self::FittedEllipsoid),
+            other => Err(format!(
+                "{other:?}: the head model is \"head\" or \"fitted-ellipsoid\""
+            )),
+        }
+    }
 }
 
 impl Default for ExperimentSection {
@@ -733,6 +766,8 @@ impl Default for ExperimentSection {
             goal_e2_from_e1_mm: PAPER_GOAL_E2_FROM_E1_MM,
             paper: PaperController::default(),
             contact: false,
+            goal_near_mm: None,
+            loop_head: LoopHead::Head,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! milliseconds and degrees at its edge), checked once as the file's own values are.
 
 use crate::AppError;
-use crate::config::{Config, unused_by_experiment};
+use crate::config::{Config, LoopHead, unused_by_experiment};
 use crate::{Context, config};
 use mocomp_kin::Model;
 use mocomp_sim::HeadMotion;
@@ -32,6 +32,10 @@ pub struct DemoOverrides {
     pub paper_delay_s: Option<f64>,
     /// `--contact`.
     pub contact: bool,
+    /// `--goal-near`, mm (head frame).
+    pub goal_near_mm: Option<[f64; 3]>,
+    /// `--loop-head`.
+    pub loop_head: Option<LoopHead>,
     /// `--record`.
     pub record_mcap: Option<String>,
     /// `--motion-file`.
@@ -99,6 +103,8 @@ fn overlay(cfg: &mut Config, o: &DemoOverrides) {
     x.paper.period_s = o.paper_period_s.unwrap_or(x.paper.period_s);
     x.paper.compute_delay_s = o.paper_delay_s.unwrap_or(x.paper.compute_delay_s);
     x.contact |= o.contact;
+    x.goal_near_mm = o.goal_near_mm.or(x.goal_near_mm);
+    x.loop_head = o.loop_head.unwrap_or(x.loop_head);
     if o.record_mcap.is_some() {
         cfg.record_mcap.clone_from(&o.record_mcap);
     }

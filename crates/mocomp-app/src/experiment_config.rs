@@ -3,10 +3,13 @@
 //! session (`mocomp demo`; see [`crate::config::ExperimentSection`]).
 
 use crate::AppError;
-use crate::config::Config;
+use crate::config::{Config, LoopHead};
+use mocomp_control::HeadModel;
 use mocomp_experiment::experiment::{ExperimentConfig, ExperimentError};
 use mocomp_geom::iso_from_matrix_mm;
-use mocomp_geom::nalgebra::Matrix4;
+use mocomp_geom::nalgebra::{Matrix4, Point3, Vector3};
+use mocomp_geom::units::mm_to_m;
+use mocomp_head::{Ellipsoid, Head};
 use mocomp_kin::Model;
 use mocomp_sim::contact::ContactParams;
 use std::net::IpAddr;
@@ -51,6 +54,8 @@ pub fn from_config(cfg: &Config) -> Result<ExperimentConfig, AppError> {
         predictor: cfg.predictor,
         servo: (cfg.servo.lookahead_s, cfg.servo.gain),
         head: cfg.head_model()?,
+        loop_head: None,
+        coil_design: mocomp_experiment::experiment::head_from_coil_design(),
         coil: cfg.coil_model(),
         contact: ContactParams {
             noise_n: mocomp_sim::contact::SIMULATED_SENSOR_NOISE_N,
@@ -60,6 +65,7 @@ pub fn from_config(cfg: &Config) -> Result<ExperimentConfig, AppError> {
         tracker_bump: None,
         session: None,
     };
+    place_on_head(cfg, &mut e)?;
     if e.on_scalp {
         e.loop_params.force_sensing = true;
         e.loop_params.contact_mode = true;
@@ -73,6 +79,36 @@ pub fn from_config(cfg: &Config) -> Result<ExperimentConfig, AppError> {
     })?;
     Ok(e)
 }
+
+/// `[experiment] loop_head` and `goal_near_mm` on the experiment's head. The goal is laid on the
+/// head model the controllers believe, as a clinician plans on the model they have: on a fitted
+/// ellipsoid it can lie inside the real scalp (an ear), which the true clearance then shows.
+fn place_on_head(cfg: &Config, e: &mut ExperimentConfig) -> Result<(), AppError> {
+    let x = &cfg.experiment;
+    if x.loop_head == LoopHead::FittedEllipsoid {
+        let Head::Mesh(m) = e.head.shape() else {
+            return Err(AppError::Config(
+                "experiment.loop_head = \"fitted-ellipsoid\": needs a scalp (head.mesh) to fit"
+                    .into(),
+            ));
+        };
+        let fitted = Ellipsoid::fit(m.vertices())
+            .map_err(|err| AppError::failed("fitting an ellipsoid to the scalp", err))?;
+        e.loop_head = Some(HeadModel::new(Head::Ellipsoid(fitted)));
+    }
+    if let Some(near) = x.goal_near_mm {
+        let p = Point3::from(Vector3::from(near).map(mm_to_m));
+        let model = e.loop_head.as_ref().unwrap_or(&e.head);
+        e.coil_design =
+            mocomp_session::grid::coil_over(model, &p, GOAL_STANDOFF_M).map_err(|err| {
+                AppError::Config(format!("experiment.goal_near_mm = {near:?}: {err}"))
+            })?;
+    }
+    Ok(())
+}
+
+/// How far off the scalp `goal_near_mm` puts the coil's face, m (the paper's design: 3 mm).
+pub const GOAL_STANDOFF_M: f64 = 0.003;
 
 #[cfg(test)]
 mod tests {

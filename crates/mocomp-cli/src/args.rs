@@ -58,6 +58,11 @@ pub fn six(s: &str) -> Result<[f64; 6], String> {
     numbers::<6>(s)
 }
 
+/// Three numbers (a point).
+pub fn three(s: &str) -> Result<[f64; 3], String> {
+    numbers::<3>(s)
+}
+
 /// Two non-negative numbers: a noise level in millimetres and degrees.
 pub fn noise_pair(s: &str) -> Result<[f64; 2], String> {
     let v = numbers::<2>(s)?;

@@ -120,6 +120,14 @@ pub struct DemoCmd {
     /// `loop.contact_force_n` (3 N) by its admittance, the paper's controller holds the pose.
     #[arg(long)]
     pub contact: bool,
+    /// The goal over the scalp point nearest this point (head marker's frame, mm), 3 mm off
+    /// along its normal (overrides `experiment.goal_near_mm`; default: on top of the head).
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::args::three, allow_hyphen_values = true)]
+    pub goal_near: Option<[f64; 3]>,
+    /// The head model the controllers believe: "head", or "fitted-ellipsoid" (the ellipsoid
+    /// fitted to `head.mesh`, while the phantom stays the mesh: what an ellipsoid lets through).
+    #[arg(long, value_name = "head|fitted-ellipsoid", value_parser = mocomp_app::config::LoopHead::parse)]
+    pub loop_head: Option<mocomp_app::config::LoopHead>,
     /// Bump the simulated tracker this many seconds into each run (the camera knocked: the
     /// calibration no longer holds); the summary says how soon the drift monitor saw it.
     #[arg(long, value_name = "S")]
@@ -156,6 +164,8 @@ impl DemoCmd {
             paper_period_s: self.paper_period_ms.map(|v| v * 1e-3),
             paper_delay_s: self.paper_delay_ms.map(|v| v * 1e-3),
             contact: self.contact,
+            goal_near_mm: self.goal_near,
+            loop_head: self.loop_head,
             record_mcap: self.record.clone(),
             motion_file: self.motion_file.clone(),
             motion: self.motion.clone(),

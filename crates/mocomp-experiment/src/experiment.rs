@@ -165,8 +165,16 @@ pub struct ExperimentConfig {
     pub predictor: mocomp_control::PredictorConfig,
     /// The `mocomp` loop's servoj lookahead (s) and gain.
     pub servo: (f64, f64),
-    /// The controllers' head model.
+    /// The head: the phantom's scalp (what the coil touches and is measured against) and,
+    /// unless `loop_head` says otherwise, the controllers' head model.
     pub head: mocomp_control::HeadModel,
+    /// The head model the controllers believe instead of `head` (the ellipsoid fitted to the
+    /// phantom's scalp, say), while the world stays `head`.
+    pub loop_head: Option<mocomp_control::HeadModel>,
+    /// Where the paper's goal puts the coil on the head (`head_from_coil`, +z into the head):
+    /// the phantom is mounted on the head robot's flange so that it does. [on top, 3 mm off the
+    /// ellipsoid]
+    pub coil_design: Isometry3<f64>,
     /// The controllers' coil model.
     pub coil: mocomp_control::CoilModel,
     /// The contact between the coil and the phantom's scalp (the controllers' head model), and
@@ -356,7 +364,7 @@ pub struct Scene {
 }
 
 /// The head model's goal: the coil on top of the head (semi-axis 0.11 m), 3 mm off, +z into it.
-fn head_from_coil_design() -> Isometry3<f64> {
+pub fn head_from_coil_design() -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::new(0.0, 0.0, 0.113),
         UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
@@ -441,6 +449,12 @@ fn placed(
     }
 }
 
+/// Where a robot's calibration poses are centred, from its start flange: 10 cm back along the
+/// flange axis (the coil away from the head).
+fn calibration_backoff() -> Isometry3<f64> {
+    Isometry3::translation(0.0, 0.0, -0.1)
+}
+
 /// Head poses along the motion at which a candidate placement of the coil robot is checked.
 const MOTION_SAMPLES: u32 = 300;
 
@@ -452,7 +466,7 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
     // The coil 8 cm out along U1's flange axis; the phantom mounted so that the paper's goal puts
     // the coil on top of the head.
     let e1_from_coil = Isometry3::translation(0.0, 0.0, 0.08);
-    let e2_from_head = cfg.goal_e2_from_e1 * e1_from_coil * head_from_coil_design().inverse();
+    let e2_from_head = cfg.goal_e2_from_e1 * e1_from_coil * cfg.coil_design.inverse();
     let seed = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0];
     let select = Selection {
         limit_margin: 0.3,
@@ -497,14 +511,8 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
         .collect();
     // The loop's collision model: a placement whose arm would pass its links closer to the head
     // than the loop allows would make the loop hold, not follow.
-    let model = LoopConfig::new(
-        Isometry3::identity(),
-        e1_from_coil,
-        head_from_coil_design(),
-        cfg.coil_robot.spec().series.period_s(),
-    );
     let (head_model, link_radius, clearance) = (
-        model.head,
+        &cfg.head,
         cfg.loop_params.link_radius_m,
         cfg.loop_params.link_clearance_m,
     );
@@ -530,6 +538,15 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
                 else {
                     continue;
                 };
+                // Its calibration goes round a centre backed off from the start: reachable on
+                // the start's branch, or no calibration (a goal beside the ear turns the arm).
+                let centre = arm1.fk_flange(&start.joints) * calibration_backoff();
+                if arm1
+                    .ik_closest(&centre, &start.joints, &Selection::tracking(0.1))
+                    .is_err()
+                {
+                    continue;
+                }
                 // Follow the motion on the start's branch; the least margin on the way counts.
                 let mut q = start.joints;
                 let mut margin = arm1.singularity(&q).margin(arm1.geometry());
@@ -1188,7 +1205,7 @@ impl Rig {
                 .map_err(|e| calib_err(format!("moving the coil robot clear: {e}")))?;
         }
         // Around the start, backed off along the flange axis (the coil away from the head).
-        let center = arm.fk_flange(&q0) * Isometry3::translation(0.0, 0.0, -0.1);
+        let center = arm.fk_flange(&q0) * calibration_backoff();
         let current = arm
             .ik_closest(&center, &q0, &Selection::tracking(0.1))
             .map_err(|e| calib_err(format!("the centre pose: {e}")))?
@@ -1443,7 +1460,8 @@ impl Rig {
         let rest = self.scene.world_from_head_rest;
         let head_from_e2 = self.scene.e2_from_head.inverse();
         let head_servo = ServoParams::for_period(self.period);
-        let (head, coil) = (loop_cfg.head.clone(), loop_cfg.coil);
+        // The world's scalp, which the true coil is measured against.
+        let (head, coil) = (cfg.head.clone(), loop_cfg.coil);
         let mut ctl: Box<dyn mocomp_control::Controller> = match controller {
             Controller::Mocomp => Box::new(Compensator::new(loop_cfg, self.arm1, self.period)),
             Controller::Paper => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
@@ -1830,7 +1848,7 @@ pub fn run_experiment_watched(
     loop_cfg.params = cfg.loop_params;
     loop_cfg.predictor = cfg.predictor;
     (loop_cfg.servo.lookahead_s, loop_cfg.servo.gain) = cfg.servo;
-    loop_cfg.head = cfg.head.clone();
+    loop_cfg.head = cfg.loop_head.clone().unwrap_or_else(|| cfg.head.clone());
     loop_cfg.coil = cfg.coil;
     let mut runs = Vec::with_capacity(order.len());
     for &c in order {

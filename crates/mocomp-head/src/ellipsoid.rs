@@ -41,6 +41,50 @@ impl Ellipsoid {
         }
     }
 
+    /// The ellipsoid, axes along the head frame's, that best fits `points` (a scalp's vertices):
+    /// the algebraic least-squares fit `a x² + b y² + c z² + d x + e y + f z = 1`, what a head
+    /// model without a scan would be measured as. Refused when the points close no ellipsoid.
+    pub fn fit(points: &[Point3<f64>]) -> Result<Self, HeadError> {
+        let no = |why| HeadError::NoFit {
+            points: points.len(),
+            why,
+        };
+        if points.len() < 6 {
+            return Err(no("six are the least"));
+        }
+        // Centred and scaled first, so the normal equations are well conditioned.
+        let n = points.len() as f64;
+        let mean = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
+        let scale = points
+            .iter()
+            .map(|p| (p.coords - mean).norm())
+            .fold(0.0, f64::max)
+            .max(1e-12);
+        let mut ata = mocomp_geom::nalgebra::Matrix6::<f64>::zeros();
+        let mut atb = mocomp_geom::nalgebra::Vector6::<f64>::zeros();
+        for p in points {
+            let q = (p.coords - mean) / scale;
+            let row =
+                mocomp_geom::nalgebra::Vector6::new(q.x * q.x, q.y * q.y, q.z * q.z, q.x, q.y, q.z);
+            ata += row * row.transpose();
+            atb += row;
+        }
+        let k = ata
+            .cholesky()
+            .ok_or_else(|| no("they lie on a plane or a line"))?
+            .solve(&atb);
+        let (a, b, c) = (k[0], k[1], k[2]);
+        if !(a > 0.0 && b > 0.0 && c > 0.0) {
+            return Err(no("they curve away from each other (not a closed surface)"));
+        }
+        // a (x - x0)² + … = 1 + a x0² + …, x0 = -d / 2a.
+        let centre = Vector3::new(-k[3] / (2.0 * a), -k[4] / (2.0 * b), -k[5] / (2.0 * c));
+        let rhs = 1.0 + a * centre.x.powi(2) + b * centre.y.powi(2) + c * centre.z.powi(2);
+        let radii = Vector3::new((rhs / a).sqrt(), (rhs / b).sqrt(), (rhs / c).sqrt()) * scale;
+        let c = mean + centre * scale;
+        Self::new(Isometry3::translation(c.x, c.y, c.z), radii)
+    }
+
     /// Its centre and axes in the head frame.
     pub fn head_from_ellipsoid(&self) -> &Isometry3<f64> {
         &self.head_from_ellipsoid
@@ -334,6 +378,43 @@ mod tests {
             prop_assert!(hit.normal.dot(&d) < 0.0);
             prop_assert!(e.ray_hit(&o, &-d, 10.0).is_none());
         }
+    }
+
+    #[test]
+    fn an_ellipsoid_fitted_to_points_on_one_is_that_one() {
+        let truth = Ellipsoid::new(
+            Isometry3::translation(0.01, -0.02, 0.03),
+            Vector3::new(0.075, 0.095, 0.11),
+        )
+        .unwrap();
+        let mut points = Vec::new();
+        for i in 0..30 {
+            for j in 0..60 {
+                let th = std::f64::consts::PI * (f64::from(i) + 0.5) / 30.0;
+                let ph = std::f64::consts::TAU * f64::from(j) / 60.0;
+                let u = Vector3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                points.push(Point3::from(
+                    Vector3::new(0.01, -0.02, 0.03) + u.component_mul(truth.radii()),
+                ));
+            }
+        }
+        let fit = Ellipsoid::fit(&points).unwrap();
+        assert!(
+            (fit.radii() - truth.radii()).norm() < 1e-9,
+            "{}",
+            fit.radii()
+        );
+        assert!((fit.centre() - truth.centre()).norm() < 1e-9);
+        // A plane closes no ellipsoid; five points are too few.
+        let flat: Vec<_> = points.iter().map(|p| Point3::new(p.x, p.y, 0.0)).collect();
+        assert!(matches!(
+            Ellipsoid::fit(&flat),
+            Err(HeadError::NoFit { .. })
+        ));
+        assert!(matches!(
+            Ellipsoid::fit(&points[..5]),
+            Err(HeadError::NoFit { .. })
+        ));
     }
 
     #[test]

@@ -102,6 +102,14 @@ pub enum HeadError {
         /// The radii given.
         radii: [f64; 3],
     },
+    /// No ellipsoid fits the points (too few, or not round enough to close one).
+    #[error("no ellipsoid fits the {points} points: {why}")]
+    NoFit {
+        /// How many points were given.
+        points: usize,
+        /// Why.
+        why: &'static str,
+    },
     /// A coil solid with a radius or thickness that is not a positive, finite length.
     #[error(
         "coil solid radius {radius} m, thickness {thickness} m: both must be positive and finite"

@@ -76,6 +76,29 @@ impl Mesh {
 }
 
 impl Mesh {
+    /// Each triangle split in three at its centroid: the same surface with three times the
+    /// triangles (4,062 → 109,674 in three splits), for measuring what a clinical scalp's size
+    /// costs.
+    pub fn split_at_centroids(&self) -> Self {
+        let mut vertices = self.vertices.clone();
+        let mut triangles = Vec::with_capacity(self.triangles.len() * 3);
+        for &[a, b, c] in &self.triangles {
+            let m = Point3::from(
+                (self.vertices[a as usize].coords
+                    + self.vertices[b as usize].coords
+                    + self.vertices[c as usize].coords)
+                    / 3.0,
+            );
+            let i = vertices.len() as u32;
+            vertices.push(m);
+            triangles.extend([[a, b, i], [b, c, i], [c, a, i]]);
+        }
+        Self {
+            vertices,
+            triangles,
+        }
+    }
+
     /// A coarser copy for drawing, at most about `max_triangles`: vertices clustered on a grid
     /// (each cell's vertices become their mean), triangles whose corners share a cell dropped,
     /// the cell grown until few enough remain. Not a surface to compute with.

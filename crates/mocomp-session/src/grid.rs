@@ -173,6 +173,37 @@ fn tangent(v: &Vector3<f64>, n: &Vector3<f64>) -> Option<Vector3<f64>> {
     (t.norm() > 1e-9).then(|| t.normalize())
 }
 
+/// A coil over the scalp point nearest `near` (head frame): its face `standoff_m` off the
+/// surface along the scalp's normal, +z into the head, its x along the head frame's +y (front)
+/// carried onto the scalp's tangent plane (or its +x where +y is the normal). The normal is the
+/// distance field's gradient 30 mm out, which smooths a mesh's facets over about a coil's size.
+pub fn coil_over(
+    head: &HeadModel,
+    near: &Point3<f64>,
+    standoff_m: f64,
+) -> Result<Isometry3<f64>, GridError> {
+    if !(near.coords.iter().all(|x| x.is_finite()) && standoff_m.is_finite()) {
+        return Err(GridError::NotFinite);
+    }
+    let shape = head.shape();
+    let first = shape.nearest(near);
+    let out = shape.nearest(&(first.point + first.normal.into_inner() * NORMAL_REACH_M));
+    let n = out.normal.into_inner();
+    let x = tangent(&Vector3::y(), &n)
+        .or_else(|| tangent(&Vector3::x(), &n))
+        .ok_or(GridError::AxisMissesHead)?;
+    let z = -n;
+    let y = z.cross(&x);
+    let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
+    Ok(Isometry3::from_parts(
+        (out.point + n * standoff_m).into(),
+        UnitQuaternion::from_rotation_matrix(&rot),
+    ))
+}
+
+/// How far out [`coil_over`] reads the scalp's normal, m.
+const NORMAL_REACH_M: f64 = 0.03;
+
 /// The point a coil's approach axis meets the head at, in the head's frame (for reports and
 /// tests).
 pub fn surface_point(head: &HeadModel, head_from_coil: &Isometry3<f64>) -> Option<Point3<f64>> {
@@ -254,6 +285,29 @@ mod tests {
         let first = surface_point(&h, &grid[3].head_from_coil).unwrap();
         let x = t.rotation * Vector3::x();
         assert!((first - s).dot(&x) < -0.009);
+    }
+
+    #[test]
+    fn a_coil_over_a_point_faces_the_scalp_at_its_standoff() {
+        let h = head();
+        for near in [
+            Point3::new(0.0, 0.01, 0.2),
+            Point3::new(0.09, 0.01, 0.02),
+            Point3::new(0.02, -0.12, 0.05),
+        ] {
+            let pose = coil_over(&h, &near, 0.003).unwrap();
+            let (t, n) = axis_hit(&h, &pose);
+            assert!((t - 0.003).abs() < 1e-6, "{near}: {t}");
+            let z = pose.rotation * Vector3::z();
+            assert!((z + n).norm() < 1e-6, "{near}: not along the normal");
+            // The face's centre is 3 mm off the head.
+            let d = h.distance(&Point3::from(pose.translation.vector));
+            assert!((d - 0.003).abs() < 1e-6, "{near}: {d}");
+        }
+        assert_eq!(
+            coil_over(&h, &Point3::new(f64::NAN, 0.0, 0.0), 0.003).unwrap_err(),
+            GridError::NotFinite
+        );
     }
 
     #[test]

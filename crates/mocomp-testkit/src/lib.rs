@@ -22,6 +22,7 @@
 //! **Limits.** A dev-dependency only: never in a production crate's dependencies.
 #![allow(clippy::panic)] // test support: failures are panics with a message
 
+pub mod anatomy;
 pub mod controller;
 pub mod mem;
 pub mod proxy;

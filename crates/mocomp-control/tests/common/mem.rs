@@ -3,7 +3,7 @@
 //! noisy head, 20 ms old. No sockets, no threads, no clock: time is what the test says.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
-use mocomp_control::{Compensator, CycleRecord, Event, LoopConfig, Mode};
+use mocomp_control::{Compensator, CycleRecord, Event, HeadModel, LoopConfig, Mode};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, Model, Selection};
@@ -77,15 +77,21 @@ pub struct World {
 impl World {
     /// At rest, past the start-up hold, tracking.
     pub fn new() -> Self {
+        Self::with_head(HeadModel::adult())
+    }
+
+    /// [`Self::new`] with `head` as the loop's head model.
+    pub fn with_head(head: HeadModel) -> Self {
         let arm = Arm::new(Model::Ur3e);
         let flange_from_coil = flange_from_coil();
         let q0 = coil_on_head_joints(&arm);
-        let cfg = LoopConfig::new(
+        let mut cfg = LoopConfig::new(
             base_from_tracker(),
             flange_from_coil,
             head_from_coil_goal(),
             PERIOD,
         );
+        cfg.head = head;
         let mut w = Self {
             comp: Compensator::new(cfg, arm, PERIOD),
             robot: MemRobot::at(q0, arm.fk(&q0), PERIOD),
