@@ -1088,7 +1088,8 @@ impl Config {
             ),
         };
         let head = crate::head_file::load_head(&path, units, &self.head.head_from_image.iso())?;
-        self.head.mesh = Some(path);
+        // Absolute from now on, so a printed configuration reads the same file wherever it is.
+        self.head.mesh = Some(std::fs::canonicalize(&path).unwrap_or(path));
         self.head.loaded = Some(head);
         Ok(())
     }

@@ -52,16 +52,7 @@ impl HeadModel {
     /// Signed distance (m) from a point in the head frame to the surface: positive outside,
     /// negative inside (inside the ellipsoid: a lower bound of the depth).
     pub fn distance(&self, p_head: &Point3<f64>) -> f64 {
-        match &self.shape {
-            Head::Ellipsoid(e) => {
-                let p = e
-                    .head_from_ellipsoid()
-                    .inverse_transform_point(p_head)
-                    .coords;
-                ellipsoid_distance(&p, e.radii())
-            }
-            Head::Mesh(m) => m.signed_distance(p_head),
-        }
+        self.distance_below(p_head, f64::INFINITY)
     }
 
     /// [`Self::distance`] where it is below `cutoff`; elsewhere a lower bound of it that is at

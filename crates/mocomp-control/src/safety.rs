@@ -10,8 +10,10 @@
 //! towards the coil pushes the constraint, and with it the command, back at the head's speed; a
 //! head moving away releases it. The correction is the closed-form projection of a single
 //! constraint with the approach axis as its direction: the least standoff `s ≥ 0` along −z of
-//! the coil that restores `h ≥ 0`, found by a few secant steps on the exact coil–ellipsoid
-//! distance. Links keep their own refusal rule (moving a link away is not a coil motion).
+//! the coil that restores `h ≥ 0`, found by a few secant steps on the coil's distance to the head
+//! model and then checked (a scalp is not convex: beside an ear the distance need not grow
+//! steadily along the axis), topped up until it holds. Links keep their own refusal rule (moving
+//! a link away is not a coil motion).
 
 use crate::config::LoopParams;
 use crate::geometry::{CoilModel, HeadModel};
@@ -70,13 +72,25 @@ pub fn standoff_for(
             break;
         }
     }
-    // Never less than needed: a last step short of the surface gets its remainder added.
-    let g1 = gap(s1);
-    if g1 < 0.0 {
+    // Never less than needed, on any head: a standoff short of the requirement gets its
+    // shortfall added and is checked again. The distance grows at most as fast as the coil backs
+    // off, so each top-up stays at or below the least standoff; on a convex head one is enough,
+    // beside an ear (where the distance along the axis need not grow steadily) a few are.
+    for _ in 0..MAX_TOP_UPS {
+        let g1 = gap(s1);
+        // Clear (or not a number: the goal check's to refuse), or as far as it may go.
+        if g1 >= 0.0 || g1.is_nan() || s1 >= max_m {
+            break;
+        }
         s1 = (s1 - g1).min(max_m);
     }
     s1
 }
+
+/// How often [`standoff_for`] tops a short standoff up. Still short after them only where
+/// backing off along the axis barely moves the coil away (an axis grazing the scalp); the goal
+/// check and the clearance the loop records see that.
+const MAX_TOP_UPS: usize = 8;
 
 #[cfg(test)]
 mod tests {

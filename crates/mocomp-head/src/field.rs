@@ -21,6 +21,12 @@ struct Surface<'a> {
 
 /// The grid's spacing, m.
 pub const SPACING_M: f64 = 0.0025;
+/// How far the interpolated distance can be above the exact one, m: the grid's nodes hold the
+/// exact distance within 30 mm of the scalp, the distance changes by at most the distance moved,
+/// and the weights' mean distance to a cell's corners is at most √3/2 of the spacing (at its
+/// centre).
+pub const INTERPOLATION_SLACK_M: f64 = 0.866_026 * SPACING_M;
+
 /// How far the grid reaches beyond the head's box, m (beyond it a query is the BVH's).
 pub const MARGIN_M: f64 = 0.04;
 /// No triangle: a node beyond the band.
@@ -194,17 +200,9 @@ impl DistanceField {
     /// distance where the surface is smooth at the grid's scale (the sampled coil query ranks
     /// its points by it and refines the nearest exactly).
     pub fn interpolated(&self, p: &Point3<f64>) -> Option<f64> {
-        let g = (p - self.origin) / SPACING_M;
-        let [nx, ny, nz] = self.dims;
-        if !(g.x >= 0.0 && g.y >= 0.0 && g.z >= 0.0)
-            || g.x >= (nx - 1) as f64
-            || g.y >= (ny - 1) as f64
-            || g.z >= (nz - 1) as f64
-        {
-            return None;
-        }
-        let (i, j, k) = (g.x as usize, g.y as usize, g.z as usize);
-        let (fx, fy, fz) = (g.x - i as f64, g.y - j as f64, g.z - k as f64);
+        let ((i, j, k), f) = self.cell(p)?;
+        let (fx, fy, fz) = (f.x, f.y, f.z);
+        let [nx, ny, _] = self.dims;
         let at = self.index(i, j, k);
         let (sy, sz) = (nx, nx * ny);
         let v = |o: usize| f64::from(self.values[at + o]);
@@ -398,14 +396,9 @@ impl DistanceField {
         if off.dot(&n) < 0.0 { -d } else { d }
     }
 
-    /// The signed distance at `p`, or `None` outside the grid.
-    pub fn signed_distance(&self, p: &Point3<f64>) -> Option<f64> {
-        self.nearest_triangle(p).map(|(d, _)| d)
-    }
-
-    /// The signed distance at `p` and the triangle where it is attained, or `None` outside the
-    /// grid.
-    pub fn nearest_triangle(&self, p: &Point3<f64>) -> Option<(f64, u32)> {
+    /// The cell `p` is in (its lowest node) and where in it (0 to 1 along each axis), or `None`
+    /// outside the grid.
+    fn cell(&self, p: &Point3<f64>) -> Option<((usize, usize, usize), Vector3<f64>)> {
         let g = (p - self.origin) / SPACING_M;
         let [nx, ny, nz] = self.dims;
         if !(g.x >= 0.0 && g.y >= 0.0 && g.z >= 0.0)
@@ -416,6 +409,18 @@ impl DistanceField {
             return None;
         }
         let (i, j, k) = (g.x as usize, g.y as usize, g.z as usize);
+        Some(((i, j, k), g - Vector3::new(i as f64, j as f64, k as f64)))
+    }
+
+    /// The signed distance at `p`, or `None` outside the grid.
+    pub fn signed_distance(&self, p: &Point3<f64>) -> Option<f64> {
+        self.nearest_triangle(p).map(|(d, _)| d)
+    }
+
+    /// The signed distance at `p` and the triangle where it is attained, or `None` outside the
+    /// grid.
+    pub fn nearest_triangle(&self, p: &Point3<f64>) -> Option<(f64, u32)> {
+        let ((i, j, k), _) = self.cell(p)?;
         let mut start = [(f64::INFINITY, NONE); 8];
         let mut n_start = 0;
         for (di, dj, dk) in [

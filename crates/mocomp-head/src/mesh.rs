@@ -265,6 +265,14 @@ impl HeadShape for MeshHead {
     }
 
     fn distance_below(&self, p: &Point3<f64>, cutoff: f64) -> f64 {
+        // The interpolated field, less what it can err by, spares the exact query for the many
+        // points a check only needs to know are far enough.
+        if let Some(v) = self.field.interpolated(p) {
+            let bound = v - crate::field::INTERPOLATION_SLACK_M;
+            if bound >= cutoff {
+                return bound;
+            }
+        }
         match self.known(p) {
             Known::Exact(d) => d,
             Known::Below(b) if b >= cutoff => b,

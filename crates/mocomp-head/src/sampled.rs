@@ -17,7 +17,7 @@ const FACE_RINGS: usize = 6;
 const RIM_POINTS: usize = 36;
 /// Samples refined by the exact query: those whose interpolated value is within
 /// [`REFINE_WITHIN_M`] of the least, at most this many.
-const REFINED: usize = 3;
+const REFINED: usize = 2;
 /// How much nearer than its sampled points the coil may be to a scalp, m: what a real scalp
 /// was seen to bulge between them (1.18 mm at most on the fsaverage head, 1,150 poses facing it
 /// from touching to 30 mm, tilted up to 17°; `cargo test -p mocomp-head --test coil`), with a
@@ -25,9 +25,9 @@ const REFINED: usize = 3;
 /// there is.
 pub const BETWEEN_SAMPLES_M: f64 = 0.0015;
 
-/// How far above the least interpolated value a sample is still refined, m: twice what the
-/// interpolation was seen to err by near a real scalp's sharpest bends (the ear).
-const REFINE_WITHIN_M: f64 = 0.002;
+/// How far above the least interpolated value a sample is still refined, m (refining only the
+/// least gave the same figures on the fsaverage scalp: a second near it is a spare).
+const REFINE_WITHIN_M: f64 = 0.001;
 
 /// The samples in the coil's own terms: (x / radius, y / radius, z / thickness).
 static SAMPLES: LazyLock<Vec<[f64; 3]>> = LazyLock::new(|| {
@@ -95,6 +95,10 @@ impl MeshHead {
             }
         }
         let least = lowest[0].0;
+        // Far enough by the interpolation alone, less the most it can err by.
+        if least - crate::field::INTERPOLATION_SLACK_M >= cutoff {
+            return least - crate::field::INTERPOLATION_SLACK_M;
+        }
         lowest
             .iter()
             .filter(|(v, _)| *v <= least + REFINE_WITHIN_M)
