@@ -314,8 +314,43 @@ def session_session(url, shots):
     return seen
 
 
+def head_session(url, shots):
+    """The 3-D view on a scalp: the scene carries the decimated mesh, and the page draws it in
+    the head model's colour around the head's place."""
+    d = browser()
+    seen = {}
+    try:
+        d.get(url)
+        wait("tracking", lambda: text(d, "mode") == "tracking", 40)
+        scene = d.execute_async_script(
+            "const done = arguments[0];"
+            "fetch('/api/scene').then(r => r.json()).then(j => done(j));")
+        mesh = scene.get("head_mesh")
+        assert mesh, scene.keys()
+        seen["page_triangles"] = len(mesh["triangles"])
+        seen["page_vertices"] = len(mesh["vertices_mm"])
+        settle(d)
+        # The head model's colour (#c7a98f) in the 3-D view, drawn with the scene as it is and
+        # again without the mesh (in one synchronous script, so no status redraws between).
+        counts = d.execute_script(
+            "const c = document.getElementById('view3d'), g = c.getContext('2d');"
+            "const count = () => { const px = g.getImageData(0, 0, c.width, c.height).data;"
+            "  let n = 0; for (let i = 0; i < px.length; i += 4) {"
+            "    if (Math.abs(px[i] - 199) < 25 && Math.abs(px[i + 1] - 169) < 25 &&"
+            "        Math.abs(px[i + 2] - 143) < 25 && px[i + 3] > 0) n++; } return n; };"
+            "const s = window.mocomp.scene; drawScene(); const with_mesh = count();"
+            "const mesh = s.head_mesh; s.head_mesh = null; drawScene(); const without = count();"
+            "s.head_mesh = mesh; drawScene(); return [with_mesh, without];")
+        seen["head_pixels"], seen["head_pixels_without_mesh"] = counts
+        d.execute_script("document.getElementById('view3d').scrollIntoView()")
+        d.save_screenshot(os.path.join(shots, "console-scalp.png"))
+    finally:
+        d.quit()
+    return seen
+
+
 if __name__ == "__main__":
     which = sys.argv[3] if len(sys.argv) > 3 else "loop"
     run = {"camera": camera_session, "calibrate": calibrate_session,
-           "session": session_session}.get(which, loop_session)
+           "session": session_session, "head": head_session}.get(which, loop_session)
     print(json.dumps(run(sys.argv[1], sys.argv[2])))

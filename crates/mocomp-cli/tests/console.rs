@@ -619,3 +619,43 @@ fn the_calibration_collection_is_started_and_followed_in_a_real_browser() {
     assert!(ok, "{printed}");
     assert!(Path::new(&out).exists());
 }
+
+#[test]
+fn the_page_draws_the_patients_scalp_in_a_real_browser() {
+    // FreeSurfer's fsaverage scalp (MNE, through the head peer) as `[head] mesh`.
+    let dir = TempDir::new("mocomp-console-scalp");
+    let mut peer = mocomp_testkit::PythonPeer::start(
+        "head_peer.py",
+        "mne, nibabel, trimesh",
+        mocomp_testkit::anatomy::HEAD_PEERS,
+    );
+    let scalp = dir.path("scalp.ply");
+    let a = peer.request(&json!({"op": "write", "format": "ply", "path": scalp, "scale": 1000.0}));
+    assert!(a.get("error").is_none(), "{a}");
+    let path = write_example(&dir, "run-sim.toml", "127.0.0.125");
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        "radii_m = [0.075, 0.095, 0.11]",
+        "radii_m = [0.075, 0.095, 0.11]\nmesh = \"scalp.ply\"\nunits = \"mm\"",
+    );
+    assert!(text.contains("scalp.ply"));
+    std::fs::write(&path, text).unwrap();
+    let s = Session::start_file(&path, 90, &[]);
+    let shots = dir.path("shots");
+    let seen = browse(&s, &shots, "head");
+    // The page got the scalp decimated for it (fsaverage's 4,062 triangles to at most 3,000) and
+    // drew it: thousands of pixels in the head model's colour, none once the mesh is taken out
+    // of the same scene.
+    let triangles = seen["page_triangles"].as_u64().unwrap();
+    assert!((1500..=3000).contains(&triangles), "{seen}");
+    let (with, without) = (
+        seen["head_pixels"].as_u64().unwrap(),
+        seen["head_pixels_without_mesh"].as_u64().unwrap(),
+    );
+    assert!(with > 1000 && without * 10 < with, "{seen}");
+    let shot = std::fs::metadata(Path::new(&shots).join("console-scalp.png")).unwrap();
+    assert!(shot.len() > 20_000, "{} bytes", shot.len());
+    let (code, _) = s.post_auth("/api/stop", &json!({}));
+    assert_eq!(code, 200);
+    let (ok, summary) = s.finish();
+    assert!(ok, "{summary}");
+}
