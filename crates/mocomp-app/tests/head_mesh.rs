@@ -13,20 +13,13 @@
 
 use mocomp_app::config::{Config, LoopHead};
 use mocomp_app::experiment::{Controller, run_experiment};
-use mocomp_testkit::{PythonPeer, TempDir};
-use serde_json::json;
+use mocomp_testkit::TempDir;
 use std::net::IpAddr;
 use std::path::Path;
 
 fn fsaverage_ply(dir: &TempDir) -> String {
-    let mut peer = PythonPeer::start(
-        "head_peer.py",
-        "mne, nibabel, trimesh",
-        mocomp_testkit::anatomy::HEAD_PEERS,
-    );
     let path = dir.path("fsaverage-head.ply");
-    let a = peer.request(&json!({"op": "write", "format": "ply", "path": path, "scale": 1000.0}));
-    assert!(a.get("error").is_none(), "{a}");
+    mocomp_testkit::anatomy::write_fsaverage(&path, "ply");
     path
 }
 

@@ -624,14 +624,7 @@ fn the_calibration_collection_is_started_and_followed_in_a_real_browser() {
 fn the_page_draws_the_patients_scalp_in_a_real_browser() {
     // FreeSurfer's fsaverage scalp (MNE, through the head peer) as `[head] mesh`.
     let dir = TempDir::new("mocomp-console-scalp");
-    let mut peer = mocomp_testkit::PythonPeer::start(
-        "head_peer.py",
-        "mne, nibabel, trimesh",
-        mocomp_testkit::anatomy::HEAD_PEERS,
-    );
-    let scalp = dir.path("scalp.ply");
-    let a = peer.request(&json!({"op": "write", "format": "ply", "path": scalp, "scale": 1000.0}));
-    assert!(a.get("error").is_none(), "{a}");
+    mocomp_testkit::anatomy::write_fsaverage(&dir.path("scalp.ply"), "ply");
     let path = write_example(&dir, "run-sim.toml", "127.0.0.125");
     let text = std::fs::read_to_string(&path).unwrap().replace(
         "radii_m = [0.075, 0.095, 0.11]",

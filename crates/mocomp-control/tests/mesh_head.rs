@@ -11,7 +11,7 @@
 
 use mocomp_control::safety::{backed_off, standoff_for};
 use mocomp_control::{CoilModel, HeadModel};
-use mocomp_geom::nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::nalgebra::Point3;
 use mocomp_head::{Head, HeadShape, Mesh, MeshHead, repair};
 use mocomp_testkit::SplitMix64;
 use std::sync::Arc;
@@ -42,19 +42,9 @@ fn the_standoff_clears_a_real_scalp_by_the_requirement() {
         let s = scalp.nearest(&p);
         let n = s.normal.into_inner();
         // Facing the scalp, tilted up to 35°, from 10 mm inside to 5 mm off.
-        let z = -n;
-        let x = z
-            .cross(&Vector3::x())
-            .try_normalize(1e-6)
-            .unwrap_or(Vector3::y());
-        let r =
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[
-                x,
-                z.cross(&x),
-                z,
-            ])) * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 1.2 * (rng.next_f64() - 0.5));
+        let tilt = 1.2 * (rng.next_f64() - 0.5);
         let gap = -0.01 + 0.015 * rng.next_f64();
-        let pose = Isometry3::from_parts(Translation3::from(s.point.coords + n * gap), r);
+        let pose = mocomp_testkit::anatomy::coil_facing(&s.point, &n, gap, tilt, 0.0);
         let required = 0.005 * rng.next_f64();
         let standoff = standoff_for(&head, &coil, &pose, required, 0.1);
         let d = coil.distance(&head, &backed_off(&pose, standoff));

@@ -11,43 +11,24 @@
 )] // test code
 
 use mocomp_geom::LengthUnit;
-use mocomp_geom::nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use mocomp_geom::nalgebra::{Isometry3, Point3};
 use mocomp_head::inspect::inspect;
 use mocomp_head::{CoilSolid, HeadShape, MeshHead};
-use mocomp_testkit::{PythonPeer, SplitMix64, TempDir};
-use serde_json::json;
+use mocomp_testkit::{SplitMix64, TempDir};
 
 fn fsaverage() -> MeshHead {
-    let mut peer = PythonPeer::start(
-        "head_peer.py",
-        "mne, nibabel, trimesh",
-        "mne 1.13.2, nibabel 5.4.2, trimesh 5.2.0",
-    );
     let dir = TempDir::new("head-coil");
     let path = dir.path("head.ply");
-    let a = peer.request(&json!({"op": "write", "format": "ply", "path": path, "scale": 1000.0}));
-    assert!(a.get("error").is_none(), "{a}");
+    mocomp_testkit::anatomy::write_fsaverage(&path, "ply");
     let bytes = std::fs::read(&path).unwrap();
     let (mesh, _) = inspect(&path, &bytes, Some(LengthUnit::Millimetre)).unwrap();
     MeshHead::new(mesh, &path).unwrap()
 }
 
-/// A coil facing the scalp at vertex-near point `p`: its axis along the inward normal tilted by
-/// up to `tilt`, its face `gap` off the surface along the normal.
+/// A coil facing the scalp near `p`, its face `gap` off the surface along the normal.
 fn facing(head: &MeshHead, p: &Point3<f64>, gap: f64, tilt: f64, spin: f64) -> Isometry3<f64> {
     let s = head.nearest(p);
-    let n = s.normal.into_inner();
-    let z = -n;
-    let x = z
-        .cross(&Vector3::x())
-        .try_normalize(1e-6)
-        .unwrap_or(Vector3::y());
-    let y = z.cross(&x);
-    let r = Rotation3::from_basis_unchecked(&[x, y, z]);
-    let r = UnitQuaternion::from_rotation_matrix(&r)
-        * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), spin)
-        * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), tilt);
-    Isometry3::from_parts(Translation3::from(s.point.coords + n * gap), r)
+    mocomp_testkit::anatomy::coil_facing(&s.point, &s.normal.into_inner(), gap, tilt, spin)
 }
 
 #[test]

@@ -3,6 +3,7 @@
 //! missing peer fails the caller).
 
 use crate::PythonPeer;
+use mocomp_geom::nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde_json::json;
 
 /// The peers' versions the head's interop tests pin.
@@ -32,4 +33,36 @@ pub fn fsaverage_head() -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
         .map(|t| [0, 1, 2].map(|k| num(&t[k]) as u32))
         .collect();
     (vertices, triangles)
+}
+
+/// Writes the fsaverage head to `path` as the head peer writes `format` ("ply", "stl", "obj",
+/// "gii", "fs", …), its coordinates in millimetres.
+pub fn write_fsaverage(path: &str, format: &str) {
+    let mut peer = PythonPeer::start("head_peer.py", "mne, nibabel, trimesh", HEAD_PEERS);
+    let a = peer.request(&json!({"op": "write", "format": format, "path": path, "scale": 1000.0}));
+    assert!(a.get("error").is_none(), "head peer: {a}");
+}
+
+/// A coil facing a surface at `point` with outward `normal`: its +z along the inward normal,
+/// turned by `spin` about it and tilted by `tilt` about its own x, its face `gap` off the point
+/// along the normal (negative: inside).
+pub fn coil_facing(
+    point: &Point3<f64>,
+    normal: &Vector3<f64>,
+    gap: f64,
+    tilt: f64,
+    spin: f64,
+) -> Isometry3<f64> {
+    let z = -normal;
+    let x = z
+        .cross(&Vector3::x())
+        .try_normalize(1e-6)
+        .unwrap_or_else(Vector3::y);
+    let r = UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[
+        x,
+        z.cross(&x),
+        z,
+    ])) * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), spin)
+        * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), tilt);
+    Isometry3::from_parts(Translation3::from(point.coords + normal * gap), r)
 }
