@@ -1,9 +1,10 @@
 //! The patient's head as a shape: what every safety decision is made against.
 //!
 //! [`HeadShape`] is the one set of questions (signed distance, nearest surface point and normal,
-//! a ray's hit, the coil's clearance as the solid it is, a bounding box); [`Ellipsoid`] and
-//! [`MeshHead`] (the scalp from a scan, behind a bounding-volume hierarchy) answer them, and
-//! [`Head`] is either, cheap to clone. [`formats`] decodes the surfaces clinics have (STL, OBJ,
+//! a ray's hit, the coil's clearance as the solid it is, a bounding box, the reach from its
+//! centre); [`Ellipsoid`] and [`MeshHead`] (the scalp from a scan, behind a distance field and a
+//! bounding-volume hierarchy) answer them, and [`Head`] is either, cheap to clone. [`sampled`]
+//! is the coil's clearance as the control loop asks it. [`formats`] decodes the surfaces clinics have (STL, OBJ,
 //! PLY, GIfTI, FreeSurfer) from bytes; [`repair`] makes what was read into one closed, outward
 //! surface and says what it changed; [`inspect`] does both and reports.
 //!
