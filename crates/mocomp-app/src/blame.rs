@@ -43,6 +43,7 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
         || e.is::<mocomp_sim::MotionError>()
         || e.is::<mocomp_sim::trace::TraceError>()
         || e.is::<mocomp_head::HeadError>()
+        || e.is::<mocomp_mri::MriError>()
         || e.is::<toml::de::Error>()
         || e.is::<serde_json::Error>()
     {

@@ -550,13 +550,20 @@ pub struct HeadSection {
     pub head_from_ellipsoid: Pose,
     /// Semi-axes, m (without a mesh).
     pub radii_m: [f64; 3],
-    /// The scalp's surface file (STL, OBJ, PLY, GIfTI, FreeSurfer; relative to the
-    /// configuration's directory): the head model instead of the ellipsoid.
+    /// The scalp's surface file (STL, OBJ, PLY, GIfTI, FreeSurfer), or a T1 MRI in NIfTI
+    /// (`.nii`, `.nii.gz`) whose scalp is segmented (relative to the configuration's
+    /// directory): the head model instead of the ellipsoid.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mesh: Option<PathBuf>,
-    /// The unit of a mesh format that carries none (STL, OBJ, PLY): "mm" or "m".
+    /// The unit of a mesh format that carries none (STL, OBJ, PLY), or of a NIfTI whose header
+    /// states none: "mm" or "m".
     #[serde(skip_serializing_if = "Option::is_none")]
     pub units: Option<String>,
+    /// A NIfTI's intensity at and above which a voxel is head (without it: Otsu's threshold).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub threshold: Option<f64>,
+    /// The most triangles a scalp segmented from a NIfTI may have.
+    pub max_triangles: usize,
     /// head_from_image: the mesh file's frame (an MRI's RAS) in the head marker's frame, until
     /// registration measures it.
     pub head_from_image: Pose,
@@ -572,6 +579,8 @@ impl Default for HeadSection {
             radii_m: [0.075, 0.095, 0.11],
             mesh: None,
             units: None,
+            threshold: None,
+            max_triangles: mocomp_mri::DEFAULT_MAX_TRIANGLES,
             head_from_image: pose_const([0.0; 6]),
             loaded: None,
         }
@@ -1087,11 +1096,35 @@ impl Config {
                     .map_err(|e| AppError::Config(format!("head.units = {u:?}: {e}")))?,
             ),
         };
-        let head = crate::head_file::load_head(&path, units, &self.head.head_from_image.iso())?;
+        let segment = self.segment_options()?;
+        let head =
+            crate::head_file::load_head(&path, units, &segment, &self.head.head_from_image.iso())?;
         // Absolute from now on, so a printed configuration reads the same file wherever it is.
         self.head.mesh = Some(std::fs::canonicalize(&path).unwrap_or(path));
         self.head.loaded = Some(head);
         Ok(())
+    }
+
+    /// How `[head]` segments a NIfTI's scalp.
+    pub fn segment_options(&self) -> Result<mocomp_mri::SegmentOptions, AppError> {
+        if let Some(t) = self.head.threshold
+            && !t.is_finite()
+        {
+            return Err(AppError::Config(format!(
+                "head.threshold = {t}: not a number"
+            )));
+        }
+        if self.head.max_triangles < 1_000 {
+            return Err(AppError::Config(format!(
+                "head.max_triangles = {}: a scalp needs 1000 triangles or more",
+                self.head.max_triangles
+            )));
+        }
+        Ok(mocomp_mri::SegmentOptions {
+            threshold: self.head.threshold,
+            max_triangles: self.head.max_triangles,
+            ..mocomp_mri::SegmentOptions::default()
+        })
     }
 
     /// `[coil]` as the loop's model.

@@ -1,5 +1,6 @@
-//! A head surface file from disk (`mocomp head inspect`, `[head] mesh`): read with a size limit,
-//! decoded and mended by [`mocomp_head`], and what was made of it written back out.
+//! A head file from disk (`mocomp head inspect`, `[head] mesh`): read with a size limit, a
+//! surface decoded and mended by [`mocomp_head`] or a T1 volume's scalp segmented by
+//! [`mocomp_mri`], and what was made of it written back out.
 
 use crate::{AppError, Context};
 use mocomp_control::HeadModel;
@@ -8,6 +9,7 @@ use mocomp_geom::nalgebra::Isometry3;
 use mocomp_head::inspect::Inspection;
 use mocomp_head::render::{Picture, three_views};
 use mocomp_head::{Head, Mesh, MeshHead, formats};
+use mocomp_mri::SegmentOptions;
 use std::io::Read;
 use std::path::Path;
 
@@ -15,8 +17,13 @@ use std::path::Path;
 pub const MAX_FILE_BYTES: u64 = 600 << 20;
 
 /// Reads `path` (refusing a file over [`MAX_FILE_BYTES`] before reading it), decodes it in
-/// `unit` when its format has none, and mends it.
-pub fn inspect_file(path: &Path, unit: Option<LengthUnit>) -> Result<(Mesh, Inspection), AppError> {
+/// `unit` when its format has none, and mends it; a NIfTI volume's scalp is segmented as
+/// `segment` says.
+pub fn inspect_file(
+    path: &Path,
+    unit: Option<LengthUnit>,
+    segment: &SegmentOptions,
+) -> Result<(Mesh, Inspection), AppError> {
     let name = path.display().to_string();
     let file = std::fs::File::open(path).what(|| format!("{name}: cannot open"))?;
     let size = file
@@ -32,6 +39,11 @@ pub fn inspect_file(path: &Path, unit: Option<LengthUnit>) -> Result<(Mesh, Insp
     file.take(MAX_FILE_BYTES + 1)
         .read_to_end(&mut bytes)
         .what(|| format!("{name}: cannot read"))?;
+    if formats::Format::detect(&name, &bytes).ok() == Some(formats::Format::Nifti) {
+        let (mesh, inspection, _) = mocomp_mri::inspect_volume(&name, &bytes, unit, segment)
+            .map_err(|e| AppError::failed("segmenting the scalp", e))?;
+        return Ok((mesh, inspection));
+    }
     mocomp_head::inspect::inspect(&name, &bytes, unit)
         .map_err(|e| AppError::failed("reading the head", e))
 }
@@ -55,9 +67,10 @@ pub fn write_views(path: &Path, mesh: &Mesh, size: u32) -> Result<(), AppError> 
 pub fn load_head(
     path: &Path,
     unit: Option<LengthUnit>,
+    segment: &SegmentOptions,
     head_from_image: &Isometry3<f64>,
 ) -> Result<HeadModel, AppError> {
-    let (mesh, _) = inspect_file(path, unit)?;
+    let (mesh, _) = inspect_file(path, unit, segment)?;
     let name = path.display().to_string();
     let head = MeshHead::new(mesh.transformed(head_from_image), &name)
         .map_err(|e| AppError::failed("building the head", e))?;

@@ -1,5 +1,6 @@
-//! `mocomp head inspect FILE`: a head surface read and mended ([`mocomp_app::head_file`]), what
-//! it held and what was done, the mended mesh and a picture of it written out.
+//! `mocomp head inspect FILE`: a head surface read and mended, or a T1 MRI's scalp segmented
+//! ([`mocomp_app::head_file`]), what it held and what was done, the mesh and a picture of it
+//! written out.
 
 use clap::{Args, Subcommand};
 use mocomp_geom::LengthUnit;
@@ -18,17 +19,25 @@ enum HeadCommand {
     Inspect(InspectCmd),
 }
 
-/// Read a head surface (STL, OBJ, PLY, GIfTI, FreeSurfer): its vertices, triangles, bounds,
-/// whether it is closed, its holes, the frame and unit it was read in, and what was mended.
+/// Read a head surface (STL, OBJ, PLY, GIfTI, FreeSurfer), or segment the scalp of a T1 MRI
+/// (NIfTI .nii/.nii.gz): its vertices, triangles, bounds, whether it is closed, its holes, the
+/// frame and unit it was read in, how it was segmented and what was mended.
 #[derive(Debug, Clone, Args)]
 pub struct InspectCmd {
-    /// The surface file.
+    /// The surface or volume file.
     file: PathBuf,
-    /// The unit of a format that carries none (STL, OBJ, PLY): mm or m. GIfTI and FreeSurfer
-    /// surfaces are millimetres by their standards.
+    /// The unit of a format that carries none (STL, OBJ, PLY) or of a NIfTI whose header states
+    /// none (given, it is taken over the header's): mm or m. GIfTI and FreeSurfer surfaces are
+    /// millimetres by their standards.
     #[arg(long, value_name = "mm|m", value_parser = mocomp_head::formats::parse_unit)]
     units: Option<LengthUnit>,
-    /// Write the mended surface here (binary PLY, millimetres).
+    /// NIfTI: the intensity at and above which a voxel is head (default: Otsu's threshold).
+    #[arg(long, value_name = "INTENSITY")]
+    threshold: Option<f64>,
+    /// NIfTI: the most triangles the segmented scalp may have.
+    #[arg(long, value_name = "N", default_value_t = mocomp_mri::DEFAULT_MAX_TRIANGLES)]
+    max_triangles: usize,
+    /// Write the mended or segmented surface here (binary PLY, millimetres).
     #[arg(long, value_name = "OUT.ply")]
     write_mesh: Option<PathBuf>,
     /// Draw the mended surface from the front, the left and above into this PNG.
@@ -43,7 +52,24 @@ impl HeadCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let HeadCommand::Inspect(c) = self.command;
-        let (mesh, report) = mocomp_app::head_file::inspect_file(&c.file, c.units)?;
+        if let Some(t) = c.threshold
+            && !t.is_finite()
+        {
+            return Err(crate::UsageError(format!("--threshold {t}: not a number")).into());
+        }
+        if c.max_triangles < 1_000 {
+            return Err(crate::UsageError(format!(
+                "--max-triangles {}: a scalp needs 1000 triangles or more",
+                c.max_triangles
+            ))
+            .into());
+        }
+        let segment = mocomp_mri::SegmentOptions {
+            threshold: c.threshold,
+            max_triangles: c.max_triangles,
+            ..mocomp_mri::SegmentOptions::default()
+        };
+        let (mesh, report) = mocomp_app::head_file::inspect_file(&c.file, c.units, &segment)?;
         if let Some(p) = &c.write_mesh {
             mocomp_app::head_file::write_mesh(p, &mesh)?;
         }
@@ -53,7 +79,7 @@ impl HeadCmd {
         crate::print::report(out, &report, c.json)?;
         if !c.json {
             for (what, path) in [
-                ("mended mesh", &c.write_mesh),
+                ("mesh", &c.write_mesh),
                 ("views (front, left, top)", &c.png),
             ] {
                 if let Some(p) = path {

@@ -109,3 +109,70 @@ fn a_missing_unit_or_a_broken_file_is_bad_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8(out.stderr).unwrap().contains("--units"));
 }
+
+/// Colin27, the real T1 in mocomp-mri's test data (SOURCE.md beside it).
+fn colin27() -> String {
+    mocomp_testkit::workspace_root()
+        .join("crates/mocomp-mri/tests/data/colin27/colin27_ch2_1mm.nii.gz")
+        .display()
+        .to_string()
+}
+
+#[test]
+fn a_t1_mri_is_segmented_to_a_scalp_of_the_size_asked_and_written_out() {
+    let dir = TempDir::new("mocomp-head-mri");
+    let ply = dir.path("scalp.ply");
+    let t1 = colin27();
+    let j = inspect_json(&[
+        "head",
+        "inspect",
+        &t1,
+        "--units",
+        "mm",
+        "--max-triangles",
+        "20000",
+        "--json",
+        "--write-mesh",
+        &ply,
+    ]);
+    assert_eq!(j["format"], "nifti");
+    assert_eq!(j["closed"], true);
+    let faces = j["faces"].as_u64().unwrap();
+    assert!(faces <= 20_000 && faces > 19_000, "{j}");
+    let g = &j["segmentation"];
+    assert_eq!(g["threshold_from"], "otsu");
+    assert_eq!(g["dims"], json!([181, 217, 181]));
+    // The MNI box cuts Colin27 at the neck, both ears and the brow: the inspection says so.
+    let sides: Vec<&str> = g["cut_by_scan"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["side"].as_str().unwrap())
+        .collect();
+    assert_eq!(sides, ["left", "right", "anterior", "inferior"], "{g}");
+    // The surface written out reads back as the same closed surface.
+    let back = inspect_json(&["head", "inspect", &ply, "--units", "mm", "--json"]);
+    assert_eq!(back["faces"].as_u64(), Some(faces));
+    assert_eq!(back["closed"], true);
+    assert_eq!(back["repairs"]["merged_vertices"], 0);
+}
+
+#[test]
+fn a_t1_without_a_unit_or_without_a_head_is_bad_input() {
+    let t1 = colin27();
+    for (args, says) in [
+        (vec![], "xyzt_units"),
+        (vec!["--units", "mm", "--threshold", "255"], "no head"),
+        (
+            vec!["--units", "mm", "--max-triangles", "10"],
+            "--max-triangles",
+        ),
+    ] {
+        let mut all = vec!["head", "inspect", t1.as_str()];
+        all.extend(args.iter().copied());
+        let out = mocomp(&all);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}

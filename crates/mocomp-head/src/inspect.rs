@@ -2,7 +2,7 @@
 //! `[head] mesh` loads.
 
 use crate::error::HeadError;
-use crate::formats::{self, Format, read_surface, unit_name};
+use crate::formats::{self, Format, ReadSurface, read_surface, unit_name};
 use crate::mesh::Mesh;
 use crate::repair::{Repairs, repair};
 use mocomp_geom::LengthUnit;
@@ -36,6 +36,47 @@ pub struct Inspection {
     pub bounds_m: [[f64; 3]; 2],
     /// What was mended.
     pub repairs: Repairs,
+    /// How the surface was made, when it was segmented from a volume rather than read.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segmentation: Option<Segmentation>,
+}
+
+/// How a scalp was segmented from a volume (filled in by `mocomp-mri`): what a reader of the
+/// inspection needs to judge the surface, in the volume's own terms.
+#[derive(Debug, Clone, Serialize)]
+pub struct Segmentation {
+    /// Voxels along i, j, k.
+    pub dims: [usize; 3],
+    /// The voxel's size along i, j, k, mm.
+    pub voxel_mm: [f64; 3],
+    /// The intensity threshold: voxels at or above it are head.
+    pub threshold: f64,
+    /// `otsu` or `given`.
+    pub threshold_from: &'static str,
+    /// The volume's least and greatest intensity.
+    pub intensity_range: [f64; 2],
+    /// Voxels at or above the threshold.
+    pub above_threshold: usize,
+    /// Separate 6-connected pieces above it (the largest is the head; the rest are dropped).
+    pub pieces: usize,
+    /// Voxels of the largest piece.
+    pub head_voxels: usize,
+    /// Voxels added by closing narrow openings (ear canals), then filling what is enclosed in
+    /// 3-D, then in each axial slice (the spinal canal, the CSF, the airways open only at the
+    /// volume's edge).
+    pub filled_voxels: usize,
+    /// The closing's radius, mm.
+    pub closing_mm: f64,
+    /// The volume's faces the head reaches: the scan ends inside the head there, and the model
+    /// is cut flat where it ends (the neck at the bottom is usual; a nose or ears cut off are
+    /// not, and the real head stands out beyond the model there).
+    pub cut_by_scan: Vec<ScanEdge>,
+    /// Triangles of the isosurface on the voxel grid, before it was simplified.
+    pub isosurface_triangles: usize,
+    /// The most triangles asked for.
+    pub max_triangles: usize,
+    /// Taubin smoothing passes.
+    pub smoothing_passes: usize,
 }
 
 /// Counts as a file lists them.
@@ -54,7 +95,15 @@ pub fn inspect(
     bytes: &[u8],
     unit: Option<LengthUnit>,
 ) -> Result<(Mesh, Inspection), HeadError> {
-    let s = read_surface(file, bytes, unit)?;
+    describe(file, read_surface(file, bytes, unit)?, None)
+}
+
+/// Mends a surface as read and describes it (and how it was made, when it was segmented).
+pub fn describe(
+    file: &str,
+    s: ReadSurface,
+    segmentation: Option<Segmentation>,
+) -> Result<(Mesh, Inspection), HeadError> {
     let read = Counts {
         vertices: s.mesh.vertices.len(),
         faces: s.mesh.triangles.len(),
@@ -86,6 +135,7 @@ pub fn inspect(
         holes: repairs.holes_closed,
         bounds_m: [[b.min.x, b.min.y, b.min.z], [b.max.x, b.max.y, b.max.z]],
         repairs,
+        segmentation,
     };
     Ok((mesh, inspection))
 }
@@ -113,6 +163,9 @@ impl fmt::Display for Inspection {
             },
             self.frame
         )?;
+        if let Some(g) = &self.segmentation {
+            writeln!(f, "  {g}")?;
+        }
         writeln!(
             f,
             "  surface: {} vertices, {} triangles, {}; {} hole{}",
@@ -141,5 +194,55 @@ impl fmt::Display for Inspection {
         } else {
             writeln!(f, "  mended: {}", changes.join("; "))
         }
+    }
+}
+
+/// A face of the volume the head reaches.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScanEdge {
+    /// Which way the face looks in the image's frame: `left`, `right`, `posterior`,
+    /// `anterior`, `inferior` or `superior`.
+    pub side: &'static str,
+    /// Head voxels on it.
+    pub voxels: usize,
+}
+
+impl fmt::Display for Segmentation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let [i, j, k] = self.dims;
+        let [a, b, c] = self.voxel_mm;
+        write!(
+            f,
+            "segmented: {i} × {j} × {k} voxels of {a:.2} × {b:.2} × {c:.2} mm, intensities \
+             {:.1}–{:.1}; threshold {:.1} ({}); {} voxels above it in {} piece{}, the head's {} \
+             kept, {} added by a {:.1} mm closing and filling; isosurface of {} triangles, {} smoothing passes, \
+             decimated to at most {}",
+            self.intensity_range[0],
+            self.intensity_range[1],
+            self.threshold,
+            self.threshold_from,
+            self.above_threshold,
+            self.pieces,
+            if self.pieces == 1 { "" } else { "s" },
+            self.head_voxels,
+            self.filled_voxels,
+            self.closing_mm,
+            self.isosurface_triangles,
+            self.smoothing_passes,
+            self.max_triangles
+        )?;
+        if !self.cut_by_scan.is_empty() {
+            let sides: Vec<String> = self
+                .cut_by_scan
+                .iter()
+                .map(|e| format!("{} ({} voxels)", e.side, e.voxels))
+                .collect();
+            write!(
+                f,
+                "\n  cut by the scan's edge (the model is flat where the scan ends): {}",
+                sides.join(", ")
+            )?;
+        }
+        Ok(())
     }
 }

@@ -45,6 +45,9 @@ pub enum Format {
     Gifti,
     /// FreeSurfer binary triangle surface.
     FreeSurfer,
+    /// A NIfTI-1 volume (`.nii`, `.nii.gz`): a T1 MRI whose scalp `mocomp-mri` segments; no
+    /// surface to decode here.
+    Nifti,
 }
 
 impl Format {
@@ -56,6 +59,7 @@ impl Format {
             Self::Ply => "PLY",
             Self::Gifti => "GIfTI",
             Self::FreeSurfer => "FreeSurfer surface",
+            Self::Nifti => "NIfTI volume",
         }
     }
 
@@ -63,7 +67,8 @@ impl Format {
     pub fn unit(self) -> Option<LengthUnit> {
         match self {
             Self::Gifti | Self::FreeSurfer => Some(LengthUnit::Millimetre),
-            Self::Stl | Self::Obj | Self::Ply => None,
+            // A NIfTI header states its own unit (or does not): the volume reader says which.
+            Self::Stl | Self::Obj | Self::Ply | Self::Nifti => None,
         }
     }
 
@@ -74,6 +79,9 @@ impl Format {
             return Ok(Self::FreeSurfer);
         }
         let lower = file.to_ascii_lowercase();
+        if lower.ends_with(".nii") || lower.ends_with(".nii.gz") {
+            return Ok(Self::Nifti);
+        }
         let ext = lower.rsplit('.').next().unwrap_or("");
         match ext {
             "stl" => Ok(Self::Stl),
@@ -82,7 +90,8 @@ impl Format {
             "gii" => Ok(Self::Gifti),
             _ => Err(HeadError::format(
                 file,
-                "not a surface mocomp reads (.stl, .obj, .ply, .gii, or a FreeSurfer surface)",
+                "not a head file mocomp reads (.stl, .obj, .ply, .gii, a FreeSurfer surface, or a \
+                 NIfTI T1 .nii/.nii.gz)",
                 None,
             )),
         }
@@ -126,6 +135,13 @@ pub fn read_surface(
         ),
         Format::Gifti => gifti::read(file, bytes)?,
         Format::FreeSurfer => freesurfer::read(file, bytes)?,
+        Format::Nifti => {
+            return Err(HeadError::format(
+                file,
+                "a volume, not a surface: its scalp is segmented (mocomp-mri), not decoded",
+                None,
+            ));
+        }
     };
     let extent = mesh.bounds().map_or(0.0, |b| b.extent());
     let (unit, from_format) = match (format.unit(), unit) {

@@ -173,8 +173,11 @@ fn truncated_and_broken_files_are_named() {
         .and_then(|s| crate::repair(s.mesh, "bad.obj").map(|_| ()))
         .unwrap_err();
     assert!(e.to_string().starts_with("bad.obj:"), "{e}");
+    let e = read_surface("head.vtk", b"# vtk DataFile", None).unwrap_err();
+    assert!(e.to_string().contains("not a head file mocomp reads"), "{e}");
+    // A volume is detected, and left to the segmentation (mocomp-mri), not decoded here.
     let e = read_surface("head.nii", b"\x5c\x01\0\0", None).unwrap_err();
-    assert!(e.to_string().contains("not a surface mocomp reads"), "{e}");
+    assert!(e.to_string().contains("a volume, not a surface"), "{e}");
     let g = gifti(&m, None).replace("Encoding=\"ASCII\"", "Encoding=\"Base64Binary\"");
     let e = read_surface("b.gii", g.as_bytes(), None).unwrap_err();
     assert!(e.to_string().contains("base64"), "{e}");
