@@ -22,6 +22,19 @@ impl Mask {
         }
     }
 
+    /// A mask of `dims` whose voxel (i, j, k) is inside when `inside` says so.
+    pub fn from_fn(dims: [usize; 3], mut inside: impl FnMut([usize; 3]) -> bool) -> Self {
+        let mut v = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    v.push(inside([i, j, k]));
+                }
+            }
+        }
+        Self { dims, inside: v }
+    }
+
     /// Voxels inside.
     pub fn count(&self) -> usize {
         self.inside.iter().filter(|&&v| v).count()
@@ -247,26 +260,14 @@ mod tests {
     /// centre, a tube from the hollow down to the bottom face when `tube`, and a stray voxel.
     fn hollow_ball(n: usize, r_out: f64, wall: f64, tube: bool) -> Mask {
         let c = (n as f64 - 1.0) / 2.0;
-        let mut inside = vec![false; n * n * n];
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    let d =
-                        ((i as f64 - c).powi(2) + (j as f64 - c).powi(2) + (k as f64 - c).powi(2))
-                            .sqrt();
-                    let in_tube = tube
-                        && (i as f64 - c).abs() < 1.5
-                        && (j as f64 - c).abs() < 1.5
-                        && (k as f64) < c;
-                    inside[i + n * (j + n * k)] = d <= r_out && d > r_out - wall && !in_tube;
-                }
-            }
-        }
-        inside[1 + n * (1 + n)] = true;
-        Mask {
-            dims: [n, n, n],
-            inside,
-        }
+        let mut m = Mask::from_fn([n; 3], |p| {
+            let [x, y, z] = p.map(|v| v as f64 - c);
+            let d = (x * x + y * y + z * z).sqrt();
+            let in_tube = tube && x.abs() < 1.5 && y.abs() < 1.5 && z < 0.0;
+            d <= r_out && d > r_out - wall && !in_tube
+        });
+        m.inside[1 + n * (1 + n)] = true;
+        m
     }
 
     #[test]

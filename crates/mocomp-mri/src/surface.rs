@@ -291,20 +291,10 @@ mod tests {
 
     fn ball(n: usize, r: f64) -> Mask {
         let c = (n as f64 - 1.0) / 2.0;
-        let mut inside = vec![false; n * n * n];
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    let d2 =
-                        (i as f64 - c).powi(2) + (j as f64 - c).powi(2) + (k as f64 - c).powi(2);
-                    inside[i + n * (j + n * k)] = d2 <= r * r;
-                }
-            }
-        }
-        Mask {
-            dims: [n, n, n],
-            inside,
-        }
+        Mask::from_fn([n; 3], |p| {
+            let [x, y, z] = p.map(|v| v as f64 - c);
+            x * x + y * y + z * z <= r * r
+        })
     }
 
     fn radii(s: &VoxelSurface, c: f64) -> (f64, f64) {

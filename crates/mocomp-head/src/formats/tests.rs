@@ -174,7 +174,10 @@ fn truncated_and_broken_files_are_named() {
         .unwrap_err();
     assert!(e.to_string().starts_with("bad.obj:"), "{e}");
     let e = read_surface("head.vtk", b"# vtk DataFile", None).unwrap_err();
-    assert!(e.to_string().contains("not a head file mocomp reads"), "{e}");
+    assert!(
+        e.to_string().contains("not a head file mocomp reads"),
+        "{e}"
+    );
     // A volume is detected, and left to the segmentation (mocomp-mri), not decoded here.
     let e = read_surface("head.nii", b"\x5c\x01\0\0", None).unwrap_err();
     assert!(e.to_string().contains("a volume, not a surface"), "{e}");
