@@ -448,13 +448,23 @@ impl UrRobot {
     /// its result. Once connected, the program stops when no package arrives for
     /// `1 / watchdog_hz` (50 ms by default); work between commands that may take longer (planning
     /// poses, loading files, a slow machine) goes through here instead of starving it.
+    ///
+    /// The work runs under normal time-sharing on any CPU, whatever the caller's scheduling: a
+    /// thread inherits its creator's SCHED_FIFO priority and CPU, and a real-time caller pinned
+    /// to one CPU could then not preempt its own busy worker (equal FIFO priorities take turns
+    /// only when one blocks), so the watchdog would starve exactly when this is used.
     pub fn keep_alive_while<T: Send>(
         &mut self,
         f: impl FnOnce() -> T + Send,
     ) -> Result<T, UrError> {
         let interval = Duration::from_secs_f64((0.25 / self.config.watchdog_hz).min(0.01));
         std::thread::scope(|s| {
-            let work = s.spawn(f);
+            let work = s.spawn(|| {
+                // Best effort: a caller that is not real-time has nothing to give up.
+                mocomp_rt::set_normal().ok();
+                mocomp_rt::unpin().ok();
+                f()
+            });
             while !work.is_finished() {
                 self.send()?;
                 std::thread::sleep(interval);

@@ -311,6 +311,53 @@ fn slow_work_between_commands_keeps_the_program_running_when_run_through_keep_al
 }
 
 #[test]
+fn busy_work_keeps_the_program_running_under_a_real_time_caller_pinned_to_one_cpu() {
+    // The loop's situation: the caller at SCHED_FIFO, pinned to one CPU; the work spins (no
+    // blocking) for six watchdog periods. The worker must not inherit the caller's priority and
+    // CPU, or the feeder could not preempt it. Needs root or an rtprio limit (CI runs as root).
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut cfg = config_for(&sim);
+    cfg.watchdog_hz = 20.0;
+    let answer = std::thread::scope(|s| {
+        s.spawn(|| {
+            mocomp_rt::pin_to_cpu(0).expect("pinning the test's thread to CPU 0");
+            mocomp_rt::set_fifo(40).expect("SCHED_FIFO for the test's thread (root or rtprio)");
+            let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
+            let answer = robot
+                .keep_alive_while(|| {
+                    let start = std::time::Instant::now();
+                    let mut spins = 0u64;
+                    while start.elapsed() < Duration::from_millis(300) {
+                        spins = std::hint::black_box(spins + 1);
+                    }
+                    spins > 0
+                })
+                .unwrap();
+            // The controller's own account (the state read back may predate a stop).
+            let stops: Vec<String> = sim.with(|c| {
+                c.events()
+                    .0
+                    .iter()
+                    .map(|e| e.text.clone())
+                    .filter(|t| t.contains("stopped"))
+                    .collect()
+            });
+            assert!(
+                stops.is_empty(),
+                "the watchdog starved behind the work: {stops:?}"
+            );
+            let s = robot.state().unwrap();
+            assert_eq!(s.fault(), None);
+            assert_eq!(s.runtime_state, RuntimeState::Playing);
+            answer
+        })
+        .join()
+        .unwrap()
+    });
+    assert!(answer);
+}
+
+#[test]
 fn a_setpoint_jump_is_a_protective_stop_detected_at_once_and_recovered_via_the_dashboard() {
     let sim = sim(Model::Ur5e, SimClock::Stepped);
     let mut robot = pumped(&sim, || connect(&sim));
