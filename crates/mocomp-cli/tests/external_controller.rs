@@ -34,14 +34,15 @@ fn external_config(dir: &TempDir, host: &str) -> String {
 }
 
 /// Runs the loop against a controller started at `start` on `host` for `seconds`; with `during`
-/// run on another thread meanwhile (given the controller). Returns the run's JSON summary and the
-/// controller's protective stops.
+/// run on another thread meanwhile (given the controller). Returns the run's JSON summary, the
+/// controller's protective stops, and everything the controller printed (its events: a failure
+/// shows them, so a stop it made, such as its RTDE watchdog's, says why).
 fn run_from(
     host: &str,
     start: [f64; 6],
     seconds: &str,
     during: impl FnOnce(&ChildController) + Send,
-) -> (serde_json::Value, Vec<String>) {
+) -> (serde_json::Value, Vec<String>, String) {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-external");
     let config = external_config(&dir, host);
@@ -58,30 +59,37 @@ fn run_from(
     });
     assert_success(&out);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    (v, controller.protective_stops())
+    (v, controller.protective_stops(), controller.log())
 }
 
 /// The run reached the goal, and the controller refused nothing.
-fn assert_reached_without_protective_stop(what: &str, v: &serde_json::Value, stops: &[String]) {
+fn assert_reached_without_protective_stop(
+    what: &str,
+    (v, stops, log): &(serde_json::Value, Vec<String>, String),
+) {
     let events = v["event_log"].as_array().unwrap();
     assert!(
         events.iter().any(|e| e[1] == "Reached"),
-        "{what}: never reached the goal: {events:?}"
+        "{what}: never reached the goal: {events:?}\nthe controller printed:\n{log}"
     );
     assert!(
         stops.is_empty(),
         "{what}: the controller stopped: {stops:?}"
     );
     assert_eq!(v["protective_stops"], 0, "{what}: {v}");
-    assert_eq!(v["stop"]["outcome"], "standstill", "{what}: {v}");
+    assert_eq!(
+        v["stop"]["outcome"], "standstill",
+        "{what}: {v}\nthe controller printed:\n{log}"
+    );
 }
 
 #[test]
 fn from_the_controllers_home_the_loop_changes_branch_by_a_transit_and_reaches_the_goal() {
     // UR's home: the arm upright. The goal is on another branch: a joint-space transit first.
     let start = perturbed([0.0, -FRAC_PI_2, 0.0, -FRAC_PI_2, 0.0, 0.0], 29);
-    let (v, stops) = run_from("127.0.0.91", start, "14", |_| {});
-    assert_reached_without_protective_stop("home", &v, &stops);
+    let run = run_from("127.0.0.91", start, "14", |_| {});
+    assert_reached_without_protective_stop("home", &run);
+    let v = &run.0;
     let events = v["event_log"].as_array().unwrap();
     assert!(
         events
@@ -99,8 +107,9 @@ fn from_the_controllers_home_the_loop_changes_branch_by_a_transit_and_reaches_th
 fn from_behind_the_head_the_loop_reaches_the_goal() {
     // The flange beyond the head from the base, 12 cm up, the coil facing down.
     let start = perturbed([0.0225, -2.5706, -0.8144, -1.3275, 1.5692, -1.5483], 1029);
-    let (v, stops) = run_from("127.0.0.92", start, "14", |_| {});
-    assert_reached_without_protective_stop("behind the head", &v, &stops);
+    let run = run_from("127.0.0.92", start, "14", |_| {});
+    assert_reached_without_protective_stop("behind the head", &run);
+    let v = &run.0;
     let rms = v["deviation_rms_mm"].as_f64().unwrap();
     assert!(rms < 2.0, "deviation RMS {rms} mm: {v}");
 }
@@ -110,8 +119,9 @@ fn from_the_far_side_of_the_base_the_loop_reaches_the_goal() {
     // The simulator's own working pose: the flange 35 cm on the other side of the base from the
     // head (the start that never reached the goal in issue 29).
     let start = perturbed([0.0, -1.3, 1.6, -1.87, -1.57, 0.0], 2029);
-    let (v, stops) = run_from("127.0.0.93", start, "14", |_| {});
-    assert_reached_without_protective_stop("far side", &v, &stops);
+    let run = run_from("127.0.0.93", start, "14", |_| {});
+    assert_reached_without_protective_stop("far side", &run);
+    let v = &run.0;
     let rms = v["deviation_rms_mm"].as_f64().unwrap();
     assert!(rms < 2.0, "deviation RMS {rms} mm: {v}");
 }
@@ -126,7 +136,7 @@ fn a_controller_that_stalls_never_gets_a_setpoint_it_refuses() {
     // its per-cycle limit: no C204A3, no protective stop.
     let start = [0.0225, -2.5706, -0.8144, -1.3275, 1.5692, -1.5483];
     let mut rng = SplitMix64(4029);
-    let (v, stops) = run_from("127.0.0.94", start, "16", |c| {
+    let (v, stops, log) = run_from("127.0.0.94", start, "16", |c| {
         std::thread::sleep(Duration::from_secs(8));
         for _ in 0..25 {
             let pause = Duration::from_millis(10 + rng.next_u64() % 36);
@@ -137,8 +147,14 @@ fn a_controller_that_stalls_never_gets_a_setpoint_it_refuses() {
     assert!(stops.is_empty(), "the controller stopped: {stops:?}");
     assert_eq!(v["protective_stops"], 0, "{v}");
     let events = v["event_log"].as_array().unwrap();
-    assert!(events.iter().any(|e| e[1] == "Reached"), "{events:?}");
-    assert_eq!(v["stop"]["outcome"], "standstill", "{v}");
+    assert!(
+        events.iter().any(|e| e[1] == "Reached"),
+        "{events:?}\nthe controller printed:\n{log}"
+    );
+    assert_eq!(
+        v["stop"]["outcome"], "standstill",
+        "{v}\nthe controller printed:\n{log}"
+    );
 }
 
 #[test]
