@@ -1107,24 +1107,8 @@ impl Config {
 
     /// How `[head]` segments a NIfTI's scalp.
     pub fn segment_options(&self) -> Result<mocomp_mri::SegmentOptions, AppError> {
-        if let Some(t) = self.head.threshold
-            && !t.is_finite()
-        {
-            return Err(AppError::Config(format!(
-                "head.threshold = {t}: not a number"
-            )));
-        }
-        if self.head.max_triangles < 1_000 {
-            return Err(AppError::Config(format!(
-                "head.max_triangles = {}: a scalp needs 1000 triangles or more",
-                self.head.max_triangles
-            )));
-        }
-        Ok(mocomp_mri::SegmentOptions {
-            threshold: self.head.threshold,
-            max_triangles: self.head.max_triangles,
-            ..mocomp_mri::SegmentOptions::default()
-        })
+        mocomp_mri::SegmentOptions::new(self.head.threshold, self.head.max_triangles)
+            .map_err(|e| AppError::Config(format!("head.{} = {}: {}", e.option, e.value, e.why)))
     }
 
     /// `[coil]` as the loop's model.

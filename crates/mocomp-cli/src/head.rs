@@ -52,23 +52,15 @@ impl HeadCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let HeadCommand::Inspect(c) = self.command;
-        if let Some(t) = c.threshold
-            && !t.is_finite()
-        {
-            return Err(crate::UsageError(format!("--threshold {t}: not a number")).into());
-        }
-        if c.max_triangles < 1_000 {
-            return Err(crate::UsageError(format!(
-                "--max-triangles {}: a scalp needs 1000 triangles or more",
-                c.max_triangles
-            ))
-            .into());
-        }
-        let segment = mocomp_mri::SegmentOptions {
-            threshold: c.threshold,
-            max_triangles: c.max_triangles,
-            ..mocomp_mri::SegmentOptions::default()
-        };
+        let segment =
+            mocomp_mri::SegmentOptions::new(c.threshold, c.max_triangles).map_err(|e| {
+                crate::UsageError(format!(
+                    "--{} {}: {}",
+                    e.option.replace('_', "-"),
+                    e.value,
+                    e.why
+                ))
+            })?;
         let (mesh, report) = mocomp_app::head_file::inspect_file(&c.file, c.units, &segment)?;
         if let Some(p) = &c.write_mesh {
             mocomp_app::head_file::write_mesh(p, &mesh)?;

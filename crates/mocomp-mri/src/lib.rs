@@ -45,6 +45,47 @@ pub struct SegmentOptions {
 /// measured with (a 100 k-triangle scalp builds in under 2 s).
 pub const DEFAULT_MAX_TRIANGLES: usize = 100_000;
 
+/// The fewest triangles a scalp may be asked for.
+pub const MIN_TRIANGLES: usize = 1_000;
+
+/// A segmentation option that will not do: which, what it held, why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BadOption {
+    /// The option's name (`threshold`, `max_triangles`); each caller spells it its own way.
+    pub option: &'static str,
+    /// What it held.
+    pub value: String,
+    /// Why that will not do.
+    pub why: &'static str,
+}
+
+impl SegmentOptions {
+    /// `threshold` and `max_triangles`, checked.
+    pub fn new(threshold: Option<f64>, max_triangles: usize) -> Result<Self, BadOption> {
+        if let Some(t) = threshold
+            && !t.is_finite()
+        {
+            return Err(BadOption {
+                option: "threshold",
+                value: t.to_string(),
+                why: "not a number",
+            });
+        }
+        if max_triangles < MIN_TRIANGLES {
+            return Err(BadOption {
+                option: "max_triangles",
+                value: max_triangles.to_string(),
+                why: "a scalp needs 1000 triangles or more",
+            });
+        }
+        Ok(Self {
+            threshold,
+            max_triangles,
+            ..Self::default()
+        })
+    }
+}
+
 impl Default for SegmentOptions {
     fn default() -> Self {
         Self {

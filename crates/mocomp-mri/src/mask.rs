@@ -182,15 +182,26 @@ impl Mask {
         added
     }
 
+    /// Voxels inside on the slice across `axis` (0, 1 or 2) at index `at` along it.
+    pub fn inside_on_slice(&self, axis: usize, at: usize) -> usize {
+        let d = self.dims;
+        let (u, v) = across(axis);
+        let stride = [1, d[0], d[0] * d[1]];
+        let w = stride[axis.min(2)];
+        let mut n = 0;
+        for b in 0..d[v] {
+            for a in 0..d[u] {
+                n += usize::from(self.inside[at * w + a * stride[u] + b * stride[v]]);
+            }
+        }
+        n
+    }
+
     /// Fills what the head encloses within each slice across `axis` (0, 1 or 2). Returns the
     /// voxels added.
     pub fn fill_slices(&mut self, axis: usize) -> usize {
         let d = self.dims;
-        let (u, v) = match axis {
-            0 => (1, 2),
-            1 => (0, 2),
-            _ => (0, 1),
-        };
+        let (u, v) = across(axis);
         let stride = [1, d[0], d[0] * d[1]];
         let (nu, nv) = (d[u], d[v]);
         let mut slice = vec![false; nu * nv];
@@ -213,6 +224,15 @@ impl Mask {
             }
         }
         added
+    }
+}
+
+/// The two axes that span a slice across `axis` (the third for anything past 2).
+fn across(axis: usize) -> (usize, usize) {
+    match axis {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
     }
 }
 

@@ -172,15 +172,11 @@ fn check_not_the_whole_volume(file: &str, mask: &Mask) -> Result<(), MriError> {
 /// The volume's faces the head's voxels reach, each named by the way it looks in the image's
 /// frame.
 fn cut_by_scan(mask: &Mask, volume: &Volume) -> Vec<ScanEdge> {
-    let [nx, ny, nz] = mask.dims;
     let m = volume.ras_from_voxel.fixed_view::<3, 3>(0, 0);
     let mut edges = Vec::new();
     for axis in 0..3 {
         for (end, outward) in [(0usize, -1.0), (mask.dims[axis] - 1, 1.0)] {
-            let voxels = (0..nz)
-                .flat_map(|k| (0..ny).flat_map(move |j| (0..nx).map(move |i| [i, j, k])))
-                .filter(|p| p[axis] == end && mask.inside[p[0] + nx * (p[1] + ny * p[2])])
-                .count();
+            let voxels = mask.inside_on_slice(axis, end);
             if voxels == 0 {
                 continue;
             }

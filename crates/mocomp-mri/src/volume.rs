@@ -204,7 +204,9 @@ fn truncated(file: &str, at: u64, needed: u64) -> MriError {
 fn check_dims(file: &str, h: &NiftiHeader) -> Result<[usize; 3], MriError> {
     let d = h.dim;
     let rank = usize::from(d[0]);
-    if !(3..=7).contains(&rank) || d[4..=rank.min(7)].iter().any(|&n| n > 1) && rank > 3 {
+    // dim[4..=rank]: the dimensions past the third, each 1 in a single volume.
+    let one_volume = d[4..].iter().take(rank.saturating_sub(3)).all(|&n| n <= 1);
+    if !(3..=7).contains(&rank) || !one_volume {
         return Err(header_error(
             "dim",
             format!("{d:?}"),
