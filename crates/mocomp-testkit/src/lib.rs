@@ -269,9 +269,13 @@ pub fn proptest_config(cases: u32, seed: u64) -> proptest::test_runner::Config {
 pub struct TempDir(PathBuf);
 
 impl TempDir {
-    /// Creates (fresh) `mocomp-<name>-<pid>`.
+    /// Creates (fresh) `mocomp-<name>-<pid>-<n>`, `n` counting this process's directories: two
+    /// tests of one binary that run at once and ask for the same name get a directory each
+    /// (with the pid alone, the first to finish removed the other's files).
     pub fn new(name: &str) -> Self {
-        let d = std::env::temp_dir().join(format!("mocomp-{name}-{}", std::process::id()));
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let d = std::env::temp_dir().join(format!("mocomp-{name}-{}-{n}", std::process::id()));
         std::fs::remove_dir_all(&d).ok();
         if let Err(e) = std::fs::create_dir_all(&d) {
             panic!("cannot create {}: {e}", d.display());
