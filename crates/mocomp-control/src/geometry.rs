@@ -5,6 +5,7 @@
 //! scalp, exact through its distance field.
 
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
+use mocomp_head::sampled::ClearanceMemory;
 use mocomp_head::{CoilSolid, Ellipsoid, Head, HeadError, HeadShape};
 
 /// The head the loop keeps the coil from, in the head (marker) frame. Clones share a mesh.
@@ -133,11 +134,41 @@ impl CoilModel {
         head_from_coil: &Isometry3<f64>,
         cutoff: f64,
     ) -> f64 {
+        self.distance_below_in(head, head_from_coil, cutoff, None)
+    }
+
+    /// [`Self::distance_below`], the same value, sparing on a scalp the samples that `memory`
+    /// (this call site's, from its last call) shows cannot be the nearest: the loop asks at
+    /// poses a cycle apart.
+    pub fn distance_below_remembering(
+        &self,
+        head: &HeadModel,
+        head_from_coil: &Isometry3<f64>,
+        cutoff: f64,
+        memory: &mut ClearanceMemory,
+    ) -> f64 {
+        self.distance_below_in(head, head_from_coil, cutoff, Some(memory))
+    }
+
+    fn distance_below_in(
+        &self,
+        head: &HeadModel,
+        head_from_coil: &Isometry3<f64>,
+        cutoff: f64,
+        memory: Option<&mut ClearanceMemory>,
+    ) -> f64 {
         if let Head::Mesh(m) = &head.shape {
             return match CoilSolid::new(self.radius, self.thickness) {
                 Ok(solid) => {
                     let margin = mocomp_head::sampled::BETWEEN_SAMPLES_M;
-                    m.coil_clearance_sampled(head_from_coil, &solid, cutoff + margin) - margin
+                    let cutoff = cutoff + margin;
+                    let sampled = match memory {
+                        Some(memory) => {
+                            m.coil_clearance_remembering(memory, head_from_coil, &solid, cutoff)
+                        }
+                        None => m.coil_clearance_sampled(head_from_coil, &solid, cutoff),
+                    };
+                    sampled - margin
                 }
                 // Not a solid (the configuration refuses such a coil): as if cutting in, so
                 // every rule keeps it away.

@@ -18,6 +18,7 @@
 use crate::config::LoopParams;
 use crate::geometry::{CoilModel, HeadModel};
 use mocomp_geom::nalgebra::{Isometry3, Translation3};
+use mocomp_head::sampled::ClearanceMemory;
 
 /// The clearance the coil must keep from the head model at the time a command acts, m:
 /// `coil_min_distance_m` plus `safety_sigmas` times the prediction's 1σ at the coil (the position
@@ -44,9 +45,29 @@ pub fn standoff_for(
     required_m: f64,
     max_m: f64,
 ) -> f64 {
+    standoff_remembering(
+        head,
+        coil,
+        head_from_coil,
+        required_m,
+        max_m,
+        &mut ClearanceMemory::new(),
+    )
+}
+
+/// [`standoff_for`], the same value, its first clearance sparing what `memory` (this call
+/// site's, from the last cycle) shows cannot be the nearest on a scalp.
+pub fn standoff_remembering(
+    head: &HeadModel,
+    coil: &CoilModel,
+    head_from_coil: &Isometry3<f64>,
+    required_m: f64,
+    max_m: f64,
+    memory: &mut ClearanceMemory,
+) -> f64 {
     let gap = |s: f64| coil.distance(head, &backed_off(head_from_coil, s)) - required_m;
     // Most commands are clear: the bounded distance says so without the exact solve.
-    let g0 = coil.distance_below(head, head_from_coil, required_m) - required_m;
+    let g0 = coil.distance_below_remembering(head, head_from_coil, required_m, memory) - required_m;
     if g0 >= 0.0 || g0.is_nan() {
         // Clear, or not a number (a non-finite pose is the goal check's to refuse).
         return 0.0;

@@ -1,8 +1,8 @@
 //! What the head's queries cost: the ellipsoid against the fsaverage scalp (4 k triangles, from
 //! MNE through the interop peer) and that scalp subdivided to 65 k and 260 k triangles (the
 //! 100 k of a clinical scalp lies between), by the distance field and by parry's BVH, and what
-//! building both costs; the coil's clearance sampled as the loop asks it, and exact as reports
-//! measure it.
+//! building both costs; the coil's clearance sampled as the loop asks it (a new pose each call,
+//! and remembering the last call while following the head), and exact as reports measure it.
 //! `cargo bench -p mocomp-head` (needs the peers in .venv: `scripts/test.sh` installs them).
 #![allow(
     missing_docs,
@@ -92,6 +92,18 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("head query");
     let probe = MeshHead::new(base.clone(), "fsaverage").unwrap();
     let (points, poses) = queries(&probe, 256);
+    // A coil that follows the head: within 0.2 mm and 0.2° of its goal (the first pose), a
+    // different offset each call, as the loop's tracking error wanders.
+    let following: Vec<Isometry3<f64>> = (0..256)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / 256.0;
+            let wobble = Isometry3::new(
+                Vector3::new(a.cos(), a.sin(), (3.0 * a).sin()) * 0.0002,
+                Vector3::new(a.sin(), a.cos(), 0.0) * 0.2f64.to_radians(),
+            );
+            poses[0] * wobble
+        })
+        .collect();
     g.bench_function("ellipsoid signed distance", |b| {
         let mut i = 0;
         b.iter(|| {
@@ -138,6 +150,26 @@ fn bench(c: &mut Criterion) {
                 b.iter(|| {
                     i = (i + 1) % poses.len();
                     black_box(h.coil_clearance_sampled(&poses[i], &coil, f64::INFINITY))
+                })
+            },
+        );
+        g.bench_with_input(
+            BenchmarkId::new(
+                "mesh coil clearance sampled, remembering (a coil following the head)",
+                name,
+            ),
+            &head,
+            |b, h| {
+                let mut memory = mocomp_head::sampled::ClearanceMemory::new();
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % following.len();
+                    black_box(h.coil_clearance_remembering(
+                        &mut memory,
+                        &following[i],
+                        &coil,
+                        f64::INFINITY,
+                    ))
                 })
             },
         );

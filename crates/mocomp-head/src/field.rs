@@ -21,10 +21,11 @@ struct Surface<'a> {
 
 /// The grid's spacing, m.
 pub const SPACING_M: f64 = 0.0025;
-/// How far the interpolated distance can be above the exact one, m: the grid's nodes hold the
-/// exact distance within 30 mm of the scalp, the distance changes by at most the distance moved,
-/// and the weights' mean distance to a cell's corners is at most √3/2 of the spacing (at its
-/// centre).
+/// How far the interpolated distance can be above the exact one held to ±[`EXACT_BAND_M`], m:
+/// the grid's nodes hold that distance, it changes by at most the distance moved, and the
+/// weights' mean distance to a cell's corners is at most √3/2 of the spacing (at its centre).
+/// (Where the interpolated value less this is above `-EXACT_BAND_M`, it is below the exact
+/// distance.)
 pub const INTERPOLATION_SLACK_M: f64 = 0.866_026 * SPACING_M;
 
 /// How far the grid reaches beyond the head's box, m (beyond it a query is the BVH's).
@@ -109,10 +110,12 @@ pub struct DistanceField {
     dims: [usize; 3],
     /// Per node: its nearest triangle (or one near it).
     nearest: Vec<u32>,
-    /// Per node: its signed distance, exact within [`EXACT_BAND_M`] of the surface (beyond,
-    /// the distance to its triangle, which the sweep made near its nearest), for the
-    /// interpolated query.
+    /// Per node: its signed distance, exact within [`EXACT_BAND_M`] of the surface and held at
+    /// ±[`EXACT_BAND_M`] beyond it (where the distance to its triangle, which the sweep made
+    /// near its nearest, is at least the band), for the interpolated query.
     values: Vec<f32>,
+    /// How fast the interpolated value can change, per metre moved (see [`Self::lipschitz`]).
+    lipschitz: f64,
 }
 
 impl DistanceField {
@@ -144,11 +147,50 @@ impl DistanceField {
             dims,
             nearest: vec![NONE; dims[0] * dims[1] * dims[2]],
             values: Vec::new(),
+            lipschitz: f64::INFINITY,
         };
         field.seed();
         field.sweep();
         field.values = field.node_values();
+        field.lipschitz = field.measured_lipschitz();
         field
+    }
+
+    /// The steepest the interpolated value gets: within a cell, its slope along an axis is a
+    /// weighted mean of the differences between neighbouring nodes along that axis, so the
+    /// largest of those differences (per axis, over the grid) bounds its gradient. Held nodes
+    /// are samples of the distance held to the band, which changes no faster than the point
+    /// moves: about √3. Infinite where the grid's outermost nodes are not held at the band (the
+    /// value beyond the grid), so nothing leans on a bound that does not hold there.
+    fn measured_lipschitz(&self) -> f64 {
+        let [nx, ny, nz] = self.dims;
+        let band = EXACT_BAND_M as f32;
+        let mut steepest = [0.0f32; 3];
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let at = self.index(i, j, k);
+                    let v = self.values[at];
+                    let outermost =
+                        i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz;
+                    if outermost && v != band {
+                        return f64::INFINITY;
+                    }
+                    for (axis, (n, step)) in [(i, nx), (j, ny), (k, nz)]
+                        .into_iter()
+                        .zip([1, nx, nx * ny])
+                        .map(|((c, n), step)| (c + 1 < n, step))
+                        .enumerate()
+                    {
+                        if n {
+                            steepest[axis] = steepest[axis].max((self.values[at + step] - v).abs());
+                        }
+                    }
+                }
+            }
+        }
+        let [x, y, z] = steepest.map(|d| f64::from(d) / SPACING_M);
+        (x * x + y * y + z * z).sqrt()
     }
 
     /// Every node's signed distance (see `values`), on the threads this machine has.
@@ -170,7 +212,7 @@ impl DistanceField {
                             .enumerate()
                             .map(|(o, &t)| {
                                 if t == NONE {
-                                    return f32::INFINITY;
+                                    return EXACT_BAND_M as f32;
                                 }
                                 let at = c * per + o;
                                 let p = self.node(at % nx, (at / nx) % ny, at / (nx * ny));
@@ -180,7 +222,10 @@ impl DistanceField {
                                 } else {
                                     t
                                 };
-                                self.signed_to(&p, t) as f32
+                                // Beyond the band the distance to its triangle is at least the
+                                // band's: held there, every node is the exact distance held to
+                                // the band, and the interpolation changes no faster than that.
+                                self.signed_to(&p, t).clamp(-EXACT_BAND_M, EXACT_BAND_M) as f32
                             })
                             .collect::<Vec<f32>>()
                     });
@@ -190,15 +235,15 @@ impl DistanceField {
             // A thread that failed leaves its nodes "inside": every rule then keeps away.
             handles
                 .into_iter()
-                .flat_map(|(n, h)| h.join().unwrap_or_else(|_| vec![f32::NEG_INFINITY; n]))
+                .flat_map(|(n, h)| h.join().unwrap_or_else(|_| vec![-EXACT_BAND_M as f32; n]))
                 .collect()
         })
     }
 
-    /// The signed distance at `p` interpolated (trilinearly) from the grid's nodes, or `None`
-    /// outside the grid: a few nanoseconds, within a fraction of the spacing of the exact
-    /// distance where the surface is smooth at the grid's scale (the sampled coil query ranks
-    /// its points by it and refines the nearest exactly).
+    /// The signed distance at `p` interpolated (trilinearly) from the grid's nodes, held to
+    /// ±[`EXACT_BAND_M`], or `None` outside the grid: a few nanoseconds, within a fraction of
+    /// the spacing of the exact distance where the surface is smooth at the grid's scale (the
+    /// sampled coil query ranks its points by it and refines the nearest exactly).
     pub fn interpolated(&self, p: &Point3<f64>) -> Option<f64> {
         let ((i, j, k), f) = self.cell(p)?;
         let (fx, fy, fz) = (f.x, f.y, f.z);
@@ -214,6 +259,14 @@ impl DistanceField {
             fy,
         );
         Some(lerp(y0, y1, fz))
+    }
+
+    /// How much the interpolated value (taken as [`EXACT_BAND_M`] beyond the grid) can change
+    /// per metre a point moves: measured on the nodes when the field is built (about √3; see
+    /// `measured_lipschitz`). A value known at one point bounds it at points nearby, which
+    /// spares the sampled coil query the samples that cannot be the nearest.
+    pub fn lipschitz(&self) -> f64 {
+        self.lipschitz
     }
 
     /// Bytes the field holds.

@@ -165,7 +165,13 @@ pub struct MeshHead {
     radial: RadialMap,
     bounds: Aabb,
     triangles: usize,
+    /// Which head this is, among those this process built: what a sampled clearance's memory
+    /// checks it is asked about the head it remembers.
+    id: u64,
 }
+
+/// The next head's [`MeshHead::id`].
+static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 impl std::fmt::Debug for MeshHead {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -205,12 +211,30 @@ impl MeshHead {
             radial,
             bounds,
             triangles,
+            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         })
     }
 
     /// The distance field (the sampled coil query reads it).
     pub(crate) fn field(&self) -> &DistanceField {
         &self.field
+    }
+
+    /// How fast the distance field's interpolated value can change per metre moved (see
+    /// [`DistanceField::lipschitz`]).
+    pub fn lipschitz(&self) -> f64 {
+        self.field.lipschitz()
+    }
+
+    /// The distance field's interpolated value at `p` (held to ±[`crate::field::EXACT_BAND_M`]),
+    /// or `None` beyond its grid: the value the sampled coil query ranks its points by.
+    pub fn field_value(&self, p: &Point3<f64>) -> Option<f64> {
+        self.field.interpolated(p)
+    }
+
+    /// Which head this is among those this process built.
+    pub(crate) fn id(&self) -> u64 {
+        self.id
     }
 
     /// Its vertices.
@@ -266,10 +290,11 @@ impl HeadShape for MeshHead {
 
     fn distance_below(&self, p: &Point3<f64>, cutoff: f64) -> f64 {
         // The interpolated field, less what it can err by, spares the exact query for the many
-        // points a check only needs to know are far enough.
+        // points a check only needs to know are far enough (a bound of the exact distance only
+        // above the depth the field holds its values to).
         if let Some(v) = self.field.interpolated(p) {
             let bound = v - crate::field::INTERPOLATION_SLACK_M;
-            if bound >= cutoff {
+            if bound >= cutoff && cutoff > -crate::field::EXACT_BAND_M {
                 return bound;
             }
         }

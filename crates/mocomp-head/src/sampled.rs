@@ -6,6 +6,7 @@
 //! this one by what the scalp bulges between them (measured against it on real anatomy in the
 //! crate's tests, and stated in the README), which the loop's least distance covers.
 
+use crate::field::{EXACT_BAND_M, INTERPOLATION_SLACK_M};
 use crate::mesh::MeshHead;
 use crate::shape::{CoilSolid, HeadShape};
 use mocomp_geom::nalgebra::{Isometry3, Point3};
@@ -49,6 +50,9 @@ static SAMPLES: LazyLock<Vec<[f64; 3]>> = LazyLock::new(|| {
     out
 });
 
+/// How many points the sampled coil has: its face's centre and rings, and two rims.
+pub const SAMPLE_COUNT: usize = 1 + 3 * FACE_RINGS * (FACE_RINGS + 1) + 2 * RIM_POINTS;
+
 /// How many points the sampled coil has.
 pub fn sample_count() -> usize {
     SAMPLES.len()
@@ -65,6 +69,82 @@ pub fn surface_samples<'a>(
         .map(move |[x, y, z]| head_from_coil * Point3::new(r * x, r * y, t * z))
 }
 
+/// What one caller of [`MeshHead::coil_clearance_remembering`] knew at its last call: for
+/// every sample, a lower bound of its ranked value, and the head, coil and pose they hold at.
+/// A sample whose bound, lowered by as much as the coil has moved since, is still above the
+/// nearest's value cannot be among the nearest, and is not looked up again. The loop asks at
+/// poses a cycle apart that barely move relative to the head while it follows, so most
+/// samples are spared. One memory per call site (each asks about its own pose); allocates
+/// nothing.
+#[derive(Debug, Clone)]
+pub struct ClearanceMemory {
+    /// The head, coil and pose `below` holds at; `None` when it holds nothing.
+    at: Option<(u64, CoilSolid, Isometry3<f64>)>,
+    /// Per sample, at most its ranked value at `at`.
+    below: [f64; SAMPLE_COUNT],
+    /// The sample that ranked least at `at`: looked up first, so the bar starts low.
+    least: usize,
+    /// Samples looked up in the field, over all calls.
+    looked_up: u64,
+}
+
+impl Default for ClearanceMemory {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ClearanceMemory {
+    /// A memory that knows nothing yet.
+    pub fn new() -> Self {
+        Self {
+            at: None,
+            below: [f64::NEG_INFINITY; SAMPLE_COUNT],
+            least: 0,
+            looked_up: 0,
+        }
+    }
+
+    /// How many samples it has looked up in the field, over all its calls (of
+    /// [`SAMPLE_COUNT`] a call without it): what it spared.
+    pub fn looked_up(&self) -> u64 {
+        self.looked_up
+    }
+
+    /// Makes the bounds hold at `head_from_coil` on `head` for `coil`: each lowered by the most
+    /// the ranked value can have fallen since, or forgotten (another head or coil, or the
+    /// first call).
+    fn move_to(&mut self, head: &MeshHead, coil: &CoilSolid, head_from_coil: &Isometry3<f64>) {
+        let fall = match &self.at {
+            Some((id, c, before)) if *id == head.id() && c == coil => {
+                // A sample s (coil frame) moves by at most |Δt| + ‖ΔR‖·|s|, with
+                // ‖ΔR‖ = 2 sin(θ/2) for the turn θ between the poses; |s| is at most the rim
+                // behind the face.
+                let turn = (head_from_coil.rotation * before.rotation.inverse()).angle();
+                let shift = (head_from_coil.translation.vector - before.translation.vector).norm();
+                let moved =
+                    shift + 2.0 * (turn / 2.0).sin() * coil.radius().hypot(coil.thickness());
+                // f32 nodes and f64 arithmetic: far below a nanometre; a margin all the same.
+                head.field().lipschitz() * moved + 1e-9
+            }
+            _ => f64::INFINITY,
+        };
+        if fall.is_finite() {
+            for b in &mut self.below {
+                *b -= fall;
+            }
+        } else {
+            self.below = [f64::NEG_INFINITY; SAMPLE_COUNT];
+        }
+        self.at = Some((head.id(), *coil, *head_from_coil));
+    }
+
+    /// Forgets everything (the next call looks every sample up).
+    pub fn forget(&mut self) {
+        self.at = None;
+    }
+}
+
 impl MeshHead {
     /// The coil's clearance for the loop: the least exact signed distance among its sampled
     /// points (see the module), negative when it cuts in. Where that is at least `cutoff`, any
@@ -75,29 +155,58 @@ impl MeshHead {
         coil: &CoilSolid,
         cutoff: f64,
     ) -> f64 {
+        self.coil_clearance_remembering(&mut ClearanceMemory::new(), head_from_coil, coil, cutoff)
+    }
+
+    /// [`Self::coil_clearance_sampled`], the same value, sparing the samples `memory` shows
+    /// cannot be the nearest (see [`ClearanceMemory`]).
+    pub fn coil_clearance_remembering(
+        &self,
+        memory: &mut ClearanceMemory,
+        head_from_coil: &Isometry3<f64>,
+        coil: &CoilSolid,
+        cutoff: f64,
+    ) -> f64 {
         let centre = head_from_coil * Point3::new(0.0, 0.0, -coil.thickness() / 2.0);
         let reach = coil.radius().hypot(coil.thickness() / 2.0);
         let bound = self.bounds().distance(&centre) - reach;
         if bound >= cutoff {
+            memory.forget();
             return bound;
         }
-        // The lowest few by the interpolated field; a point beyond its grid (40 mm past the
-        // head's box) ranks by the box's bound, which is far above any near point's value.
+        memory.move_to(self, coil, head_from_coil);
+        let (r, t) = (coil.radius(), coil.thickness());
+        let at = |i: usize| {
+            let [x, y, z] = SAMPLES[i];
+            head_from_coil * Point3::new(r * x, r * y, t * z)
+        };
+        // The lowest few by the interpolated field (the band's value beyond its grid, 40 mm
+        // past the head's box, which is above any near point's value).
         let mut lowest = [(f64::INFINITY, Point3::origin()); REFINED];
-        for p in surface_samples(coil, head_from_coil) {
-            let v = self
-                .field()
-                .interpolated(&p)
-                .unwrap_or_else(|| self.bounds().distance(&p));
+        let first = memory.least;
+        let mut least_at = first;
+        for i in std::iter::once(first).chain((0..SAMPLE_COUNT).filter(|&i| i != first)) {
+            // Spared: above the least by more than any refined sample can be.
+            if i != first && memory.below[i] > lowest[0].0 + REFINE_WITHIN_M {
+                continue;
+            }
+            let p = at(i);
+            let v = self.field().interpolated(&p).unwrap_or(EXACT_BAND_M);
+            memory.below[i] = v;
+            memory.looked_up += 1;
             if v < lowest[REFINED - 1].0 {
+                if v < lowest[0].0 {
+                    least_at = i;
+                }
                 lowest[REFINED - 1] = (v, p);
                 lowest.sort_by(|a, b| a.0.total_cmp(&b.0));
             }
         }
+        memory.least = least_at;
         let least = lowest[0].0;
         // Far enough by the interpolation alone, less the most it can err by.
-        if least - crate::field::INTERPOLATION_SLACK_M >= cutoff {
-            return least - crate::field::INTERPOLATION_SLACK_M;
+        if least - INTERPOLATION_SLACK_M >= cutoff && cutoff > -EXACT_BAND_M {
+            return least - INTERPOLATION_SLACK_M;
         }
         lowest
             .iter()
@@ -118,6 +227,7 @@ mod tests {
         let pose = Isometry3::identity();
         let pts: Vec<_> = surface_samples(&coil, &pose).collect();
         assert_eq!(pts.len(), sample_count());
+        assert_eq!(sample_count(), SAMPLE_COUNT);
         for p in &pts {
             let radial = p.x.hypot(p.y);
             assert!(radial <= 0.04 + 1e-12 && p.z <= 0.0 && p.z >= -0.03 - 1e-12);

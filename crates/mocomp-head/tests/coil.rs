@@ -75,3 +75,109 @@ fn the_sampled_clearance_is_the_exact_one_within_what_the_scalp_bulges_between_s
     assert!(worst_over < 0.0015, "{worst_over}");
     assert!(n > 1000 && near > 200, "{n} {near}");
 }
+
+/// The memory the loop keeps between cycles changes the work, never the answer: along a coil's
+/// wandering path over the scalp (steps of up to 2 mm and 2°, now and then a jump across the
+/// head, a smaller coil or another cutoff), and on a second head, the remembering query gives
+/// the very value of the one that looks every sample up, and looks up far fewer.
+#[test]
+fn remembering_the_last_cycle_spares_samples_and_changes_no_clearance() {
+    let head = fsaverage();
+    // Another head (the same scalp, 1 cm lower): a memory of the first says nothing of it.
+    let moved = {
+        let mut m = mocomp_head::Mesh {
+            vertices: head.vertices().to_vec(),
+            triangles: head.triangles().to_vec(),
+        };
+        m.vertices.iter_mut().for_each(|p| p.z -= 0.01);
+        MeshHead::new(m, "lower").unwrap()
+    };
+    let lipschitz = head.lipschitz();
+    assert!(
+        (1.0..1.8).contains(&lipschitz),
+        "the interpolated field should change about √3 per metre: {lipschitz}"
+    );
+    let coils = [
+        CoilSolid::new(0.04, 0.03).unwrap(),
+        CoilSolid::new(0.025, 0.02).unwrap(),
+    ];
+    let v = head.vertices();
+    let mut rng = SplitMix64(97);
+    let mut memory = mocomp_head::sampled::ClearanceMemory::new();
+    let mut anchor = v[0];
+    let (mut gap, mut tilt, mut spin) = (0.004, 0.0, 0.0);
+    let (mut calls, mut near) = (0u64, 0);
+    for step in 0..4000 {
+        if step % 500 == 0 {
+            anchor = v[(rng.next_u64() % v.len() as u64) as usize];
+        }
+        let jitter = |rng: &mut SplitMix64, by: f64| by * (2.0 * rng.next_f64() - 1.0);
+        anchor += mocomp_geom::nalgebra::Vector3::new(
+            jitter(&mut rng, 0.0012),
+            jitter(&mut rng, 0.0012),
+            jitter(&mut rng, 0.0012),
+        );
+        gap = (gap + jitter(&mut rng, 0.0005)).clamp(-0.003, 0.03);
+        tilt = (tilt + jitter(&mut rng, 0.02)).clamp(-0.3, 0.3);
+        spin += jitter(&mut rng, 0.02);
+        let coil = &coils[usize::from(step % 1000 >= 900)];
+        let on = if step % 700 >= 650 { &moved } else { &head };
+        let cutoff = [f64::INFINITY, 0.005, 0.012, -0.002][(step / 250) % 4];
+        let pose = facing(on, &anchor, gap, tilt, spin);
+        let fresh = on.coil_clearance_sampled(&pose, coil, cutoff);
+        let remembered = on.coil_clearance_remembering(&mut memory, &pose, coil, cutoff);
+        assert_eq!(
+            remembered.to_bits(),
+            fresh.to_bits(),
+            "step {step}: remembered {remembered}, looked up afresh {fresh}"
+        );
+        calls += 1;
+        near += usize::from(fresh < 0.01);
+    }
+    let per_call = memory.looked_up() as f64 / calls as f64;
+    eprintln!(
+        "remembering: {per_call:.1} of {} samples looked up a call over {calls} calls ({near} within 10 mm)",
+        mocomp_head::sampled::SAMPLE_COUNT
+    );
+    assert!(near > 1000, "{near}");
+    assert!(
+        per_call < mocomp_head::sampled::SAMPLE_COUNT as f64 / 2.0,
+        "{per_call}"
+    );
+}
+
+/// What the memory leans on: the interpolated field (the band's value beyond its grid) never
+/// changes faster than the bound the field states, for pairs of points near the scalp, far
+/// from it, and either side of the grid's edge.
+#[test]
+fn the_interpolated_field_changes_no_faster_than_its_stated_bound() {
+    let head = fsaverage();
+    let lipschitz = head.lipschitz();
+    let b = head.bounds();
+    let mut rng = SplitMix64(5);
+    let band = mocomp_head::field::EXACT_BAND_M;
+    let value = |p: &Point3<f64>| head.field_value(p).unwrap_or(band);
+    let mut steepest = 0.0f64;
+    for _ in 0..200_000 {
+        // Anywhere from inside the head to 60 mm beyond its box (the grid ends 40 mm beyond).
+        let a = Point3::from(b.min.coords.zip_map(&b.max.coords, |lo, hi| {
+            lo - 0.06 + (hi - lo + 0.12) * rng.next_f64()
+        }));
+        let d = 0.01 * rng.next_f64();
+        let dir = mocomp_geom::nalgebra::Vector3::new(
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+        )
+        .normalize();
+        let q = a + dir * d;
+        let rate = (value(&a) - value(&q)).abs() / d;
+        steepest = steepest.max(rate);
+    }
+    eprintln!("steepest seen {steepest:.3}, bound {lipschitz:.3}");
+    assert!(steepest <= lipschitz + 1e-6, "{steepest} > {lipschitz}");
+    assert!(
+        steepest > 0.9,
+        "the test never saw the field change: {steepest}"
+    );
+}

@@ -5,9 +5,10 @@
 //! reaction: the coil gives way to a head that comes into it; anything else is refused and the
 //! arm decelerates on its last command.
 
+use super::clearance::Site;
 use super::command::Saved;
 use super::{Compensator, CycleRecord, Event, Mode, Plan};
-use crate::safety::{backed_off, standoff_for};
+use crate::safety::{backed_off, standoff_remembering};
 use crate::supervisor::{Reaction, Reason, reaction};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use mocomp_kin::Selection;
@@ -58,13 +59,16 @@ impl Compensator {
             let mut extra = 0.0;
             for _ in 0..FILTER_PASSES {
                 let coil = self.head_from_coil_at(&q_next, bh);
-                let deficit = standoff_for(
-                    &self.cfg.head,
-                    &self.cfg.coil,
-                    &coil,
-                    required,
-                    max_standoff,
-                );
+                let deficit = self.clearance.at(Site::Filter, |memory| {
+                    standoff_remembering(
+                        &self.cfg.head,
+                        &self.cfg.coil,
+                        &coil,
+                        required,
+                        max_standoff,
+                        memory,
+                    )
+                });
                 if deficit <= 0.0 {
                     break;
                 }
@@ -237,10 +241,11 @@ impl Compensator {
         } else {
             p.coil_min_distance_m - p.coil_contact_tolerance_m
         };
-        let nearest = self
-            .cfg
-            .coil
-            .distance_below(&self.cfg.head, &coil_now, deepest);
+        let nearest = self.clearance.at(Site::Collision, |memory| {
+            self.cfg
+                .coil
+                .distance_below_remembering(&self.cfg.head, &coil_now, deepest, memory)
+        });
         if nearest < deepest
             && nearest
                 < self

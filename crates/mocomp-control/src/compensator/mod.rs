@@ -25,6 +25,7 @@
 //! for ([`crate::safety`]).
 
 mod check;
+mod clearance;
 mod command;
 mod plan;
 mod record;
@@ -197,6 +198,8 @@ pub struct Compensator {
     approach: ApproachState,
     /// Limit and command: the setpoint, its speed, the controller time, the command delay.
     cmd: CommandState,
+    /// What each per-cycle clearance query remembers from the last cycle.
+    clearance: clearance::Memories,
 }
 
 impl Compensator {
@@ -222,6 +225,7 @@ impl Compensator {
             fault: FaultState::default(),
             approach: ApproachState::default(),
             cmd: CommandState::new(period_s),
+            clearance: clearance::Memories::default(),
         }
     }
 
@@ -423,11 +427,15 @@ impl Compensator {
         rec: &mut CycleRecord,
     ) {
         if let Some(bh) = base_from_head {
-            rec.clearance_m = self.cfg.coil.distance_below(
-                &self.cfg.head,
-                &self.head_from_coil_at(&q, bh),
-                CLEARANCE_EXACT_BELOW_M,
-            );
+            let head_from_coil = self.head_from_coil_at(&q, bh);
+            rec.clearance_m = self.clearance.at(clearance::Site::Recorded, |memory| {
+                self.cfg.coil.distance_below_remembering(
+                    &self.cfg.head,
+                    &head_from_coil,
+                    CLEARANCE_EXACT_BELOW_M,
+                    memory,
+                )
+            });
         }
         self.cmd.q = q;
         rec.q_command = q;

@@ -8,11 +8,12 @@
 //!   planned path ([`super::plan`]), retreat, hold — a held coil still giving way to a head that
 //!   comes closer than the filter requires.
 
+use super::clearance::Site;
 use super::plan::ShellStep;
 use super::sense::HeadEstimate;
 use super::{Compensator, CycleRecord, Event, Mode, Plan};
 use crate::force::{admittance_step, is_force_reason};
-use crate::safety::{backed_off, standoff_for};
+use crate::safety::{backed_off, standoff_remembering};
 use crate::supervisor::{Decision, Reaction, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::{BranchPolicy, Selection};
@@ -100,13 +101,16 @@ impl Compensator {
         let mut need = if required <= goal_clear {
             0.0
         } else {
-            standoff_for(
-                &self.cfg.head,
-                &self.cfg.coil,
-                &self.cfg.head_from_coil_goal,
-                required,
-                p.max_standoff_m,
-            )
+            self.clearance.at(Site::Goal, |memory| {
+                standoff_remembering(
+                    &self.cfg.head,
+                    &self.cfg.coil,
+                    &self.cfg.head_from_coil_goal,
+                    required,
+                    p.max_standoff_m,
+                    memory,
+                )
+            })
         };
         if react == Reaction::Retreat || matches!(self.mode, Mode::Retreating(_)) {
             need = need.max(p.retreat_distance_m);
