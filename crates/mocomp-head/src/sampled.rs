@@ -30,6 +30,10 @@ pub const BETWEEN_SAMPLES_M: f64 = 0.0015;
 /// least gave the same figures on the fsaverage scalp: a second near it is a spare).
 const REFINE_WITHIN_M: f64 = 0.001;
 
+/// Below this the sampled clearance is exact (whatever the cutoff), m: the field's band, less
+/// the interpolation's slack and the refinement's window.
+pub const EXACT_BELOW_M: f64 = EXACT_BAND_M - INTERPOLATION_SLACK_M - REFINE_WITHIN_M;
+
 /// The samples in the coil's own terms: (x / radius, y / radius, z / thickness).
 static SAMPLES: LazyLock<Vec<[f64; 3]>> = LazyLock::new(|| {
     let mut out = vec![[0.0, 0.0, 0.0]];
@@ -148,7 +152,9 @@ impl ClearanceMemory {
 impl MeshHead {
     /// The coil's clearance for the loop: the least exact signed distance among its sampled
     /// points (see the module), negative when it cuts in. Where that is at least `cutoff`, any
-    /// value of at least `cutoff` (the box's bound when the coil is far from the head).
+    /// value of at least `cutoff` (the box's bound when the coil is far from the head); where
+    /// it is at least [`EXACT_BELOW_M`], a lower bound of it of at least that (beyond, the field
+    /// holds every node at its band and cannot rank the samples).
     pub fn coil_clearance_sampled(
         &self,
         head_from_coil: &Isometry3<f64>,
@@ -204,8 +210,11 @@ impl MeshHead {
         }
         memory.least = least_at;
         let least = lowest[0].0;
-        // Far enough by the interpolation alone, less the most it can err by.
-        if least - INTERPOLATION_SLACK_M >= cutoff && cutoff > -EXACT_BAND_M {
+        // Far enough by the interpolation alone, less the most it can err by; or so far that
+        // the field, held at its band, no longer ranks the samples near the least (any could be
+        // the nearest): then that bound is all it knows.
+        let far = least + REFINE_WITHIN_M >= EXACT_BAND_M;
+        if (far || least - INTERPOLATION_SLACK_M >= cutoff) && cutoff > -EXACT_BAND_M {
             return least - INTERPOLATION_SLACK_M;
         }
         lowest

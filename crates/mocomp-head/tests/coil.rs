@@ -52,7 +52,10 @@ fn the_sampled_clearance_is_the_exact_one_within_what_the_scalp_bulges_between_s
         }
         near += usize::from(exact < 0.01);
         worst_over = worst_over.max(sampled - exact);
-        worst_under = worst_under.max(exact - sampled);
+        // Beyond what the field ranks, a bound (the next test).
+        if exact < mocomp_head::sampled::EXACT_BELOW_M - 0.0015 {
+            worst_under = worst_under.max(exact - sampled);
+        }
         sum += (sampled - exact).powi(2);
         n += 1;
         // Below a cutoff it is the same number; above, some number at least the cutoff.
@@ -180,4 +183,46 @@ fn the_interpolated_field_changes_no_faster_than_its_stated_bound() {
         steepest > 0.9,
         "the test never saw the field change: {steepest}"
     );
+}
+
+/// A coil farther off than the field ranks its samples (its nodes held at the band): the
+/// sampled clearance says "at least this far", never more than the coil's true clearance.
+#[test]
+fn a_far_coil_gets_a_lower_bound_never_more_room_than_it_has() {
+    let head = fsaverage();
+    let coil = CoilSolid::new(0.04, 0.03).unwrap();
+    let v = head.vertices();
+    let mut rng = SplitMix64(13);
+    let floor = mocomp_head::sampled::EXACT_BELOW_M;
+    let mut far = 0;
+    for _ in 0..300 {
+        let p = v[(rng.next_u64() % v.len() as u64) as usize];
+        let gap = 0.02 + 0.05 * rng.next_f64();
+        let tilt = 0.6 * (rng.next_f64() - 0.5);
+        let pose = facing(&head, &p, gap, tilt, std::f64::consts::TAU * rng.next_f64());
+        let exact = head.coil_clearance(&pose, &coil);
+        let sampled = head.coil_clearance_sampled(&pose, &coil, f64::INFINITY);
+        if exact <= 0.0 {
+            // Tilted into the scalp elsewhere: the first test's case.
+            continue;
+        }
+        // Over by no more than the scalp bulges between the samples, as near the head.
+        let between = mocomp_head::sampled::BETWEEN_SAMPLES_M;
+        assert!(
+            sampled <= exact + between,
+            "{pose}: sampled {sampled}, exact {exact}"
+        );
+        if exact < floor - between {
+            // Still exact among the samples: under by rounding alone.
+            assert!(exact - sampled < 1e-6, "{pose}: {sampled} against {exact}");
+        } else {
+            // A bound: at least the floor less the interpolation's own slack.
+            assert!(
+                sampled >= floor - 0.0025,
+                "{pose}: {sampled} against {exact}"
+            );
+            far += usize::from(exact > floor + 0.005);
+        }
+    }
+    assert!(far > 100, "{far}");
 }

@@ -98,10 +98,13 @@ impl Contact {
         // The world's own scalp as it is: a mesh's sampled distance without the margin the
         // loop keeps for what may lie between the samples.
         let d = match self.head.shape() {
-            Head::Mesh(m) => CoilSolid::new(self.coil.radius, self.coil.thickness)
-                .map_or(f64::INFINITY, |solid| {
-                    m.coil_clearance_sampled(head_from_coil, &solid, f64::INFINITY)
-                }),
+            Head::Mesh(m) => CoilSolid::new(self.coil.radius, self.coil.thickness).map_or(
+                f64::INFINITY,
+                |solid| {
+                    // Only a coil below the scalp has a depth: clear is all it needs to know.
+                    m.coil_clearance_sampled(head_from_coil, &solid, 0.0)
+                },
+            ),
             Head::Ellipsoid(_) => self.coil.distance(&self.head, head_from_coil),
         };
         (-d).max(0.0)

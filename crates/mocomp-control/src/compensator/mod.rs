@@ -134,8 +134,8 @@ pub enum Plan {
 }
 
 /// The logged clearance is exact below this, a lower bound above (sparing the exact solve when
-/// the coil is far), m.
-const CLEARANCE_EXACT_BELOW_M: f64 = 0.05;
+/// the coil is far), m: on a scalp, the most the sampled clearance knows exactly.
+const CLEARANCE_EXACT_BELOW_M: f64 = mocomp_head::sampled::EXACT_BELOW_M;
 
 /// The goal and what follows from it alone.
 #[derive(Debug, Clone)]

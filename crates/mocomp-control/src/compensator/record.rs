@@ -38,7 +38,8 @@ pub struct CycleRecord {
     /// How far the safety filter moved this cycle's command back along the approach axis, m.
     pub filtered_m: f64,
     /// The commanded coil's clearance from the head predicted for the time it acts, m (NaN
-    /// without a head estimate; exact below 5 cm, at least 5 cm otherwise).
+    /// without a head estimate; exact below 26.8 mm, what a scalp's sampled clearance knows
+    /// exactly, and at least that otherwise).
     pub clearance_m: f64,
     /// The clearance the filter required this cycle, m.
     pub required_m: f64,
