@@ -1037,6 +1037,29 @@ impl Config {
         )
     }
 
+    /// A warning when the scalp of `[head] mesh` was segmented from a scan that ends inside
+    /// the head anywhere but at the neck: the model is flat there while the real head (an ear,
+    /// the brow) goes on, and goals near those faces are refused.
+    pub fn head_note(&self) -> Option<String> {
+        let head = self.head.loaded.as_ref()?;
+        let sides: Vec<&str> = head
+            .scan_cuts()
+            .iter()
+            .map(|c| c.side)
+            .filter(|s| *s != "inferior")
+            .collect();
+        (!sides.is_empty()).then(|| {
+            format!(
+                "the scan of [head] mesh ends inside the head at its {} face{}: the model is the \
+                 scan's flat face there, not the patient, and a goal whose coil comes within {:.0} \
+                 mm of it is refused (a scan that holds the whole head avoids this)",
+                sides.join(", "),
+                if sides.len() == 1 { "" } else { "s" },
+                mocomp_control::goal::SCAN_CUT_KEEP_M * 1e3
+            )
+        })
+    }
+
     /// The loop's configuration around `base_from_tracker`, at the robot's `period`.
     pub fn loop_config(
         &self,

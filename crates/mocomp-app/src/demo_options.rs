@@ -89,6 +89,7 @@ pub fn demo_config(file: Option<&Path>, o: &DemoOverrides) -> Result<DemoConfig,
     // A scalp file is relative to the configuration's directory.
     let dir = file.and_then(Path::parent).unwrap_or(Path::new(""));
     cfg.load_head(dir)?;
+    notes.extend(cfg.head_note());
     notes.extend(cfg.predictor_note());
     Ok(DemoConfig { config: cfg, notes })
 }

@@ -62,17 +62,26 @@ pub fn write_views(path: &Path, mesh: &Mesh, size: u32) -> Result<(), AppError> 
     std::fs::write(path, png).what(|| format!("{}: cannot write", path.display()))
 }
 
-/// The head model of the surface at `path` (see [`inspect_file`]), its points carried by
-/// `head_from_image` into the head marker's frame, with the distance field the loop asks built.
+/// The head model of the surface at `path` (see [`inspect_file`]), its points (and the faces
+/// where a segmented scan ends inside the head) carried by `head_from_image` into the head
+/// marker's frame, with the distance field the loop asks built.
 pub fn load_head(
     path: &Path,
     unit: Option<LengthUnit>,
     segment: &SegmentOptions,
     head_from_image: &Isometry3<f64>,
 ) -> Result<HeadModel, AppError> {
-    let (mesh, _) = inspect_file(path, unit, segment)?;
+    let (mesh, inspection) = inspect_file(path, unit, segment)?;
     let name = path.display().to_string();
+    // Where a segmented scan ends inside the head, carried along with the scalp.
+    let cuts = inspection
+        .segmentation
+        .iter()
+        .flat_map(|s| &s.cut_by_scan)
+        .map(|edge| edge.cut().transformed(head_from_image))
+        .collect();
     let head = MeshHead::new(mesh.transformed(head_from_image), &name)
-        .map_err(|e| AppError::failed("building the head", e))?;
+        .map_err(|e| AppError::failed("building the head", e))?
+        .with_cuts(cuts);
     Ok(HeadModel::new(Head::Mesh(std::sync::Arc::new(head))))
 }

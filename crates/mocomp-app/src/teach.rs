@@ -192,7 +192,7 @@ fn goal_from(setup: &Setup, heads: &[Isometry3<f64>], q: &[f64; 6]) -> Result<Ta
             "the coil's +z axis points away from the head: the loop approaches along it (check \
              calibration.flange_from_coil)"
         ),
-        Err(e @ GoalError::NotFinite) => refuse!("{e}"),
+        Err(e @ (GoalError::NotFinite | GoalError::NearScanEdge { .. })) => refuse!("{e}"),
     };
     Ok(Taught {
         head_from_coil,

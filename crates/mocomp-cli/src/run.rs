@@ -63,6 +63,9 @@ impl RunCmd {
                 file.record_mcap.clone_from(&self.record);
             }
         })?;
+        if let Some(warning) = setup.file.head_note() {
+            eprintln!("warning: {warning}");
+        }
         if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated
             && let Some(note) = setup.file.predictor_note()
         {

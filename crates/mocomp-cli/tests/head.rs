@@ -150,6 +150,15 @@ fn a_t1_mri_is_segmented_to_a_scalp_of_the_size_asked_and_written_out() {
         .map(|e| e["side"].as_str().unwrap())
         .collect();
     assert_eq!(sides, ["left", "right", "anterior", "inferior"], "{g}");
+    // Each with the patch of the box's face it covers: the left one in the plane x = -90.5 mm,
+    // facing out of the box.
+    let left = &g["cut_by_scan"][0];
+    assert_eq!(left["outward"], json!([-1.0, 0.0, 0.0]), "{left}");
+    assert!(
+        (left["centre_m"][0].as_f64().unwrap() + 0.0905).abs() < 1e-9,
+        "{left}"
+    );
+    assert!(left["half_m"][0].as_f64().unwrap() > 0.01, "{left}");
     // The surface written out reads back as the same closed surface.
     let back = inspect_json(&["head", "inspect", &ply, "--units", "mm", "--json"]);
     assert_eq!(back["faces"].as_u64(), Some(faces));

@@ -6,7 +6,7 @@
 
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use mocomp_head::sampled::ClearanceMemory;
-use mocomp_head::{CoilSolid, Ellipsoid, Head, HeadError, HeadShape};
+use mocomp_head::{CoilSolid, Ellipsoid, Head, HeadError, HeadShape, ScanCut};
 
 /// The head the loop keeps the coil from, in the head (marker) frame. Clones share a mesh.
 #[derive(Debug, Clone)]
@@ -47,6 +47,15 @@ impl HeadModel {
         match &self.shape {
             Head::Ellipsoid(e) => Some(e),
             Head::Mesh(_) => None,
+        }
+    }
+
+    /// Where the scan the scalp came from ends inside the head (none for an ellipsoid or a
+    /// surface read whole): the model is flat there, not the patient.
+    pub fn scan_cuts(&self) -> &[ScanCut] {
+        match &self.shape {
+            Head::Mesh(m) => m.cuts(),
+            Head::Ellipsoid(_) => &[],
         }
     }
 

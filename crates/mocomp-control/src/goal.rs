@@ -9,7 +9,11 @@
 //!   `min_distance_m` from the head model, and
 //! - its approach axis (+z of the coil) points into the head: a step forward along it brings the
 //!   coil's face closer to the head than a step back does. An axis tangent to the surface is
-//!   refused.
+//!   refused;
+//! - on a scalp segmented from a scan that ends inside the head, the whole coil keeps
+//!   [`SCAN_CUT_KEEP_M`] from each patch of the scan's faces the head reaches: there the model is
+//!   the scan's flat face, not the patient (an ear, the brow or the neck goes on beyond it), so
+//!   nothing it says about clearance holds.
 
 use crate::geometry::{CoilModel, HeadModel};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
@@ -33,7 +37,24 @@ pub enum GoalError {
     /// The goal is not a finite transform.
     #[error("the goal is not finite")]
     NotFinite,
+    /// The coil comes near where the scan ends inside the head.
+    #[error(
+        "the coil comes within {:.1} mm of where the scan ends inside the head at its {side} \
+         face, where the model is the scan's flat face and not the patient (at least {:.0} mm \
+         allowed: choose a goal farther from it, or a scan that holds the head there)",
+        .distance_m * 1e3, SCAN_CUT_KEEP_M * 1e3
+    )]
+    NearScanEdge {
+        /// Which face (`left`, `anterior`, `inferior`, …).
+        side: &'static str,
+        /// The coil's least distance to the patch of that face the head reaches, m.
+        distance_m: f64,
+    },
 }
+
+/// How far the whole coil must keep from where the scan ends inside the head, m: about as far as
+/// an ear stands out of the head beyond a cut through it.
+pub const SCAN_CUT_KEEP_M: f64 = 0.02;
 
 /// How far back along the axis the axis rule looks, m.
 const AXIS_STEP_M: f64 = 1e-3;
@@ -69,7 +90,33 @@ pub fn check_goal(
     if !axis_points_into_head(head, head_from_coil) {
         return Err(GoalError::AxisOutward);
     }
+    near_scan_edge(head, coil, head_from_coil)?;
     Ok(distance_m)
+}
+
+/// The scan-edge rule: the whole coil keeps [`SCAN_CUT_KEEP_M`] from every patch where the scan
+/// ends inside the head.
+fn near_scan_edge(
+    head: &HeadModel,
+    coil: &CoilModel,
+    head_from_coil: &Isometry3<f64>,
+) -> Result<(), GoalError> {
+    let cuts = head.scan_cuts();
+    if cuts.is_empty() {
+        return Ok(());
+    }
+    // Not a solid: as if touching, so the goal is refused.
+    let solid = mocomp_head::CoilSolid::new(coil.radius, coil.thickness).ok();
+    for cut in cuts {
+        let distance_m = solid.map_or(0.0, |s| cut.coil_distance(head_from_coil, &s));
+        if distance_m < SCAN_CUT_KEEP_M {
+            return Err(GoalError::NearScanEdge {
+                side: cut.side,
+                distance_m,
+            });
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@
 //! | `RobotStale` | fault (latched past `robot_rearm_after_s`) | the robot's state is too old to command on; a short gap resumes by itself, by a path from where the arm is |
 //! | `Singular` | hold | no safe joint motion near a singularity |
 //! | `Unreachable` | hold | no IK solution on the current branch |
-//! | `GoalInsideHead`, `GoalAxisOutward`, `GoalNotFinite` | hold | the goal itself is wrong: fix the configuration |
+//! | `GoalInsideHead`, `GoalAxisOutward`, `GoalNotFinite`, `GoalNearScanEdge` | hold | the goal itself is wrong: fix the configuration (or, near a scan's edge, the scan) |
 //! | `LinkCollision` | hold | an arm link near the head: the closing motion is refused, moving away stays allowed |
 //! | `CoilCollision` | retreat | the head comes into the coil: the coil gives way along its axis, never the patient |
 //! | `OffApproachAxis` | plan | near the head the coil comes in only along its axis: go round by the shell |
@@ -37,7 +37,8 @@
 //! before as said:
 //!
 //! 1. the tracker rules ([`tracker_rules`]);
-//! 2. a wrong goal (`GoalInsideHead`, `GoalAxisOutward`, `GoalNotFinite`), over the tracker's;
+//! 2. a wrong goal (`GoalInsideHead`, `GoalAxisOutward`, `GoalNotFinite`, `GoalNearScanEdge`),
+//!    over the tracker's;
 //! 3. `CalibrationInvalid`, over any hold so far but not over a retreat (a head too fast still
 //!    makes the coil give way);
 //! 4. `Operator`, only when nothing else fired;
@@ -96,6 +97,9 @@ pub enum Reason {
     GoalAxisOutward,
     /// The goal is not a finite transform.
     GoalNotFinite,
+    /// The goal's coil comes within `SCAN_CUT_KEEP_M` of where the scan the scalp came from
+    /// ends inside the head (which face, and the coil's distance to it, m).
+    GoalNearScanEdge(&'static str, f64),
     /// No safe path to the goal: unreachable, a branch change or a collision at this arc
     /// length along it (m), or no retreat to the shell (NaN).
     NoPath(f64),
@@ -163,6 +167,9 @@ impl From<GoalError> for Reason {
             GoalError::InsideHead { distance_m, .. } => Reason::GoalInsideHead(distance_m),
             GoalError::AxisOutward => Reason::GoalAxisOutward,
             GoalError::NotFinite => Reason::GoalNotFinite,
+            GoalError::NearScanEdge { side, distance_m } => {
+                Reason::GoalNearScanEdge(side, distance_m)
+            }
         }
     }
 }
@@ -200,6 +207,7 @@ pub fn reaction(reason: &Reason) -> Reaction {
         Reason::GoalInsideHead(_) => Hold,
         Reason::GoalAxisOutward => Hold,
         Reason::GoalNotFinite => Hold,
+        Reason::GoalNearScanEdge(..) => Hold,
         Reason::LinkCollision(..) => Hold,
         Reason::CoilCollision(_) => Retreat,
         Reason::OffApproachAxis(_) => Plan,

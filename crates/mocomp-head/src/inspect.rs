@@ -205,6 +205,29 @@ pub struct ScanEdge {
     pub side: &'static str,
     /// Head voxels on it.
     pub voxels: usize,
+    /// The centre of the rectangle in the face's plane (half a voxel beyond the last voxels'
+    /// centres) that holds the head's voxels on the face, image frame, m.
+    pub centre_m: [f64; 3],
+    /// The plane's unit normal, out of the scan, image frame.
+    pub outward: [f64; 3],
+    /// The rectangle's first axis (unit, in the plane; the second is `outward × along`).
+    pub along: [f64; 3],
+    /// Half its sides along the two axes, m.
+    pub half_m: [f64; 2],
+}
+
+impl ScanEdge {
+    /// The patch as the head model keeps it (image frame).
+    pub fn cut(&self) -> crate::ScanCut {
+        use mocomp_geom::nalgebra::{Point3, Unit, Vector3};
+        crate::ScanCut {
+            side: self.side,
+            centre: Point3::from(self.centre_m),
+            outward: Unit::new_normalize(Vector3::from(self.outward)),
+            along: Unit::new_normalize(Vector3::from(self.along)),
+            half_m: self.half_m,
+        }
+    }
 }
 
 impl fmt::Display for Segmentation {

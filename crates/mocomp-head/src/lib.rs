@@ -14,6 +14,7 @@
 //! distance field's grid allocates nothing (beyond it, parry's traversal keeps a small stack that
 //! may spill to the heap). Volumes (NIfTI) are not read here yet.
 
+pub mod cut;
 pub mod ellipsoid;
 pub mod error;
 pub mod field;
@@ -26,6 +27,7 @@ pub mod repair;
 pub mod sampled;
 pub mod shape;
 
+pub use cut::ScanCut;
 pub use ellipsoid::{Ellipsoid, ellipsoid_distance};
 pub use error::HeadError;
 pub use mesh::{Mesh, MeshHead};

@@ -9,6 +9,7 @@
 //! ([`crate::sampled`]). The BVH stays for ray casts, the exact coil clearance (to measure by)
 //! and points beyond the grid.
 
+use crate::cut::ScanCut;
 use crate::error::HeadError;
 use crate::field::DistanceField;
 use crate::radial::RadialMap;
@@ -168,6 +169,8 @@ pub struct MeshHead {
     /// Which head this is, among those this process built: what a sampled clearance's memory
     /// checks it is asked about the head it remembers.
     id: u64,
+    /// Where the scan it was segmented from ends inside the head (the model is flat there).
+    cuts: Vec<ScanCut>,
 }
 
 /// The next head's [`MeshHead::id`].
@@ -212,7 +215,19 @@ impl MeshHead {
             bounds,
             triangles,
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            cuts: Vec::new(),
         })
+    }
+
+    /// The same head, knowing where the scan it came from ends inside it (head frame).
+    pub fn with_cuts(mut self, cuts: Vec<ScanCut>) -> Self {
+        self.cuts = cuts;
+        self
+    }
+
+    /// Where the scan ends inside the head: the model is flat there, not the patient.
+    pub fn cuts(&self) -> &[ScanCut] {
+        &self.cuts
     }
 
     /// The distance field (the sampled coil query reads it).

@@ -182,19 +182,28 @@ impl Mask {
         added
     }
 
-    /// Voxels inside on the slice across `axis` (0, 1 or 2) at index `at` along it.
-    pub fn inside_on_slice(&self, axis: usize, at: usize) -> usize {
+    /// The voxels inside on the slice across `axis` (0, 1 or 2) at index `at` along it: how
+    /// many, and where.
+    pub fn on_slice(&self, axis: usize, at: usize) -> SliceCover {
         let d = self.dims;
         let (u, v) = across(axis);
         let stride = [1, d[0], d[0] * d[1]];
         let w = stride[axis.min(2)];
-        let mut n = 0;
+        let mut cover = SliceCover {
+            voxels: 0,
+            lo: [usize::MAX; 2],
+            hi: [0; 2],
+        };
         for b in 0..d[v] {
             for a in 0..d[u] {
-                n += usize::from(self.inside[at * w + a * stride[u] + b * stride[v]]);
+                if self.inside[at * w + a * stride[u] + b * stride[v]] {
+                    cover.voxels += 1;
+                    cover.lo = [cover.lo[0].min(a), cover.lo[1].min(b)];
+                    cover.hi = [cover.hi[0].max(a), cover.hi[1].max(b)];
+                }
             }
         }
-        n
+        cover
     }
 
     /// Fills what the head encloses within each slice across `axis` (0, 1 or 2). Returns the
@@ -227,8 +236,20 @@ impl Mask {
     }
 }
 
-/// The two axes that span a slice across `axis` (the third for anything past 2).
-fn across(axis: usize) -> (usize, usize) {
+/// The voxels inside on one slice (see [`Mask::on_slice`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SliceCover {
+    /// How many.
+    pub voxels: usize,
+    /// The least index along the slice's two axes (the other two voxel axes, in order);
+    /// meaningless when there are none.
+    pub lo: [usize; 2],
+    /// The greatest.
+    pub hi: [usize; 2],
+}
+
+/// The two axes that span a slice across `axis`, in order (the third for anything past 2).
+pub fn across(axis: usize) -> (usize, usize) {
     match axis {
         0 => (1, 2),
         1 => (0, 2),

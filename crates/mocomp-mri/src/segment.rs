@@ -4,6 +4,7 @@
 
 use crate::error::MriError;
 use crate::mask::Mask;
+use crate::mask::{SliceCover, across};
 use crate::volume::{Volume, read_volume};
 use crate::{SegmentOptions, decimate, surface, threshold};
 use mocomp_geom::LengthUnit;
@@ -170,14 +171,14 @@ fn check_not_the_whole_volume(file: &str, mask: &Mask) -> Result<(), MriError> {
 }
 
 /// The volume's faces the head's voxels reach, each named by the way it looks in the image's
-/// frame.
+/// frame, with the patch of the face they cover.
 fn cut_by_scan(mask: &Mask, volume: &Volume) -> Vec<ScanEdge> {
     let m = volume.ras_from_voxel.fixed_view::<3, 3>(0, 0);
     let mut edges = Vec::new();
     for axis in 0..3 {
         for (end, outward) in [(0usize, -1.0), (mask.dims[axis] - 1, 1.0)] {
-            let voxels = mask.inside_on_slice(axis, end);
-            if voxels == 0 {
+            let cover = mask.on_slice(axis, end);
+            if cover.voxels == 0 {
                 continue;
             }
             let d = m.column(axis) * outward;
@@ -192,8 +193,69 @@ fn cut_by_scan(mask: &Mask, volume: &Volume) -> Vec<ScanEdge> {
                 (_, true) => "superior",
                 (_, false) => "inferior",
             };
-            edges.push(ScanEdge { side, voxels });
+            edges.push(face_patch(volume, axis, end, outward, cover, side));
         }
     }
     edges
+}
+
+/// The rectangle in the face's plane (half a voxel beyond the last slice's centres; spanned by
+/// the other two voxel axes, its normal out of the volume) that holds the covered voxels' faces.
+/// A sheared grid's face is a parallelogram: the rectangle is the box around it in the plane.
+fn face_patch(
+    volume: &Volume,
+    axis: usize,
+    end: usize,
+    outward: f64,
+    cover: SliceCover,
+    side: &'static str,
+) -> ScanEdge {
+    let m = volume.ras_from_voxel.fixed_view::<3, 3>(0, 0);
+    let (u, v) = across(axis);
+    let (cu, cv) = (m.column(u).into_owned(), m.column(v).into_owned());
+    let normal = cu.cross(&cv);
+    let normal = if normal.dot(&(m.column(axis) * outward)) < 0.0 {
+        -normal
+    } else {
+        normal
+    };
+    let normal = normal.normalize();
+    let along = cu.normalize();
+    let second = normal.cross(&along);
+    let corner = |a: f64, b: f64| {
+        let mut ijk = [0.0; 3];
+        ijk[axis] = end as f64 + 0.5 * outward;
+        ijk[u] = a;
+        ijk[v] = b;
+        volume.ras_at(ijk)
+    };
+    let (lo, hi) = (
+        cover.lo.map(|x| x as f64 - 0.5),
+        cover.hi.map(|x| x as f64 + 0.5),
+    );
+    let corners = [
+        corner(lo[0], lo[1]),
+        corner(hi[0], lo[1]),
+        corner(lo[0], hi[1]),
+        corner(hi[0], hi[1]),
+    ];
+    let origin = corners[0];
+    let (mut min, mut max) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for c in &corners {
+        let rel = c - origin;
+        for (k, axis) in [along, second].iter().enumerate() {
+            let x = rel.dot(axis);
+            min[k] = min[k].min(x);
+            max[k] = max[k].max(x);
+        }
+    }
+    let centre = origin + along * ((min[0] + max[0]) / 2.0) + second * ((min[1] + max[1]) / 2.0);
+    ScanEdge {
+        side,
+        voxels: cover.voxels,
+        centre_m: centre.coords.into(),
+        outward: normal.into(),
+        along: along.into(),
+        half_m: [(max[0] - min[0]) / 2.0, (max[1] - min[1]) / 2.0],
+    }
 }
