@@ -18,6 +18,7 @@
 //! and depending on none of mocomp's.
 
 pub mod error;
+pub mod fit;
 pub mod interp;
 pub mod latest;
 pub mod metrics;
