@@ -319,6 +319,14 @@ impl SplitMix64 {
         self.next_f64() * std::f64::consts::TAU - std::f64::consts::PI
     }
 
+    /// A standard normal value (Box–Muller: one of the pair, the other discarded).
+    pub fn gauss(&mut self) -> f64 {
+        // 1 − u is in (0, 1]: the logarithm stays finite.
+        let u = 1.0 - self.next_f64();
+        let v = self.next_f64();
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+
     /// Six angles uniform in [−π, π).
     pub fn joints(&mut self) -> [f64; 6] {
         std::array::from_fn(|_| self.angle())

@@ -1,0 +1,19 @@
+//! Image-guided navigation's math, in metres and radians, with no I/O:
+//! - [`pivot`]: a tracked pointer's tip in its marker's frame, from pivoting it about a fixed
+//!   point (robust least squares, refused without enough orientation spread);
+//! - [`landmarks`]: the patient's head marker registered to the image on named anatomical
+//!   landmarks (nasion, preauricular points, …) touched with that pointer: the least-squares
+//!   rigid fit, its fiducial registration error per landmark;
+//! - [`tre`]: the target registration error that fit predicts at any target (Fitzpatrick, West
+//!   and Maurer 1998), from the landmarks' configuration and the localisation error the FRE
+//!   implies.
+
+pub mod error;
+pub mod landmarks;
+pub mod pivot;
+pub mod tre;
+
+pub use error::NavError;
+pub use landmarks::{Landmark, LandmarkRegistration, register_landmarks};
+pub use pivot::{PivotCalibration, calibrate_pivot};
+pub use tre::{fle_from_fre, predicted_tre};
