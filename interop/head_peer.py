@@ -12,6 +12,10 @@ Requests (one per line):
       GIFTI_ENCODING_B64BIN or GIFTI_ENCODING_ASCII), fs (nibabel's write_geometry, with a volume
       geometry whose c_ras is (1, -2, 3) mm) -> {"written": P, "vertices": [[x, y, z], ...]}: the
       coordinates as the format stores them (float32 where it stores float32).
+  {"op": "fsaverage_points", "montage": M} -> {"fiducials_m": {"nasion": [x, y, z], "lpa": ...,
+      "rpa": ...}, "eeg_m": {"F3": [x, y, z], ...}}: MNE's fsaverage fiducials
+      (fsaverage-fiducials.fif) and the positions of its montage M (fsaverage_1020, _1010 or _1005,
+      read from MNE's TSV as shipped), the head's frame, metres.
 Errors answer {"error": "..."} and the helper keeps running.
 """
 
@@ -79,6 +83,24 @@ def write(req):
     return {"written": path, "vertices": stored.tolist()}
 
 
+def points(req):
+    data = os.path.join(os.path.dirname(mne.__file__), "data", "fsaverage", "fsaverage-fiducials.fif")
+    pts, _frame = mne.io.read_fiducials(data)
+    names = {1: "lpa", 2: "nasion", 3: "rpa"}
+    fiducials = {names[int(p["ident"])]: [float(x) for x in p["r"]] for p in pts}
+    montage = req.get("montage", "fsaverage_1020")
+    if montage not in ("fsaverage_1020", "fsaverage_1010", "fsaverage_1005"):
+        return {"error": f"unknown montage {montage!r}"}
+    tsv = os.path.join(os.path.dirname(mne.__file__), "channels", "data", "montages", montage + ".tsv")
+    eeg = {}
+    with open(tsv) as f:
+        next(f)
+        for line in f:
+            label, x, y, z = line.split()
+            eeg[label] = [float(x), float(y), float(z)]
+    return {"fiducials_m": fiducials, "eeg_m": eeg}
+
+
 def handle(req):
     op = req.get("op")
     if op == "version":
@@ -89,6 +111,8 @@ def handle(req):
         return {"vertices_m": v.tolist(), "triangles": f.tolist()}
     if op == "write":
         return write(req)
+    if op == "fsaverage_points":
+        return points(req)
     return {"error": f"unknown op {op!r}"}
 
 

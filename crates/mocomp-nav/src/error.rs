@@ -93,4 +93,36 @@ pub enum NavError {
         /// `image` or `touched`.
         set: &'static str,
     },
+    /// A swept point is not finite.
+    #[error("surface point {index} is not finite")]
+    SurfacePointNotFinite {
+        /// Its index.
+        index: usize,
+    },
+    /// Too few swept points lie near the scalp.
+    #[error(
+        "{near} swept points lie within {:.0} mm of the scalp ({far} farther): the surface \
+         registration needs {need}; sweep the pointer over the scalp, touching it",
+        .within_m * 1e3
+    )]
+    TooFewSurfacePoints {
+        /// Points near the scalp.
+        near: usize,
+        /// Points left out as too far.
+        far: usize,
+        /// The fewest it needs.
+        need: usize,
+        /// How near counts, m.
+        within_m: f64,
+    },
+    /// The swept points leave a motion of the head free (all on one side, or on a patch that
+    /// slides along itself).
+    #[error(
+        "the swept points leave {free} free (all on one side of the head?): sweep the forehead, \
+         both sides and the crown"
+    )]
+    SurfaceUnconstrained {
+        /// The motion they do not fix.
+        free: String,
+    },
 }

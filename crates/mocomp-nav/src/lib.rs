@@ -4,16 +4,20 @@
 //! - [`landmarks`]: the patient's head marker registered to the image on named anatomical
 //!   landmarks (nasion, preauricular points, …) touched with that pointer: the least-squares
 //!   rigid fit, its fiducial registration error per landmark;
+//! - [`icp`]: that registration refined on points swept with the pointer over the scalp (rigid,
+//!   robust point-to-plane ICP against the head model from the image);
 //! - [`tre`]: the target registration error that fit predicts at any target (Fitzpatrick, West
 //!   and Maurer 1998), from the landmarks' configuration and the localisation error the FRE
 //!   implies.
 
 pub mod error;
+pub mod icp;
 pub mod landmarks;
 pub mod pivot;
 pub mod tre;
 
 pub use error::NavError;
+pub use icp::{Anchors, IcpOptions, SurfaceRegistration, refine_on_surface};
 pub use landmarks::{Landmark, LandmarkRegistration, register_landmarks};
 pub use pivot::{PivotCalibration, calibrate_pivot};
 pub use tre::{fle_from_fre, predicted_tre};

@@ -66,3 +66,30 @@ pub fn coil_facing(
         * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), tilt);
     Isometry3::from_parts(Translation3::from(point.coords + normal * gap), r)
 }
+
+/// MNE's fsaverage fiducials (`nasion`, `lpa`, `rpa`) and the positions of its `montage`
+/// (`fsaverage_1020`, `_1010`, `_1005`: `F3`, `C3`, …), the head's frame, metres.
+pub fn fsaverage_points(
+    montage: &str,
+) -> (
+    std::collections::BTreeMap<String, Point3<f64>>,
+    std::collections::BTreeMap<String, Point3<f64>>,
+) {
+    let mut peer = PythonPeer::start("head_peer.py", "mne, nibabel, trimesh", HEAD_PEERS);
+    let a = peer.request(&json!({"op": "fsaverage_points", "montage": montage}));
+    let table = |key: &str| {
+        a[key]
+            .as_object()
+            .unwrap_or_else(|| panic!("head peer: no {key} in its answer: {a}"))
+            .iter()
+            .map(|(name, p)| {
+                let c = |k: usize| {
+                    p[k].as_f64()
+                        .unwrap_or_else(|| panic!("head peer: {name}: {p} is not a point"))
+                };
+                (name.clone(), Point3::new(c(0), c(1), c(2)))
+            })
+            .collect()
+    };
+    (table("fiducials_m"), table("eeg_m"))
+}
