@@ -176,13 +176,10 @@ impl DistanceField {
                     if outermost && v != band {
                         return f64::INFINITY;
                     }
-                    for (axis, (n, step)) in [(i, nx), (j, ny), (k, nz)]
-                        .into_iter()
-                        .zip([1, nx, nx * ny])
-                        .map(|((c, n), step)| (c + 1 < n, step))
-                        .enumerate()
-                    {
-                        if n {
+                    // The next node along each axis, where there is one.
+                    let next = [(i + 1 < nx, 1), (j + 1 < ny, nx), (k + 1 < nz, nx * ny)];
+                    for (axis, (has, step)) in next.into_iter().enumerate() {
+                        if has {
                             steepest[axis] = steepest[axis].max((self.values[at + step] - v).abs());
                         }
                     }

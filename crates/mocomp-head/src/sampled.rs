@@ -4,7 +4,9 @@
 //! the nearest few refined exactly. The exact clearance ([`crate::HeadShape::coil_clearance`],
 //! GJK over the triangles) costs a hundred times more; between the samples it can be less than
 //! this one by what the scalp bulges between them (measured against it on real anatomy in the
-//! crate's tests, and stated in the README), which the loop's least distance covers.
+//! crate's tests, and stated in the README), which the loop's least distance covers. Each of the
+//! loop's call sites keeps a [`ClearanceMemory`] from one cycle to the next, which spares the
+//! samples that cannot have become the nearest since (the same answer, a fraction of the work).
 
 use crate::field::{EXACT_BAND_M, INTERPOLATION_SLACK_M};
 use crate::mesh::MeshHead;
@@ -67,10 +69,13 @@ pub fn surface_samples<'a>(
     coil: &'a CoilSolid,
     head_from_coil: &'a Isometry3<f64>,
 ) -> impl Iterator<Item = Point3<f64>> + 'a {
-    let (r, t) = (coil.radius(), coil.thickness());
-    SAMPLES
-        .iter()
-        .map(move |[x, y, z]| head_from_coil * Point3::new(r * x, r * y, t * z))
+    (0..SAMPLES.len()).map(move |i| sample(coil, head_from_coil, i))
+}
+
+/// Sample `i` of the coil at `head_from_coil`, head frame.
+fn sample(coil: &CoilSolid, head_from_coil: &Isometry3<f64>, i: usize) -> Point3<f64> {
+    let [x, y, z] = SAMPLES[i];
+    head_from_coil * Point3::new(coil.radius() * x, coil.radius() * y, coil.thickness() * z)
 }
 
 /// What one caller of [`MeshHead::coil_clearance_remembering`] knew at its last call: for
@@ -181,11 +186,6 @@ impl MeshHead {
             return bound;
         }
         memory.move_to(self, coil, head_from_coil);
-        let (r, t) = (coil.radius(), coil.thickness());
-        let at = |i: usize| {
-            let [x, y, z] = SAMPLES[i];
-            head_from_coil * Point3::new(r * x, r * y, t * z)
-        };
         // The lowest few by the interpolated field (the band's value beyond its grid, 40 mm
         // past the head's box, which is above any near point's value).
         let mut lowest = [(f64::INFINITY, Point3::origin()); REFINED];
@@ -196,7 +196,7 @@ impl MeshHead {
             if i != first && memory.below[i] > lowest[0].0 + REFINE_WITHIN_M {
                 continue;
             }
-            let p = at(i);
+            let p = sample(coil, head_from_coil, i);
             let v = self.field().interpolated(&p).unwrap_or(EXACT_BAND_M);
             memory.below[i] = v;
             memory.looked_up += 1;

@@ -31,18 +31,29 @@ fn facing(head: &MeshHead, p: &Point3<f64>, gap: f64, tilt: f64, spin: f64) -> I
     mocomp_testkit::anatomy::coil_facing(&s.point, &s.normal.into_inner(), gap, tilt, spin)
 }
 
+/// A coil facing the scalp at a random vertex, its face from `gap_from` to `gap_from + span` m
+/// off it, tilted up to ±17° and spun anywhere.
+fn random_facing(
+    head: &MeshHead,
+    rng: &mut SplitMix64,
+    gap_from: f64,
+    span: f64,
+) -> Isometry3<f64> {
+    let v = head.vertices();
+    let p = v[(rng.next_u64() % v.len() as u64) as usize];
+    let gap = gap_from + span * rng.next_f64();
+    let tilt = 0.6 * (rng.next_f64() - 0.5);
+    facing(head, &p, gap, tilt, std::f64::consts::TAU * rng.next_f64())
+}
+
 #[test]
 fn the_sampled_clearance_is_the_exact_one_within_what_the_scalp_bulges_between_samples() {
     let head = fsaverage();
     let coil = CoilSolid::new(0.04, 0.03).unwrap();
-    let v = head.vertices();
     let mut rng = SplitMix64(41);
     let (mut worst_over, mut worst_under, mut sum, mut n, mut near) = (0.0f64, 0.0f64, 0.0, 0, 0);
     for _ in 0..1500 {
-        let p = v[(rng.next_u64() % v.len() as u64) as usize];
-        let gap = -0.003 + 0.033 * rng.next_f64();
-        let tilt = 0.6 * (rng.next_f64() - 0.5);
-        let pose = facing(&head, &p, gap, tilt, std::f64::consts::TAU * rng.next_f64());
+        let pose = random_facing(&head, &mut rng, -0.003, 0.033);
         let exact = head.coil_clearance(&pose, &coil);
         let sampled = head.coil_clearance_sampled(&pose, &coil, f64::INFINITY);
         if exact <= 0.0 {
@@ -191,15 +202,11 @@ fn the_interpolated_field_changes_no_faster_than_its_stated_bound() {
 fn a_far_coil_gets_a_lower_bound_never_more_room_than_it_has() {
     let head = fsaverage();
     let coil = CoilSolid::new(0.04, 0.03).unwrap();
-    let v = head.vertices();
     let mut rng = SplitMix64(13);
     let floor = mocomp_head::sampled::EXACT_BELOW_M;
     let mut far = 0;
     for _ in 0..300 {
-        let p = v[(rng.next_u64() % v.len() as u64) as usize];
-        let gap = 0.02 + 0.05 * rng.next_f64();
-        let tilt = 0.6 * (rng.next_f64() - 0.5);
-        let pose = facing(&head, &p, gap, tilt, std::f64::consts::TAU * rng.next_f64());
+        let pose = random_facing(&head, &mut rng, 0.02, 0.05);
         let exact = head.coil_clearance(&pose, &coil);
         let sampled = head.coil_clearance_sampled(&pose, &coil, f64::INFINITY);
         if exact <= 0.0 {

@@ -84,14 +84,7 @@ pub fn calibrate_pivot(samples: &[Isometry3<f64>]) -> Result<PivotCalibration, N
             break;
         }
         keep = next;
-        let n = keep.iter().filter(|k| **k).count();
-        if (n as f64) < MIN_KEPT_SHARE * samples.len() as f64 || n < MIN_SAMPLES {
-            return Err(NavError::TooManyOutliers {
-                kept: n,
-                of: samples.len(),
-                within_m: within,
-            });
-        }
+        enough_agree(keep.iter().filter(|k| **k).count(), samples.len(), within)?;
         (tip, pivot) = solve(samples, &keep);
     }
     let kept_dist: Vec<f64> = samples
@@ -101,13 +94,7 @@ pub fn calibrate_pivot(samples: &[Isometry3<f64>]) -> Result<PivotCalibration, N
         .map(|(s, _)| tip_distance(s, &tip, &pivot))
         .collect();
     let kept = kept_dist.len();
-    if (kept as f64) < MIN_KEPT_SHARE * samples.len() as f64 || kept < MIN_SAMPLES {
-        return Err(NavError::TooManyOutliers {
-            kept,
-            of: samples.len(),
-            within_m: within,
-        });
-    }
+    enough_agree(kept, samples.len(), within)?;
     let rms_m = (kept_dist.iter().map(|d| d * d).sum::<f64>() / kept as f64).sqrt();
     if rms_m > MAX_RMS_M {
         return Err(NavError::PivotTooPoor {
@@ -124,6 +111,14 @@ pub fn calibrate_pivot(samples: &[Isometry3<f64>]) -> Result<PivotCalibration, N
         rejected: samples.len() - kept,
         spread_rad,
     })
+}
+
+/// Whether `kept` of `of` samples (within `within_m` of the pivot) are enough to calibrate on.
+fn enough_agree(kept: usize, of: usize, within_m: f64) -> Result<(), NavError> {
+    if (kept as f64) < MIN_KEPT_SHARE * of as f64 || kept < MIN_SAMPLES {
+        return Err(NavError::TooManyOutliers { kept, of, within_m });
+    }
+    Ok(())
 }
 
 fn finite(s: &Isometry3<f64>) -> bool {

@@ -129,20 +129,22 @@ fn landmarks_then_the_swept_scalp_recover_the_head_within_the_predicted_error() 
             predicted[k].push(predicted_tre(&r.image_points, fle, t));
         }
     }
-    let stat = |v: &mut Vec<f64>| {
+    // Median and p95, mm.
+    let stat = |v: &[f64]| {
+        let mut v = v.to_vec();
         v.sort_by(f64::total_cmp);
         (v[v.len() / 2] * 1e3, v[(v.len() * 95) / 100] * 1e3)
     };
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt() * 1e3;
     eprintln!(
         "FRE median / p95 {:.2} / {:.2} mm; surface RMS {:.2} / {:.2} mm",
-        stat(&mut fre.clone()).0,
-        stat(&mut fre.clone()).1,
-        stat(&mut surface.clone()).0,
-        stat(&mut surface.clone()).1
+        stat(&fre).0,
+        stat(&fre).1,
+        stat(&surface).0,
+        stat(&surface).1
     );
     for (k, (name, _)) in targets.iter().enumerate() {
-        let (a, i) = (stat(&mut alone[k].clone()), stat(&mut with_icp[k].clone()));
+        let (a, i) = (stat(&alone[k]), stat(&with_icp[k]));
         eprintln!(
             "{name}: landmarks alone {:.2} / {:.2} mm (RMS {:.2}, predicted RMS {:.2}); with 100 swept points {:.2} / {:.2} mm",
             a.0,
@@ -162,7 +164,7 @@ fn landmarks_then_the_swept_scalp_recover_the_head_within_the_predicted_error() 
         assert!(i.1 < 2.5, "{name}: {i:?}");
     }
     // The swept points' own error (0.25 mm per axis and up to 1 mm of skin): about 0.45 mm.
-    assert!(stat(&mut surface.clone()).1 < 0.6, "{surface:?}");
+    assert!(stat(&surface).1 < 0.6, "{surface:?}");
 }
 
 #[test]
@@ -183,14 +185,14 @@ fn a_one_sided_or_distant_sweep_is_refused_by_name() {
         Err(NavError::SurfaceUnconstrained { free }) => assert!(!free.is_empty()),
         other => panic!("{other:?}"),
     }
-    // Everything 5 cm off the head.
+    // Everything 5 cm farther out from the head's centre than the scalp.
+    let centre = scalp.centre();
     let far: Vec<Point3<f64>> = sweep(&mut rng, &scalp, &marker_from_image, 40)
         .iter()
-        .map(|p| p + marker_from_image.rotation * Vector3::new(0.0, 0.0, 0.05))
-        .collect();
-    let far: Vec<Point3<f64>> = far
-        .iter()
-        .map(|p| marker_from_image * (truth * p + Vector3::new(0.0, 0.0, 0.05)))
+        .map(|p| {
+            let q = truth * p;
+            marker_from_image * (q + (q - centre).normalize() * 0.05)
+        })
         .collect();
     match refine_on_surface(&scalp, &far, &truth, None, &IcpOptions::default()) {
         Err(NavError::TooFewSurfacePoints { near, far, .. }) => assert!(near < 12 && far > 28),
