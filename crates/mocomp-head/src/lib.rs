@@ -22,6 +22,7 @@ pub mod formats;
 pub mod inspect;
 pub mod mesh;
 pub mod radial;
+pub mod reframed;
 pub mod render;
 pub mod repair;
 pub mod sampled;
@@ -31,6 +32,7 @@ pub use cut::ScanCut;
 pub use ellipsoid::{Ellipsoid, ellipsoid_distance};
 pub use error::HeadError;
 pub use mesh::{Mesh, MeshHead};
+pub use reframed::Reframed;
 pub use repair::{Repairs, repair};
 pub use shape::{Aabb, CoilSolid, HeadShape, RayHit, SurfacePoint};
 

@@ -125,4 +125,88 @@ pub enum NavError {
         /// The motion they do not fix.
         free: String,
     },
+    /// A landmark the scalp is measured from lies far off it.
+    #[error(
+        "landmark {name:?} lies {:.1} mm {} the scalp (at most {:.0} mm): are the landmarks in \
+         the image's frame (RAS) and units (mm)?",
+        .distance_m.abs() * 1e3, if *.distance_m > 0.0 { "outside" } else { "inside" }, .limit_m * 1e3
+    )]
+    LandmarkOffScalp {
+        /// Its name.
+        name: String,
+        /// Its signed distance from the scalp (positive outside), m.
+        distance_m: f64,
+        /// The most allowed, m.
+        limit_m: f64,
+    },
+    /// The landmarks are not where a RAS frame has them.
+    #[error("the landmarks are not in a RAS frame: {why} (swapped, or the image is LPS?)")]
+    LandmarksNotRas {
+        /// What is amiss.
+        why: String,
+    },
+    /// Three points of a scalp curve on one line.
+    #[error("the scalp curve from {from} to {to}: its third point lies on the line between them")]
+    SectionDegenerate {
+        /// Where it starts.
+        from: String,
+        /// Where it ends.
+        to: String,
+    },
+    /// A scalp curve's plane leaves the head.
+    #[error(
+        "the scalp curve from {from} to {to} leaves the head model: is the scan cut off there?"
+    )]
+    SectionMissesScalp {
+        /// Where it starts.
+        from: String,
+        /// Where it ends.
+        to: String,
+    },
+    /// Cz did not settle halfway along both the midline and the central curve.
+    #[error(
+        "Cz did not settle between the nasion–inion and LPA–RPA curves (still moving {:.2} mm): \
+         check the landmarks",
+        .moved_m * 1e3
+    )]
+    CzUnsettled {
+        /// How far it moved in the last round, m.
+        moved_m: f64,
+    },
+    /// A target outside the head.
+    #[error(
+        "the target lies {:.1} mm outside the scalp: a target is a point in the head (is it in \
+         the image's frame, RAS, in mm?)",
+        .distance_m * 1e3
+    )]
+    TargetOutsideHead {
+        /// Its distance outside the scalp, m.
+        distance_m: f64,
+    },
+    /// The handle's direction is along the scalp's normal there, which leaves it undefined.
+    #[error(
+        "the handle's direction is along the scalp's normal at the target: give another (--handle)"
+    )]
+    HandleAlongNormal,
+    /// The scalp rises around the target so the coil cannot come near enough.
+    #[error(
+        "no coil fits over the target: the scalp around it would hold the coil {:.1} mm farther \
+         off than asked (at most {:.0} mm){}",
+        .lift_m * 1e3, .limit_m * 1e3,
+        match .nearest_fit {
+            Some((p, d)) => format!(
+                "; the nearest scalp point where it fits is {:.1} mm away, at ({:.1}, {:.1}, {:.1}) mm",
+                d * 1e3, p.x * 1e3, p.y * 1e3, p.z * 1e3
+            ),
+            None => " and none within 60 mm does".to_string(),
+        }
+    )]
+    NoCoilFits {
+        /// How far it would have to be lifted, m.
+        lift_m: f64,
+        /// The most allowed, m.
+        limit_m: f64,
+        /// The nearest scalp point where it fits and its distance from the target's, m.
+        nearest_fit: Option<(mocomp_geom::nalgebra::Point3<f64>, f64)>,
+    },
 }

@@ -8,16 +8,24 @@
 //!   robust point-to-plane ICP against the head model from the image);
 //! - [`tre`]: the target registration error that fit predicts at any target (Fitzpatrick, West
 //!   and Maurer 1998), from the landmarks' configuration and the localisation error the FRE
-//!   implies.
+//!   implies;
+//! - [`eeg`]: the 10-20 and 10-10 positions on the patient's own scalp, from the nasion, the
+//!   inion and the preauricular points;
+//! - [`placement`]: a target in the image turned into the coil's pose over it.
 
+pub mod eeg;
 pub mod error;
 pub mod icp;
 pub mod landmarks;
 pub mod pivot;
+pub mod placement;
+mod section;
 pub mod tre;
 
+pub use eeg::{CranialLandmarks, EegPosition, System, eeg_positions};
 pub use error::NavError;
 pub use icp::{Anchors, IcpOptions, SurfaceRegistration, refine_on_surface};
 pub use landmarks::{Landmark, LandmarkRegistration, register_landmarks};
 pub use pivot::{PivotCalibration, calibrate_pivot};
+pub use placement::{CoilPlacement, Handle, place_coil};
 pub use tre::{fle_from_fre, predicted_tre};
