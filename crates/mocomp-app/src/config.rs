@@ -567,6 +567,11 @@ pub struct HeadSection {
     /// head_from_image: the mesh file's frame (an MRI's RAS) in the head marker's frame, until
     /// registration measures it.
     pub head_from_image: Pose,
+    /// Landmarks in the image (RAS, **millimetres**), by name: `nasion`, `inion`, `lpa`, `rpa`
+    /// (the 10-20 system is measured from these four; registration pairs any it shares with
+    /// the touched ones), e.g. `nasion = [1.5, 85.1, -34.8]`.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub landmarks: std::collections::BTreeMap<String, [f64; 3]>,
     /// The mesh as read, mended and built ([`Config::load_head`]); not part of the file.
     #[serde(skip)]
     pub loaded: Option<HeadModel>,
@@ -582,6 +587,7 @@ impl Default for HeadSection {
             threshold: None,
             max_triangles: mocomp_mri::DEFAULT_MAX_TRIANGLES,
             head_from_image: pose_const([0.0; 6]),
+            landmarks: std::collections::BTreeMap::new(),
             loaded: None,
         }
     }

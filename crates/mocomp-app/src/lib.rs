@@ -36,6 +36,7 @@ pub mod listen;
 pub mod live;
 pub mod live_log;
 pub mod live_session;
+pub mod navigation;
 pub mod pose_lines;
 pub mod ros2;
 pub mod servo_check;

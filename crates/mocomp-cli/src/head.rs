@@ -1,6 +1,6 @@
 //! `mocomp head inspect FILE`: a head surface read and mended, or a T1 MRI's scalp segmented
 //! ([`mocomp_app::head_file`]), what it held and what was done, the mesh and a picture of it
-//! written out.
+//! written out; `mocomp head eeg`: the 10-20 positions on that scalp.
 
 use clap::{Args, Subcommand};
 use mocomp_geom::LengthUnit;
@@ -17,6 +17,45 @@ pub struct HeadCmd {
 #[derive(Debug, Clone, Subcommand)]
 enum HeadCommand {
     Inspect(InspectCmd),
+    Eeg(EegCmd),
+}
+
+/// The 10-20 (or 10-10) positions on the scalp of `[head] mesh`, measured from the nasion, the
+/// inion and the preauricular points in `[head.landmarks]`: image coordinates (RAS), mm.
+#[derive(Debug, Clone, Args)]
+pub struct EegCmd {
+    /// The configuration whose `[head]` holds the scan and its landmarks.
+    #[arg(long, value_name = "FILE")]
+    config: PathBuf,
+    /// Which positions: 10-20 (21) or 10-10 (61, on and above the circumference).
+    #[arg(long, value_name = "10-20|10-10", default_value = "10-20")]
+    system: mocomp_nav::System,
+    /// Print one JSON object, `{"F3": [x, y, z], …}` in mm.
+    #[arg(long)]
+    json: bool,
+}
+
+impl EegCmd {
+    fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
+        let setup = mocomp_app::config::Setup::load(&self.config)?;
+        let positions = mocomp_app::navigation::eeg_positions(&setup, self.system)?;
+        if self.json {
+            let map: serde_json::Map<String, serde_json::Value> = positions
+                .iter()
+                .map(|p| {
+                    let mm = mocomp_app::navigation::mm_from_point(&p.point);
+                    (p.name.to_string(), serde_json::json!(mm))
+                })
+                .collect();
+            writeln!(out, "{}", serde_json::Value::Object(map))?;
+        } else {
+            for p in &positions {
+                let [x, y, z] = mocomp_app::navigation::mm_from_point(&p.point);
+                writeln!(out, "{:<4} {x:8.1} {y:8.1} {z:8.1}  mm (image RAS)", p.name)?;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Read a head surface (STL, OBJ, PLY, GIfTI, FreeSurfer), or segment the scalp of a T1 MRI
@@ -51,7 +90,10 @@ pub struct InspectCmd {
 impl HeadCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
-        let HeadCommand::Inspect(c) = self.command;
+        let c = match self.command {
+            HeadCommand::Inspect(c) => c,
+            HeadCommand::Eeg(e) => return e.run(out),
+        };
         let segment =
             mocomp_mri::SegmentOptions::new(c.threshold, c.max_triangles).map_err(|e| {
                 crate::UsageError(format!(

@@ -1,4 +1,4 @@
-//! `mocomp targets list|delete|grid --file FILE`: the session's named targets
+//! `mocomp targets list|add|delete|grid --file FILE`: the session's named targets
 //! ([`mocomp_app::targets`]).
 
 use crate::UsageError;
@@ -32,6 +32,13 @@ enum TargetsCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Place a target from the image on the scalp of the configuration's `[head] mesh`: a brain
+    /// point (`--image`, RAS mm), an MNI coordinate (`--mni`, through `--mni-affine`), or a
+    /// 10-10 position (`--eeg F3`, from `[head.landmarks]`). The coil goes over the scalp point
+    /// nearest it, its face `--standoff-mm` off, +z into the head, its handle (+y) posterior
+    /// unless `--handle` says otherwise, in the head marker's frame through `[head]
+    /// head_from_image`; checked as the loop checks its goal.
+    Add(AddCmd),
     /// Delete a target.
     Delete {
         /// Its name.
@@ -57,6 +64,115 @@ enum TargetsCommand {
     },
 }
 
+/// `targets add`.
+#[derive(Debug, Clone, Args)]
+#[command(group = clap::ArgGroup::new("where").required(true).args(["image", "mni", "eeg"]))]
+struct AddCmd {
+    /// Its name.
+    name: String,
+    /// The configuration whose `[head]` holds the scan, its landmarks and head_from_image.
+    #[arg(long, value_name = "FILE")]
+    config: PathBuf,
+    /// A point in the image, RAS, mm.
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::args::three, allow_hyphen_values = true)]
+    image: Option<[f64; 3]>,
+    /// An MNI coordinate, mm.
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::args::three, allow_hyphen_values = true)]
+    mni: Option<[f64; 3]>,
+    /// The affine from MNI to the image (4 rows of 4 numbers, mm; from your normalisation);
+    /// without it the image is taken to be in MNI space.
+    #[arg(long, value_name = "FILE", requires = "mni")]
+    mni_affine: Option<PathBuf>,
+    /// A 10-10 position on the scalp (F3, C3, …).
+    #[arg(long, value_name = "NAME")]
+    eeg: Option<String>,
+    /// The coil face's distance from the scalp, mm (SimNIBS's default).
+    #[arg(long, value_name = "MM", default_value_t = 4.0)]
+    standoff_mm: f64,
+    /// The direction the handle points along, image RAS (projected onto the scalp there).
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::args::three, allow_hyphen_values = true, default_value = "0,-1,0")]
+    handle: [f64; 3],
+    /// Then turned about the coil's axis, degrees (counter-clockwise seen from outside).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
+    handle_turn_deg: f64,
+    /// Free text.
+    #[arg(long, default_value = "")]
+    note: String,
+}
+
+impl AddCmd {
+    fn run(self, file: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()> {
+        use mocomp_app::navigation::{TargetSpec, mm_from_point, place_target, read_affine};
+        let setup = Setup::load(&self.config)?;
+        let spec = match (self.image, self.mni, self.eeg) {
+            (Some(p), _, _) => TargetSpec::Image(p),
+            (_, Some(p), _) => TargetSpec::Mni(
+                p,
+                match &self.mni_affine {
+                    Some(f) => Some((read_affine(f)?, f.display().to_string())),
+                    None => None,
+                },
+            ),
+            (_, _, Some(name)) => TargetSpec::Eeg(name),
+            _ => return Err(UsageError("--image, --mni or --eeg".into()).into()),
+        };
+        if !(self.standoff_mm.is_finite() && self.standoff_mm >= 0.0) {
+            return Err(UsageError(format!(
+                "--standoff-mm {}: must be a distance, 0 or more",
+                self.standoff_mm
+            ))
+            .into());
+        }
+        if !self.handle_turn_deg.is_finite() {
+            return Err(UsageError("--handle-turn-deg: not a finite number".into()).into());
+        }
+        let handle = mocomp_nav::Handle {
+            toward: self.handle.into(),
+            turn_rad: self.handle_turn_deg.to_radians(),
+        };
+        let placed = place_target(
+            &setup,
+            &self.name,
+            &spec,
+            self.standoff_mm * 1e-3,
+            &handle,
+            &self.note,
+        )?;
+        let mut targets = mocomp_app::targets::load(file)?;
+        targets
+            .teach(placed.target.clone())
+            .map_err(|e| UsageError(e.to_string()))?;
+        mocomp_app::targets::save(file, &targets)?;
+        let [sx, sy, sz] = mm_from_point(&placed.placement.scalp_point);
+        writeln!(
+            out,
+            "added {} from {}: the coil over the scalp at ({sx:.1}, {sy:.1}, {sz:.1}) mm (image), \
+             the target {:.1} mm below it, the face {:.1} mm off the scalp{}, the whole coil {:.1} \
+             mm clear of the scalp",
+            self.name,
+            placed.target.source,
+            placed.placement.depth_m * 1e3,
+            self.standoff_mm + placed.placement.lift_m * 1e3,
+            if placed.placement.lift_m > 1e-4 {
+                format!(
+                    " (lifted {:.1} mm to clear the scalp around it)",
+                    placed.placement.lift_m * 1e3
+                )
+            } else {
+                String::new()
+            },
+            placed.clearance_m * 1e3
+        )?;
+        writeln!(out, "{}", placed.target.line())?;
+        Ok(())
+    }
+}
+
 impl TargetsCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
@@ -67,6 +183,7 @@ impl TargetsCmd {
                     writeln!(out, "{}", if json { t.json() } else { t.line() })?;
                 }
             }
+            TargetsCommand::Add(add) => return add.run(&self.file, out),
             TargetsCommand::Delete { name } => {
                 targets
                     .delete(&name)

@@ -30,6 +30,14 @@ pub struct Target {
     /// When it was taught (RFC 3339, UTC), as the caller gave it.
     #[serde(default)]
     pub taught_at: String,
+    /// Where it came from when it was placed on the image rather than taught (`eeg F3 (10-20)`,
+    /// `image (-38.0, 42.0, 30.0) mm`, `mni (…) mm through FILE`).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub source: String,
+    /// The coil in the image's frame (RAS; m, rotation vector), for a target placed on the
+    /// image: kept so it can be placed again under a new registration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_from_coil: Option<[f64; 6]>,
 }
 
 impl Target {
@@ -40,8 +48,21 @@ impl Target {
         let mm = p.translation.vector * 1e3;
         let axis = p.rotation * Vector3::z();
         format!(
-            "{:<20} [{:8.2} {:8.2} {:8.2}] mm  axis [{:6.3} {:6.3} {:6.3}]  {}  {}",
-            self.name, mm.x, mm.y, mm.z, axis.x, axis.y, axis.z, self.taught_at, self.note
+            "{:<20} [{:8.2} {:8.2} {:8.2}] mm  axis [{:6.3} {:6.3} {:6.3}]  {}  {}{}",
+            self.name,
+            mm.x,
+            mm.y,
+            mm.z,
+            axis.x,
+            axis.y,
+            axis.z,
+            self.taught_at,
+            self.note,
+            if self.source.is_empty() {
+                String::new()
+            } else {
+                format!("  (from {})", self.source)
+            }
         )
     }
 
@@ -55,6 +76,8 @@ impl Target {
             head_from_coil: [f64; 6],
             taught_at: &'a str,
             note: &'a str,
+            #[serde(skip_serializing_if = "str::is_empty")]
+            source: &'a str,
         }
         let p = self.pose();
         let mm = p.translation.vector * 1e3;
@@ -66,20 +89,28 @@ impl Target {
             head_from_coil: self.head_from_coil,
             taught_at: &self.taught_at,
             note: &self.note,
+            source: &self.source,
         };
         serde_json::to_string(&line).unwrap_or_default()
     }
 
     /// A target from a pose.
     pub fn new(name: &str, head_from_coil: &Isometry3<f64>, note: &str, taught_at: &str) -> Self {
-        let t = head_from_coil.translation.vector;
-        let r = head_from_coil.rotation.scaled_axis();
         Self {
             name: name.to_string(),
-            head_from_coil: [t.x, t.y, t.z, r.x, r.y, r.z],
+            head_from_coil: six(head_from_coil),
             note: note.to_string(),
             taught_at: taught_at.to_string(),
+            source: String::new(),
+            image_from_coil: None,
         }
+    }
+
+    /// This target, placed on the image at `image_from_coil` from `source`.
+    pub fn placed_on_image(mut self, image_from_coil: &Isometry3<f64>, source: &str) -> Self {
+        self.image_from_coil = Some(six(image_from_coil));
+        self.source = source.to_string();
+        self
     }
 
     /// Its pose.
@@ -90,6 +121,12 @@ impl Target {
             Vector3::new(p[3], p[4], p[5]),
         )
     }
+}
+
+/// A pose as x, y, z and a rotation vector.
+fn six(p: &Isometry3<f64>) -> [f64; 6] {
+    let (t, r) = (p.translation.vector, p.rotation.scaled_axis());
+    [t.x, t.y, t.z, r.x, r.y, r.z]
 }
 
 /// What is wrong with a targets file or a change to it.

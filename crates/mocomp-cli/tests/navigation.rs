@@ -1,0 +1,239 @@
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
+//! Targets from the image on a real head: FreeSurfer's fsaverage scalp (written by MNE's peer,
+//! required) as `[head] mesh`, its fiducials and MNE's inion (Iz) as `[head.landmarks]`, the
+//! image placed in the head marker's frame by a `head_from_image` that is not the identity.
+//! `mocomp head eeg` against MNE's own montage; `mocomp targets add` by EEG position, image point
+//! and MNI coordinate through an affine; bad input refused by name.
+
+mod common;
+use common::{assert_success, mocomp};
+use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
+use mocomp_testkit::TempDir;
+use serde_json::Value;
+
+/// head_from_image of the configuration: the image's RAS turned and moved in the marker's frame.
+const HEAD_FROM_IMAGE: [f64; 6] = [0.01, -0.02, 0.03, 0.1, -0.2, 0.3];
+
+fn setup(dir: &TempDir) -> String {
+    let mesh = dir.path("fsaverage.ply");
+    mocomp_testkit::anatomy::write_fsaverage(&mesh, "ply");
+    let (fid, eeg) = mocomp_testkit::anatomy::fsaverage_points("fsaverage_1005");
+    let mm = |p: &Point3<f64>| format!("[{}, {}, {}]", p.x * 1e3, p.y * 1e3, p.z * 1e3);
+    let config = dir.path("nav.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[head]\nmesh = \"fsaverage.ply\"\nunits = \"mm\"\nhead_from_image = {:?}\n\n\
+             [head.landmarks]\nnasion = {}\nInion = {}\nlpa = {}\nrpa = {}\n",
+            HEAD_FROM_IMAGE,
+            mm(&fid["nasion"]),
+            mm(&eeg["Iz"]),
+            mm(&fid["lpa"]),
+            mm(&fid["rpa"]),
+        ),
+    )
+    .unwrap();
+    config
+}
+
+fn json(out: &std::process::Output) -> Value {
+    assert_success(out);
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn point(v: &Value) -> Point3<f64> {
+    Point3::new(
+        v[0].as_f64().unwrap(),
+        v[1].as_f64().unwrap(),
+        v[2].as_f64().unwrap(),
+    )
+}
+
+fn head_from_image() -> Isometry3<f64> {
+    let p = HEAD_FROM_IMAGE;
+    Isometry3::new(
+        Vector3::new(p[0], p[1], p[2]),
+        Vector3::new(p[3], p[4], p[5]),
+    )
+}
+
+fn targets(file: &str) -> Vec<Value> {
+    let out = mocomp(&["targets", "--file", file, "list", "--json"]);
+    assert_success(&out);
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn eeg_positions_and_targets_from_the_image_land_on_the_scalp_in_the_marker_s_frame() {
+    let dir = TempDir::new("nav-cli");
+    let config = setup(&dir);
+    let all = json(&mocomp(&["head", "eeg", "--config", &config, "--json"]));
+    assert_eq!(all.as_object().unwrap().len(), 21);
+    let (_, mne) = mocomp_testkit::anatomy::fsaverage_points("fsaverage_1020");
+    for name in ["F3", "C3", "Cz"] {
+        let ours = point(&all[name]);
+        let theirs = mne[name] * 1e3;
+        let d = (ours - theirs).norm();
+        eprintln!("{name}: ours {ours}, MNE's {theirs}: {d:.1} mm apart");
+        assert!(d < 8.0, "{name}: {d:.1} mm from MNE's");
+    }
+    let ten_ten = json(&mocomp(&[
+        "head", "eeg", "--config", &config, "--system", "10-10", "--json",
+    ]));
+    assert_eq!(ten_ten.as_object().unwrap().len(), 61);
+    assert_eq!(ten_ten["F3"], all["F3"]);
+
+    // F3 as a target: the coil over it, 4 mm off, its axis into the head, in the marker's frame.
+    let file = dir.path("targets.toml");
+    let out = mocomp(&[
+        "targets", "--file", &file, "add", "dlpfc", "--config", &config, "--eeg", "f3",
+    ]);
+    assert_success(&out);
+    let said = String::from_utf8_lossy(&out.stdout);
+    eprintln!("{said}");
+    assert!(said.contains("eeg F3"), "{said}");
+    // An image point 20 mm below C3, handle turned 45°; an MNI point through an affine that
+    // moves it onto the same place.
+    let c3 = point(&all["C3"]);
+    let deep = c3 + (Point3::origin() - c3).normalize() * 20.0;
+    let deep_arg = format!("{},{},{}", deep.x, deep.y, deep.z);
+    let out = mocomp(&[
+        "targets",
+        "--file",
+        &file,
+        "add",
+        "m1",
+        "--config",
+        &config,
+        "--image",
+        &deep_arg,
+        "--handle-turn-deg",
+        "45",
+    ]);
+    assert_success(&out);
+    let affine = dir.path("image_from_mni.txt");
+    std::fs::write(
+        &affine,
+        "# image_from_mni, mm\n1 0 0 5\n0 1 0 -3\n0 0 1 2\n0 0 0 1\n",
+    )
+    .unwrap();
+    let mni = format!("{},{},{}", deep.x - 5.0, deep.y + 3.0, deep.z - 2.0);
+    let out = mocomp(&[
+        "targets",
+        "--file",
+        &file,
+        "add",
+        "m1-mni",
+        "--config",
+        &config,
+        "--mni",
+        &mni,
+        "--mni-affine",
+        &affine,
+        "--handle-turn-deg",
+        "45",
+    ]);
+    assert_success(&out);
+    let list = targets(&file);
+    assert_eq!(list.len(), 3);
+    let pose = |name: &str| {
+        let t = list.iter().find(|t| t["name"] == name).unwrap();
+        let p: Vec<f64> = (0..6)
+            .map(|i| t["head_from_coil"][i].as_f64().unwrap())
+            .collect();
+        Isometry3::new(
+            Vector3::new(p[0], p[1], p[2]),
+            Vector3::new(p[3], p[4], p[5]),
+        )
+    };
+    let image_from_head = head_from_image().inverse();
+    let f3 = image_from_head * pose("dlpfc");
+    let f3_point = point(&all["F3"]) / 1e3;
+    let axis = f3.rotation * Vector3::z();
+    let centre = Point3::from(f3.translation.vector);
+    // The face's centre 4 mm out from F3 along the outward normal, so F3 is 4 mm ahead on +z.
+    let ahead = centre + axis * 0.004;
+    assert!(
+        (ahead - f3_point).norm() < 0.5e-3,
+        "F3's coil is off: {ahead} against {f3_point}"
+    );
+    assert!(
+        (f3_point - Point3::origin()).dot(&axis) < 0.0,
+        "the axis points out of the head"
+    );
+    let m1 = pose("m1");
+    let m1_mni = pose("m1-mni");
+    assert!((m1.translation.vector - m1_mni.translation.vector).norm() < 1e-6);
+    assert!(m1.rotation.angle_to(&m1_mni.rotation) < 1e-6);
+    let m1_image = image_from_head * m1;
+    assert!(
+        ((m1_image.translation.vector - deep.coords / 1e3).norm() - 0.024).abs() < 0.003,
+        "the coil over a 20 mm deep target stands about 24 mm from it"
+    );
+    assert!(
+        list.iter().find(|t| t["name"] == "m1-mni").unwrap()["source"]
+            .as_str()
+            .unwrap()
+            .contains("image_from_mni.txt")
+    );
+}
+
+#[test]
+fn bad_targets_and_landmarks_are_refused_by_name() {
+    let dir = TempDir::new("nav-cli-bad");
+    let config = setup(&dir);
+    let file = dir.path("targets.toml");
+    let refused = |args: &[&str], says: &str| {
+        let out = mocomp(args);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(
+            !std::path::Path::new(&file).exists(),
+            "{args:?} wrote the file"
+        );
+    };
+    refused(
+        &[
+            "targets", "--file", &file, "add", "t", "--config", &config, "--image", "0,0,200",
+        ],
+        "outside the scalp",
+    );
+    refused(
+        &[
+            "targets", "--file", &file, "add", "t", "--config", &config, "--eeg", "Q7",
+        ],
+        "not a 10-10 position",
+    );
+    refused(
+        &["targets", "--file", &file, "add", "t", "--config", &config],
+        "--image",
+    );
+    // Landmarks in metres where millimetres belong.
+    let text = std::fs::read_to_string(&config).unwrap();
+    let metres = dir.path("metres.toml");
+    let inion_mm = text
+        .lines()
+        .find(|l| l.starts_with("Inion"))
+        .unwrap()
+        .to_string();
+    std::fs::write(
+        &metres,
+        text.replace(&inion_mm, "Inion = [0.003, -0.117, -0.040]"),
+    )
+    .unwrap();
+    refused(&["head", "eeg", "--config", &metres], "inion");
+    refused(&["head", "eeg", "--config", &metres], "units (mm)");
+    let missing = dir.path("missing.toml");
+    std::fs::write(&missing, text.replace(&inion_mm, "")).unwrap();
+    refused(&["head", "eeg", "--config", &missing], "no inion");
+}
