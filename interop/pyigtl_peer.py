@@ -8,6 +8,12 @@ Requests (one JSON line each):
   {"op": "connected"}                                -> {"connected": bool}
   {"op": "send", "kind": "transform"|"string", "device": d, "matrix": [[4x4 mm]] | "string": s,
    "timestamp": seconds, "header_version": 1|2, "metadata": {k: v}, "message_id": n}
+  {"op": "stream", "frames": [{d: [[4x4 mm]], ...}, ...], "rate_hz": r}
+                                                     -> in the background, once a client is
+                                                        connected: each frame's transforms at
+                                                        rate r, one timestamp per frame
+                                                        -> {"ok": true}
+  {"op": "streamed"}                                 -> {"sent": frames sent so far, "done": bool}
   {"op": "wait", "device": d, "timeout": s}          -> {"found": bool, "type", "matrix",
                                                          "string", "timestamp", "header_version",
                                                          "metadata", "message_id"}
@@ -15,13 +21,33 @@ pyigtl's quirks (see peers.md): it does not verify CRCs, drops STATUS and GET_ m
 only the newest message per device name.
 """
 
+import threading
+import time
 from importlib import metadata as md
 
 import numpy as np
 import pyigtl
 from jsonlines import serve
 
-STATE = {"endpoint": None}
+STATE = {"endpoint": None, "sent": 0, "done": False}
+
+
+def stream(ep, frames, rate_hz):
+    deadline = time.monotonic() + 20
+    while not ep.is_connected() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    period = 1.0 / rate_hz
+    start = time.monotonic()
+    for i, frame in enumerate(frames):
+        stamp = time.time()
+        for device, matrix in frame.items():
+            m = pyigtl.TransformMessage(np.array(matrix), timestamp=stamp, device_name=device)
+            ep.send_message(m, wait=True)
+        STATE["sent"] = i + 1
+        pause = start + (i + 1) * period - time.monotonic()
+        if pause > 0:
+            time.sleep(pause)
+    STATE["done"] = True
 
 
 def describe(m):
@@ -63,6 +89,12 @@ def handle(req):
         m.message_id = int(req.get("message_id", 0))
         ep.send_message(m, wait=True)
         return {"ok": True}
+    if op == "stream":
+        STATE["sent"], STATE["done"] = 0, False
+        threading.Thread(target=stream, args=(ep, req["frames"], float(req["rate_hz"])), daemon=True).start()
+        return {"ok": True}
+    if op == "streamed":
+        return {"sent": STATE["sent"], "done": STATE["done"]}
     if op == "wait":
         m = ep.wait_for_message(req["device"], timeout=float(req.get("timeout", 5)))
         return {"found": False} if m is None else describe(m)

@@ -37,6 +37,7 @@ pub mod live;
 pub mod live_log;
 pub mod live_session;
 pub mod navigation;
+pub mod pointer;
 pub mod pose_lines;
 pub mod ros2;
 pub mod servo_check;

@@ -6,6 +6,7 @@ use crate::AppError;
 use mocomp_geom::nalgebra::Matrix4;
 use mocomp_igtl::client::{Client, ClientConfig, ClientCounters, MonotonicClock, status_valid};
 use mocomp_igtl::message::{Body, matrix_mm, pose_of};
+use std::ops::ControlFlow;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -84,11 +85,12 @@ pub fn counts_line(poses: u64, c: &ClientCounters) -> String {
     )
 }
 
-/// Listens until `count` poses of the device arrived (or forever), telling `each` of every one;
-/// returns the client's counters. An [`AppError::Refused`] when none arrives for `timeout`.
+/// Listens until `count` poses of the device arrived (or forever, or until `each` says break),
+/// telling `each` of every one; returns the client's counters. An [`AppError::Refused`] when none
+/// arrives for `timeout`.
 pub fn listen(
     o: &ListenOptions,
-    each: &mut dyn FnMut(&Heard) -> Result<(), AppError>,
+    each: &mut dyn FnMut(&Heard) -> Result<ControlFlow<()>, AppError>,
 ) -> Result<ClientCounters, AppError> {
     let mut cfg = ClientConfig::new(&o.addr);
     cfg.device = Some(o.device.clone());
@@ -125,11 +127,14 @@ pub fn listen(
         let Some(f) = floats else { continue };
         last = Instant::now();
         poses += 1;
-        each(&Heard {
+        let flow = each(&Heard {
             t: (!m.timestamp.is_none()).then(|| m.timestamp.to_secs_f64()),
             valid: status_valid(m) && pose_of(&f).is_ok(),
             matrix_mm: matrix_mm(&f),
         })?;
+        if flow.is_break() {
+            break;
+        }
     }
     Ok(client.counters())
 }

@@ -51,6 +51,7 @@ impl ListenCmd {
             };
             writeln!(out, "{line}")
                 .and_then(|()| out.flush())
+                .map(|()| std::ops::ControlFlow::Continue(()))
                 .map_err(|e| AppError::failed("writing the poses", e))
         })?;
         eprintln!("{}", counts_line(poses, &c));

@@ -14,6 +14,7 @@ mod head;
 mod ik;
 mod listen;
 mod models;
+mod pointer;
 mod print;
 mod robot;
 mod run;
@@ -52,6 +53,7 @@ enum Command {
     Robot(robot::RobotCmd),
     Calibrate(calibrate::CalibrateCmd),
     Head(head::HeadCmd),
+    Pointer(pointer::PointerCmd),
 }
 
 /// Exit code for bad input (arguments, files).
@@ -79,6 +81,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Robot(c) => c.run(out)?,
         Command::Calibrate(c) => c.run(out)?,
         Command::Head(c) => c.run(out)?,
+        Command::Pointer(c) => c.run(out)?,
     }
     out.flush()?;
     Ok(())

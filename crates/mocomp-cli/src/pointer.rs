@@ -1,0 +1,91 @@
+//! `mocomp pointer calibrate`: a tracked pointer's tip from pivoting it on a divot, its poses
+//! streamed over OpenIGTLink ([`mocomp_app::pointer`]), written to a file.
+
+use clap::{Args, Subcommand};
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// A tracked pointer (stylus).
+#[derive(Debug, Clone, Args)]
+pub struct PointerCmd {
+    #[command(subcommand)]
+    command: PointerCommand,
+}
+
+#[derive(Debug, Clone, Subcommand)]
+enum PointerCommand {
+    Calibrate(CalibrateCmd),
+}
+
+/// Pivot the pointer's tip in a divot, turning it at least 15° every way, while this collects its
+/// poses; writes the tip in the marker's frame and how well the samples agree.
+#[derive(Debug, Clone, Args)]
+pub struct CalibrateCmd {
+    /// The OpenIGTLink server (PLUS, Slicer, the tracker).
+    #[arg(long, value_name = "HOST:PORT")]
+    igtl: String,
+    /// The pointer's TRANSFORM device or TDATA tool.
+    #[arg(long, default_value = "StylusToTracker")]
+    device: String,
+    /// How many valid poses to collect.
+    #[arg(long, default_value_t = 200)]
+    samples: usize,
+    /// Give up when no pose arrives for this many seconds.
+    #[arg(long, default_value_t = 10.0)]
+    timeout: f64,
+    /// Where to write the calibration.
+    #[arg(long, value_name = "FILE", default_value = "pointer.toml")]
+    out: PathBuf,
+    /// Print the calibration as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+impl PointerCmd {
+    /// Runs it.
+    pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
+        let PointerCommand::Calibrate(c) = self.command;
+        crate::args::positive("--timeout", c.timeout)?;
+        if c.samples < mocomp_nav::pivot::MIN_SAMPLES {
+            return Err(crate::UsageError(format!(
+                "--samples {}: a pivot calibration needs at least {}",
+                c.samples,
+                mocomp_nav::pivot::MIN_SAMPLES
+            ))
+            .into());
+        }
+        eprintln!(
+            "pivot the tip of {} in a divot, turning it every way, until {} poses are in",
+            c.device, c.samples
+        );
+        let (poses, invalid) = mocomp_app::pointer::collect(
+            &c.igtl,
+            &c.device,
+            c.samples,
+            Duration::from_secs_f64(c.timeout),
+        )?;
+        let p = mocomp_app::pointer::calibrate(&c.device, &poses, invalid)?;
+        mocomp_app::pointer::save(&c.out, &p)?;
+        if c.json {
+            writeln!(out, "{}", serde_json::to_string(&p)?)?;
+        } else {
+            let [x, y, z] = p.tip_in_marker_mm;
+            writeln!(
+                out,
+                "{}: tip at ({x:.2}, {y:.2}, {z:.2}) mm in the marker's frame; the tips agree to \
+                 {:.2} mm RMS, {:.2} mm at most ({} of {} poses kept, {} invalid left out, turned \
+                 {:.0}°); written to {}",
+                p.device,
+                p.rms_mm,
+                p.max_mm,
+                p.kept,
+                p.kept + p.rejected,
+                p.invalid,
+                p.spread_deg,
+                c.out.display()
+            )?;
+        }
+        Ok(())
+    }
+}
