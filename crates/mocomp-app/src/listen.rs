@@ -92,24 +92,50 @@ pub fn listen(
     o: &ListenOptions,
     each: &mut dyn FnMut(&Heard) -> Result<ControlFlow<()>, AppError>,
 ) -> Result<ClientCounters, AppError> {
+    let mut poses = 0u64;
+    if o.count == Some(0) {
+        return Ok(ClientCounters::default());
+    }
+    listen_devices(o, &[o.device.as_str()], &mut |_, h| {
+        poses += 1;
+        let flow = each(h)?;
+        Ok(if o.count.is_some_and(|n| poses >= n) {
+            ControlFlow::Break(())
+        } else {
+            flow
+        })
+    })
+}
+
+/// Listens to each of `devices` (TRANSFORM devices or TDATA tools), telling `each` of every pose
+/// with the index of its device, until `each` says break; `o.device` and `o.count` are not used.
+/// An [`AppError::Refused`] when no pose of any arrives for `o.timeout`.
+pub fn listen_devices(
+    o: &ListenOptions,
+    devices: &[&str],
+    each: &mut dyn FnMut(usize, &Heard) -> Result<ControlFlow<()>, AppError>,
+) -> Result<ClientCounters, AppError> {
     let mut cfg = ClientConfig::new(&o.addr);
-    cfg.device = Some(o.device.clone());
+    cfg.device = devices.first().map(|d| d.to_string());
     cfg.keep_messages = 4096;
     cfg.start_tdata = o.stt_tdata.then_some(0);
     let client = Client::start(cfg, Arc::new(MonotonicClock::new()));
     let Some(rx) = client.take_messages() else {
         refuse!("the OpenIGTLink client has no message channel");
     };
-    let mut poses = 0u64;
     let mut last = Instant::now();
-    while o.count.is_none_or(|n| poses < n) {
+    loop {
         let Ok(r) = rx.recv_timeout(Duration::from_millis(100)) else {
             if last.elapsed() > o.timeout {
                 let c = client.counters();
                 refuse!(
-                    "--igtl {}: no pose of {:?} for {:.1} s ({} messages, {} connections, last error: {})",
+                    "--igtl {}: no pose of {} for {:.1} s ({} messages, {} connections, last error: {})",
                     o.addr,
-                    o.device,
+                    devices
+                        .iter()
+                        .map(|d| format!("{d:?}"))
+                        .collect::<Vec<_>>()
+                        .join(" or "),
                     o.timeout.as_secs_f64(),
                     c.messages,
                     c.connections,
@@ -119,22 +145,25 @@ pub fn listen(
             continue;
         };
         let m = &r.message;
-        let floats = match &m.body {
-            Body::Transform(f) if m.device == *o.device => Some(*f),
-            Body::TData(tools) => tools.iter().find(|t| t.name == *o.device).map(|t| t.matrix),
-            _ => None,
-        };
-        let Some(f) = floats else { continue };
-        last = Instant::now();
-        poses += 1;
-        let flow = each(&Heard {
-            t: (!m.timestamp.is_none()).then(|| m.timestamp.to_secs_f64()),
-            valid: status_valid(m) && pose_of(&f).is_ok(),
-            matrix_mm: matrix_mm(&f),
-        })?;
-        if flow.is_break() {
-            break;
+        for (index, device) in devices.iter().enumerate() {
+            let floats = match &m.body {
+                Body::Transform(f) if m.device == *device => Some(*f),
+                Body::TData(tools) => tools.iter().find(|t| t.name == *device).map(|t| t.matrix),
+                _ => None,
+            };
+            let Some(f) = floats else { continue };
+            last = Instant::now();
+            let flow = each(
+                index,
+                &Heard {
+                    t: (!m.timestamp.is_none()).then(|| m.timestamp.to_secs_f64()),
+                    valid: status_valid(m) && pose_of(&f).is_ok(),
+                    matrix_mm: matrix_mm(&f),
+                },
+            )?;
+            if flow.is_break() {
+                return Ok(client.counters());
+            }
         }
     }
-    Ok(client.counters())
 }
