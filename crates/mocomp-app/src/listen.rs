@@ -85,12 +85,15 @@ pub fn counts_line(poses: u64, c: &ClientCounters) -> String {
     )
 }
 
+/// What a listener's callback answers: go on, stop, or fail.
+pub type Flow = Result<ControlFlow<()>, AppError>;
+
 /// Listens until `count` poses of the device arrived (or forever, or until `each` says break),
 /// telling `each` of every one; returns the client's counters. An [`AppError::Refused`] when none
 /// arrives for `timeout`.
 pub fn listen(
     o: &ListenOptions,
-    each: &mut dyn FnMut(&Heard) -> Result<ControlFlow<()>, AppError>,
+    each: &mut dyn FnMut(&Heard) -> Flow,
 ) -> Result<ClientCounters, AppError> {
     let mut poses = 0u64;
     if o.count == Some(0) {
@@ -113,7 +116,7 @@ pub fn listen(
 pub fn listen_devices(
     o: &ListenOptions,
     devices: &[&str],
-    each: &mut dyn FnMut(usize, &Heard) -> Result<ControlFlow<()>, AppError>,
+    each: &mut dyn FnMut(usize, &Heard) -> Flow,
 ) -> Result<ClientCounters, AppError> {
     let mut cfg = ClientConfig::new(&o.addr);
     cfg.device = devices.first().map(|d| d.to_string());
