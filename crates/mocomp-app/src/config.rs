@@ -572,6 +572,17 @@ pub struct HeadSection {
     /// the touched ones), e.g. `nasion = [1.5, 85.1, -34.8]`.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub landmarks: std::collections::BTreeMap<String, [f64; 3]>,
+    /// The registration `mocomp register` wrote (relative to the configuration's directory):
+    /// its head_from_image replaces the one above.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub registration: Option<PathBuf>,
+    /// The largest estimated target registration error at the goal compensation starts with,
+    /// mm; above it `mocomp run` refuses unless the operator overrides it (logged in the
+    /// registration file).
+    pub max_tre_mm: f64,
+    /// The registration as read, and the file's absolute path; not part of the file.
+    #[serde(skip)]
+    pub registered: Option<(PathBuf, crate::registration_file::Record)>,
     /// The mesh as read, mended and built ([`Config::load_head`]); not part of the file.
     #[serde(skip)]
     pub loaded: Option<HeadModel>,
@@ -588,6 +599,9 @@ impl Default for HeadSection {
             max_triangles: mocomp_mri::DEFAULT_MAX_TRIANGLES,
             head_from_image: pose_const([0.0; 6]),
             landmarks: std::collections::BTreeMap::new(),
+            registration: None,
+            max_tre_mm: 3.0,
+            registered: None,
             loaded: None,
         }
     }
@@ -925,6 +939,7 @@ impl Config {
             .validate()
             .map_err(|e| cfg(&e, "tracker.simulated.model."))?;
         Check::non_negative("duration_s", self.duration_s)?;
+        Check::range("head.max_tre_mm", self.head.max_tre_mm, 0.0, 50.0, false)?;
         Check::range("ros2.publish_hz", self.ros2.publish_hz, 0.0, 1000.0, false)?;
         if !self.ros2.head_topic.starts_with('/') {
             return Err(AppError::Config(format!(
@@ -1106,6 +1121,27 @@ impl Config {
             Vector3::from(self.head.radii_m),
         )
         .map_err(|e| AppError::Config(format!("head.radii_m: {e}")))
+    }
+
+    /// Reads `[head] registration` (relative to `dir`) once: its head_from_image becomes
+    /// `[head]`'s, before the mesh is carried into the marker's frame by it.
+    pub fn load_registration(&mut self, dir: &Path) -> Result<(), AppError> {
+        let Some(file) = &self.head.registration else {
+            return Ok(());
+        };
+        if self.head.registered.is_some() {
+            return Ok(());
+        }
+        let path = dir.join(file);
+        let read = crate::registration_file::load(&path)
+            .map_err(|e| AppError::Config(format!("head.registration: {e}")))?;
+        let record = read.registration;
+        self.head.head_from_image = Pose::try_from(record.head_from_image)
+            .map_err(|e| AppError::Config(format!("head.registration: head_from_image: {e}")))?;
+        let path = std::fs::canonicalize(&path).unwrap_or(path);
+        self.head.registration = Some(path.clone());
+        self.head.registered = Some((path, record));
+        Ok(())
     }
 
     /// Reads, mends and builds `[head] mesh` (relative to `dir`) once, in the head marker's
@@ -1320,6 +1356,7 @@ impl Setup {
     /// A setup of a configuration already read (its relative paths relative to `dir`).
     pub fn new(mut file: Config, path: Option<PathBuf>, dir: PathBuf) -> Result<Self, AppError> {
         file.check()?;
+        file.load_registration(&dir)?;
         file.load_head(&dir)?;
         let model = file.robot.model;
         let base_from_tracker = file.base_from_tracker(&dir)?;

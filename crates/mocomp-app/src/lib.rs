@@ -39,6 +39,8 @@ pub mod live_session;
 pub mod navigation;
 pub mod pointer;
 pub mod pose_lines;
+pub mod register;
+pub mod registration_file;
 pub mod ros2;
 pub mod servo_check;
 pub mod session_link;

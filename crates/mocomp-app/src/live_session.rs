@@ -50,7 +50,7 @@ impl SessionSetup {
         let targets: Vec<_> = targets
             .targets
             .iter()
-            .map(|t| (t.name.clone(), t.pose()))
+            .map(|t| (t.name.clone(), crate::targets::head_from_coil(setup, t)))
             .collect();
         let start = match &s.target {
             Some(name) => Some(targets.iter().position(|t| &t.0 == name).ok_or_else(|| {

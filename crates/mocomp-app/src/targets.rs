@@ -81,3 +81,22 @@ pub fn write_taught(
         .map_err(input)?;
     save(file, &targets)
 }
+
+/// Where the loop puts the coil for `target`: a target placed on the image is placed again
+/// through the current `[head] head_from_image` (a new registration moves it with the image); a
+/// taught one stays where it was taught on the marker.
+pub fn head_from_coil(
+    setup: &Setup,
+    target: &mocomp_session::Target,
+) -> mocomp_geom::nalgebra::Isometry3<f64> {
+    match target.image_from_coil {
+        Some(p) => {
+            let image_from_coil = mocomp_geom::nalgebra::Isometry3::new(
+                mocomp_geom::nalgebra::Vector3::new(p[0], p[1], p[2]),
+                mocomp_geom::nalgebra::Vector3::new(p[3], p[4], p[5]),
+            );
+            setup.file.head.head_from_image.iso() * image_from_coil
+        }
+        None => target.pose(),
+    }
+}

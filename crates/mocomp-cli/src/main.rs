@@ -16,6 +16,7 @@ mod listen;
 mod models;
 mod pointer;
 mod print;
+mod register;
 mod robot;
 mod run;
 mod serve_poses;
@@ -54,6 +55,7 @@ enum Command {
     Calibrate(calibrate::CalibrateCmd),
     Head(head::HeadCmd),
     Pointer(pointer::PointerCmd),
+    Register(register::RegisterCmd),
 }
 
 /// Exit code for bad input (arguments, files).
@@ -82,6 +84,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Calibrate(c) => c.run(out)?,
         Command::Head(c) => c.run(out)?,
         Command::Pointer(c) => c.run(out)?,
+        Command::Register(c) => c.run(out)?,
     }
     out.flush()?;
     Ok(())

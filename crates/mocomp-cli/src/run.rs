@@ -42,6 +42,10 @@ pub struct RunCmd {
     /// every cycle record, CDR with the ROS 2 profile (Foxglove, `ros2 bag`).
     #[arg(long, value_name = "FILE.mcap")]
     pub record: Option<String>,
+    /// Start although the registration's estimated target error at the start goal is above
+    /// `[head] max_tre_mm`, for this reason (appended to the registration file).
+    #[arg(long, value_name = "WHY")]
+    pub accept_registration: Option<String>,
     /// The operator's console.
     #[command(flatten)]
     pub dashboard: DashboardArgs,
@@ -65,6 +69,12 @@ impl RunCmd {
         })?;
         if let Some(warning) = setup.file.head_note() {
             eprintln!("warning: {warning}");
+        }
+        if let Some(note) = mocomp_app::navigation::registration_gate(
+            &setup,
+            self.accept_registration.as_deref(),
+        )? {
+            eprintln!("note: {note}");
         }
         if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated
             && let Some(note) = setup.file.predictor_note()
