@@ -21,9 +21,14 @@ use std::time::Duration;
 /// stamps both of one frame alike).
 const PAIR_WITHIN_S: f64 = 0.02;
 
-/// How far a touched landmark may lie from where registration found it before the marker is
-/// taken to have moved on the head, m: twice a good touch's error.
-pub const MOVED_BEYOND_M: f64 = 2e-3;
+/// The least distance between a landmark's touch now and at registration that counts as the
+/// marker having moved on the head, m.
+pub const MOVED_BEYOND_M: f64 = 3e-3;
+
+/// Two touches of one landmark, each off by the localisation error (FLE, RMS in 3-D), lie
+/// within this many FLEs of each other 95 % of the time: their difference has √2 the error,
+/// and a 3-D distance's 95th percentile is √(7.81/3) of its RMS.
+const RETOUCH_95: f64 = 2.28;
 
 /// Where the streams are.
 #[derive(Debug, Clone)]
@@ -212,7 +217,10 @@ pub struct Checked {
     /// How far the touch lies from where it was touched at registration (head marker frame),
     /// m.
     pub moved_m: f64,
-    /// Whether that is beyond [`MOVED_BEYOND_M`].
+    /// Beyond this it has moved: [`MOVED_BEYOND_M`], or more where the registration's own
+    /// touches were less certain, m.
+    pub limit_m: f64,
+    /// Whether it moved.
     pub moved: bool,
 }
 
@@ -260,9 +268,11 @@ pub fn check_live(
     })?;
     let now = now.ok_or_else(|| AppError::Refused(format!("{name}: no touch")))?;
     let moved_m = (now - was).norm();
+    let limit_m = MOVED_BEYOND_M.max(RETOUCH_95 * record.fle_mm / 1000.0);
     Ok(Checked {
         name: name.to_string(),
         moved_m,
-        moved: moved_m > MOVED_BEYOND_M,
+        limit_m,
+        moved: moved_m > limit_m,
     })
 }

@@ -174,7 +174,7 @@ fn check(c: CheckArgs, out: &mut dyn Write) -> anyhow::Result<()> {
         writeln!(
             out,
             "{}",
-            serde_json::json!({"landmark": r.name, "moved_mm": r.moved_m * 1e3, "moved": r.moved})
+            serde_json::json!({"landmark": r.name, "moved_mm": r.moved_m * 1e3, "limit_mm": r.limit_m * 1e3, "moved": r.moved})
         )?;
     } else {
         writeln!(
@@ -187,10 +187,10 @@ fn check(c: CheckArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     }
     if r.moved {
         return Err(mocomp_app::AppError::Refused(format!(
-            "the head marker moved on the head ({:.1} mm at the {}, more than {:.0} mm): register again",
+            "the head marker moved on the head ({:.1} mm at the {}, more than a touch's {:.1} mm): register again",
             r.moved_m * 1e3,
             r.name,
-            mocomp_app::register::MOVED_BEYOND_M * 1e3
+            r.limit_m * 1e3
         ))
         .into());
     }

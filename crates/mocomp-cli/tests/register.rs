@@ -1,0 +1,255 @@
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
+//! `mocomp register` and `register check` against pyigtl 0.3.4 (required) as the tracker's
+//! server, streaming a scripted session on FreeSurfer's fsaverage head (MNE's, required): the
+//! head marker nodding, the pointer touching the nasion and both preauricular points in turn
+//! (each held, then taken away), then swept over the scalp. Noise model (seeded): each touch is
+//! aimed 1 mm RMS per axis off the landmark, the tracker adds 0.2 mm per axis to every tip, and a
+//! swept tip presses up to 1 mm into the skin. The image is placed in the marker's frame by a
+//! transform the configuration does not know; registration must find it.
+
+mod common;
+use common::assert_success;
+use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use mocomp_head::{HeadShape, Mesh, MeshHead, repair};
+use mocomp_testkit::{PythonPeer, SplitMix64, TempDir};
+use serde_json::{Value, json};
+
+const TIP_MM: [f64; 3] = [2.5, -4.0, 161.0];
+
+/// The truth: the image's frame in the head marker's.
+fn marker_from_image() -> Isometry3<f64> {
+    Isometry3::new(
+        Vector3::new(0.02, -0.05, 0.08),
+        Vector3::new(0.2, -0.3, 0.5),
+    )
+}
+
+/// The head marker in the tracker's view at frame k: nodding 3° at 0.5 Hz, 200 frames a second.
+fn tracker_from_head(k: usize) -> Isometry3<f64> {
+    let nod = 3f64.to_radians() * (std::f64::consts::TAU * 0.5 * k as f64 / 200.0).sin();
+    Isometry3::from_parts(
+        Translation3::new(0.1, 0.05, 1.0),
+        UnitQuaternion::from_euler_angles(nod, 0.4, -0.2),
+    )
+}
+
+fn rows(m: &Isometry3<f64>) -> [[f64; 4]; 4] {
+    let mut h = m.to_homogeneous();
+    for r in 0..3 {
+        h[(r, 3)] *= 1000.0;
+    }
+    std::array::from_fn(|i| std::array::from_fn(|j| h[(i, j)]))
+}
+
+/// One frame: the head marker and the pointer whose tip is at `tip_in_head`.
+fn frame(rng: &mut SplitMix64, k: usize, tip_in_head: &Point3<f64>) -> Value {
+    let head = tracker_from_head(k);
+    let tip_tracker =
+        head * tip_in_head + Vector3::new(rng.gauss(), rng.gauss(), rng.gauss()) * 0.2e-3;
+    let r = UnitQuaternion::from_euler_angles(0.3, -0.2, 0.1 + 0.001 * k as f64);
+    let t = tip_tracker.coords - r * (Vector3::from(TIP_MM) / 1000.0);
+    let pointer = Isometry3::from_parts(Translation3::from(t), r);
+    json!({"HeadToTracker": rows(&head), "StylusToTracker": rows(&pointer)})
+}
+
+fn fsaverage() -> MeshHead {
+    let (v, t) = mocomp_testkit::anatomy::fsaverage_head();
+    let raw = Mesh {
+        vertices: v.iter().map(|p| Point3::from(*p)).collect(),
+        triangles: t,
+    };
+    MeshHead::new(repair(raw, "fsaverage").unwrap().0, "fsaverage").unwrap()
+}
+
+/// The landmarks touched in turn (image frame), then `sweep` scalp points: the frames.
+fn session(rng: &mut SplitMix64, touch: &[Point3<f64>], sweep: usize) -> Vec<Value> {
+    let to_head = marker_from_image();
+    let mut frames = Vec::new();
+    let out = Vector3::new(0.0, 0.0, 0.04);
+    for p in touch {
+        let aimed = p + Vector3::new(rng.gauss(), rng.gauss(), rng.gauss()) * 1e-3;
+        for s in 0..20 {
+            let q = aimed + out * (1.0 - s as f64 / 20.0);
+            frames.push(frame(rng, frames.len(), &(to_head * q)));
+        }
+        for _ in 0..40 {
+            frames.push(frame(rng, frames.len(), &(to_head * aimed)));
+        }
+        for s in 0..20 {
+            let q = aimed + out * (s as f64 / 20.0);
+            frames.push(frame(rng, frames.len(), &(to_head * q)));
+        }
+    }
+    if sweep > 0 {
+        let scalp = fsaverage();
+        let up: Vec<Point3<f64>> = scalp
+            .vertices()
+            .iter()
+            .filter(|p| p.z > -0.03)
+            .copied()
+            .collect();
+        for _ in 0..sweep {
+            let p = up[(rng.next_u64() % up.len() as u64) as usize];
+            let s = scalp.nearest(&p);
+            let pressed = s.point - s.normal.into_inner() * (1e-3 * rng.next_f64());
+            frames.push(frame(rng, frames.len(), &(to_head * pressed)));
+        }
+    }
+    frames
+}
+
+fn stream(frames: Vec<Value>) -> (PythonPeer, String) {
+    let mut py = PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
+    let port = py.request(&json!({"op": "server", "port": 0}))["port"]
+        .as_u64()
+        .unwrap();
+    py.request(&json!({"op": "stream", "frames": frames, "rate_hz": 200}));
+    (py, format!("127.0.0.1:{port}"))
+}
+
+fn write_setup(
+    dir: &TempDir,
+) -> (
+    String,
+    String,
+    std::collections::BTreeMap<String, Point3<f64>>,
+) {
+    let mesh = dir.path("fsaverage.ply");
+    mocomp_testkit::anatomy::write_fsaverage(&mesh, "ply");
+    let (fid, eeg) = mocomp_testkit::anatomy::fsaverage_points("fsaverage_1005");
+    let mm = |p: &Point3<f64>| format!("[{}, {}, {}]", p.x * 1e3, p.y * 1e3, p.z * 1e3);
+    let config = dir.path("nav.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[head]\nmesh = \"fsaverage.ply\"\nunits = \"mm\"\n\n[head.landmarks]\nnasion = {}\n\
+             inion = {}\nlpa = {}\nrpa = {}\n",
+            mm(&fid["nasion"]),
+            mm(&eeg["Iz"]),
+            mm(&fid["lpa"]),
+            mm(&fid["rpa"]),
+        ),
+    )
+    .unwrap();
+    let pointer = dir.path("pointer.toml");
+    std::fs::write(
+        &pointer,
+        format!(
+            "[pointer]\ndevice = \"StylusToTracker\"\ntip_in_marker_mm = {TIP_MM:?}\n\
+             pivot_in_tracker_mm = [0.0, 0.0, 0.0]\nrms_mm = 0.4\nmax_mm = 0.9\nkept = 200\n\
+             rejected = 0\ninvalid = 0\nspread_deg = 40.0\ncalibrated_at = \"now\"\n"
+        ),
+    )
+    .unwrap();
+    let mut points = fid.clone();
+    points.insert("F3".into(), eeg["F3"]);
+    (config, pointer, points)
+}
+
+fn mocomp(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught() {
+    let dir = TempDir::new("register-cli");
+    let (config, pointer, points) = write_setup(&dir);
+    let mut rng = SplitMix64(3210);
+    let touch = [points["nasion"], points["lpa"], points["rpa"]];
+    let (_py, addr) = stream(session(&mut rng, &touch, 150));
+    let reg = dir.path("registration.toml");
+    let out = mocomp(&[
+        "register",
+        "--config",
+        &config,
+        "--pointer",
+        &pointer,
+        "--igtl",
+        &addr,
+        "--out",
+        &reg,
+        "--json",
+    ]);
+    assert_success(&out);
+    eprintln!("{}", String::from_utf8_lossy(&out.stderr));
+    let got: Value = serde_json::from_slice(&out.stdout).unwrap();
+    eprintln!("{got}");
+    let p: Vec<f64> = (0..6)
+        .map(|i| got["head_from_image"][i].as_f64().unwrap())
+        .collect();
+    let found = Isometry3::new(
+        Vector3::new(p[0], p[1], p[2]),
+        Vector3::new(p[3], p[4], p[5]),
+    );
+    let truth = marker_from_image();
+    for (name, at) in [
+        ("F3", points["F3"]),
+        ("deep", Point3::new(-0.03, -0.02, 0.03)),
+    ] {
+        let e = (found * at - truth * at).norm();
+        eprintln!("registration error at {name}: {:.2} mm", e * 1e3);
+        assert!(e < 2.5e-3, "{name}: {:.2} mm", e * 1e3);
+    }
+    let fre = got["fre_mm"].as_f64().unwrap();
+    assert!(fre > 0.1 && fre < 3.0, "FRE {fre}");
+    let rms = got["surface_rms_mm"].as_f64().unwrap();
+    assert!(rms > 0.1 && rms < 0.8, "surface RMS {rms}");
+    assert!(got["surface_points"].as_u64().unwrap() >= 80);
+    // The estimate at the configuration's goal (the crown): about the errors measured above.
+    let tre = got["tre_mm"]["[goal]"].as_f64().unwrap();
+    assert!((0.5..4.0).contains(&tre), "estimated TRE {tre}");
+
+    // The registration in use: touching the nasion again finds it where it was.
+    let text = std::fs::read_to_string(&config).unwrap();
+    let registered = dir.path("registered.toml");
+    std::fs::write(
+        &registered,
+        text.replace("[head]\n", "[head]\nregistration = \"registration.toml\"\n"),
+    )
+    .unwrap();
+    let (_py, addr) = stream(session(&mut rng, &[points["nasion"]], 0));
+    let out = mocomp(&[
+        "register",
+        "check",
+        "--config",
+        &registered,
+        "--pointer",
+        &pointer,
+        "--igtl",
+        &addr,
+        "--json",
+    ]);
+    assert_success(&out);
+    let held: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(held["moved"], false, "{held}");
+    assert!(held["moved_mm"].as_f64().unwrap() < held["limit_mm"].as_f64().unwrap());
+
+    // The marker slipped 6 mm on the head: the nasion is touched 6 mm from where it was.
+    let slipped = [points["nasion"] + Vector3::new(0.0, 0.0, 0.006)];
+    let (_py, addr) = stream(session(&mut rng, &slipped, 0));
+    let out = mocomp(&[
+        "register",
+        "check",
+        "--config",
+        &registered,
+        "--pointer",
+        &pointer,
+        "--igtl",
+        &addr,
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("moved on the head"), "{err}");
+    let moved: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mm = moved["moved_mm"].as_f64().unwrap();
+    assert!((4.0..8.0).contains(&mm), "{moved}");
+}
