@@ -1145,8 +1145,10 @@ impl Config {
     }
 
     /// Reads, mends and builds `[head] mesh` (relative to `dir`) once, in the head marker's
-    /// frame; the path becomes the one read. Nothing to do without a mesh or once loaded.
+    /// frame (through `[head] registration`'s head_from_image when there is one, read first);
+    /// the path becomes the one read. Nothing to do without a mesh or once loaded.
     pub fn load_head(&mut self, dir: &Path) -> Result<(), AppError> {
+        self.load_registration(dir)?;
         let Some(mesh) = &self.head.mesh else {
             return Ok(());
         };
@@ -1356,7 +1358,6 @@ impl Setup {
     /// A setup of a configuration already read (its relative paths relative to `dir`).
     pub fn new(mut file: Config, path: Option<PathBuf>, dir: PathBuf) -> Result<Self, AppError> {
         file.check()?;
-        file.load_registration(&dir)?;
         file.load_head(&dir)?;
         let model = file.robot.model;
         let base_from_tracker = file.base_from_tracker(&dir)?;

@@ -4,7 +4,8 @@
 
 use crate::config::Setup;
 use crate::{AppError, Context};
-use mocomp_session::{GridParams, Targets, TargetsError};
+use mocomp_geom::nalgebra::{Isometry3, Vector3};
+use mocomp_session::{GridParams, Target, Targets, TargetsError};
 use std::path::Path;
 
 /// Reads the targets file at `path`; a file that does not exist yet reads as no targets.
@@ -72,7 +73,7 @@ pub fn write_taught(
 ) -> Result<(), AppError> {
     let mut targets = load(file)?;
     targets
-        .teach(mocomp_session::Target::new(
+        .teach(Target::new(
             name,
             &taught.head_from_coil,
             note,
@@ -85,18 +86,44 @@ pub fn write_taught(
 /// Where the loop puts the coil for `target`: a target placed on the image is placed again
 /// through the current `[head] head_from_image` (a new registration moves it with the image); a
 /// taught one stays where it was taught on the marker.
-pub fn head_from_coil(
-    setup: &Setup,
-    target: &mocomp_session::Target,
-) -> mocomp_geom::nalgebra::Isometry3<f64> {
+pub fn head_from_coil(setup: &Setup, target: &Target) -> Isometry3<f64> {
+    placed(&setup.file.head.head_from_image.iso(), target)
+}
+
+/// [`head_from_coil`] under `head_from_image`.
+pub fn placed(head_from_image: &Isometry3<f64>, target: &Target) -> Isometry3<f64> {
     match target.image_from_coil {
         Some(p) => {
-            let image_from_coil = mocomp_geom::nalgebra::Isometry3::new(
-                mocomp_geom::nalgebra::Vector3::new(p[0], p[1], p[2]),
-                mocomp_geom::nalgebra::Vector3::new(p[3], p[4], p[5]),
-            );
-            setup.file.head.head_from_image.iso() * image_from_coil
+            head_from_image
+                * Isometry3::new(
+                    Vector3::new(p[0], p[1], p[2]),
+                    Vector3::new(p[3], p[4], p[5]),
+                )
         }
         None => target.pose(),
     }
+}
+
+/// The target `name` of the targets file `file` (else `[session] targets` of `config`,
+/// relative to `dir`) as the goal under `config`'s `[head]`: for `mocomp demo --target`.
+pub fn goal_named(
+    config: &crate::config::Config,
+    dir: &Path,
+    name: &str,
+    file: Option<&Path>,
+) -> Result<Isometry3<f64>, AppError> {
+    let path = match (file, &config.session.targets) {
+        (Some(f), _) => f.to_path_buf(),
+        (None, Some(f)) => dir.join(f),
+        (None, None) => {
+            return Err(AppError::Config(format!(
+                "--target {name}: no targets file (--targets FILE, or [session] targets)"
+            )));
+        }
+    };
+    let targets = load(&path)?;
+    let t = targets
+        .get(name)
+        .map_err(|e| AppError::Config(format!("--target {name}: {}: {e}", path.display())))?;
+    Ok(placed(&config.head.head_from_image.iso(), t))
 }

@@ -124,6 +124,13 @@ pub struct DemoCmd {
     /// along its normal (overrides `experiment.goal_near_mm`; default: on top of the head).
     #[arg(long, value_name = "X,Y,Z", value_parser = crate::args::three, allow_hyphen_values = true)]
     pub goal_near: Option<[f64; 3]>,
+    /// The goal is this session target (`mocomp targets add`, `teach-goal --name`) instead:
+    /// from `--targets`, else the configuration's `[session] targets`.
+    #[arg(long, value_name = "NAME", conflicts_with = "goal_near")]
+    pub target: Option<String>,
+    /// The targets file `--target` is in.
+    #[arg(long, value_name = "FILE", requires = "target")]
+    pub targets: Option<PathBuf>,
     /// The head model the controllers believe: "head", or "fitted-ellipsoid" (the ellipsoid
     /// fitted to `head.mesh`, while the phantom stays the mesh: what an ellipsoid lets through).
     #[arg(long, value_name = "head|fitted-ellipsoid", value_parser = mocomp_app::config::LoopHead::parse)]
@@ -188,6 +195,18 @@ impl DemoCmd {
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let config = self.configuration()?;
         let mut exp = mocomp_app::experiment_config::from_config(&config)?;
+        if let Some(name) = &self.target {
+            let dir = self
+                .config
+                .as_deref()
+                .and_then(std::path::Path::parent)
+                .map(std::path::Path::to_path_buf)
+                .unwrap_or_default();
+            exp.coil_design =
+                mocomp_app::targets::goal_named(&config, &dir, name, self.targets.as_deref())?;
+            exp.validate()
+                .map_err(|e| crate::UsageError(format!("--target {name}: {e}")))?;
+        }
         if let Some(at) = self.tracker_bump_at_s {
             exp.bump_tracker(
                 at,

@@ -29,6 +29,15 @@ fn marker_from_image() -> Isometry3<f64> {
     )
 }
 
+/// A truth nearer the identity, for the simulated world, whose robot must reach F3 on the head
+/// the marker's frame holds.
+fn marker_from_image_near() -> Isometry3<f64> {
+    Isometry3::new(
+        Vector3::new(0.004, -0.006, 0.01),
+        Vector3::new(0.04, -0.03, 0.06),
+    )
+}
+
 /// The head marker in the tracker's view at frame k: nodding 3° at 0.5 Hz, 200 frames a second.
 fn tracker_from_head(k: usize) -> Isometry3<f64> {
     let nod = 3f64.to_radians() * (std::f64::consts::TAU * 0.5 * k as f64 / 200.0).sin();
@@ -67,8 +76,12 @@ fn fsaverage() -> MeshHead {
 }
 
 /// The landmarks touched in turn (image frame), then `sweep` scalp points: the frames.
-fn session(rng: &mut SplitMix64, touch: &[Point3<f64>], sweep: usize) -> Vec<Value> {
-    let to_head = marker_from_image();
+fn session(
+    rng: &mut SplitMix64,
+    to_head: &Isometry3<f64>,
+    touch: &[Point3<f64>],
+    sweep: usize,
+) -> Vec<Value> {
     let mut frames = Vec::new();
     let out = Vector3::new(0.0, 0.0, 0.04);
     for p in touch {
@@ -164,7 +177,7 @@ fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught(
     let (config, pointer, points) = write_setup(&dir);
     let mut rng = SplitMix64(3210);
     let touch = [points["nasion"], points["lpa"], points["rpa"]];
-    let (_py, addr) = stream(session(&mut rng, &touch, 150));
+    let (_py, addr) = stream(session(&mut rng, &marker_from_image(), &touch, 150));
     let reg = dir.path("registration.toml");
     let out = mocomp(&[
         "register",
@@ -215,7 +228,12 @@ fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught(
         text.replace("[head]\n", "[head]\nregistration = \"registration.toml\"\n"),
     )
     .unwrap();
-    let (_py, addr) = stream(session(&mut rng, &[points["nasion"]], 0));
+    let (_py, addr) = stream(session(
+        &mut rng,
+        &marker_from_image(),
+        &[points["nasion"]],
+        0,
+    ));
     let out = mocomp(&[
         "register",
         "check",
@@ -234,7 +252,7 @@ fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught(
 
     // The marker slipped 6 mm on the head: the nasion is touched 6 mm from where it was.
     let slipped = [points["nasion"] + Vector3::new(0.0, 0.0, 0.006)];
-    let (_py, addr) = stream(session(&mut rng, &slipped, 0));
+    let (_py, addr) = stream(session(&mut rng, &marker_from_image(), &slipped, 0));
     let out = mocomp(&[
         "register",
         "check",
@@ -252,4 +270,153 @@ fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught(
     let moved: Value = serde_json::from_slice(&out.stdout).unwrap();
     let mm = moved["moved_mm"].as_f64().unwrap();
     assert!((4.0..8.0).contains(&mm), "{moved}");
+}
+
+/// The run configuration: the example's simulated cell, the head turned so that its F3 faces
+/// the coil robot's workspace, `[head]` the registered scan, the session starting on `dlpfc`.
+fn run_config(dir: &TempDir, nav: &str, max_tre_mm: f64) -> String {
+    let example =
+        std::fs::read_to_string(mocomp_testkit::workspace_root().join("examples/run-sim.toml"))
+            .unwrap();
+    let head = std::fs::read_to_string(nav).unwrap();
+    let ellipsoid = "[head]                         # an ellipsoid in the head marker's frame\n\
+                     head_from_ellipsoid = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\nradii_m = [0.075, 0.095, 0.11]\n";
+    assert!(example.contains(ellipsoid), "the example's [head] changed");
+    let at_rest = "base_from_head = [0.30, -0.12, -0.02, 0.0, 0.0, 0.3]";
+    assert!(example.contains(at_rest), "the example's head changed");
+    let text = example.replace(ellipsoid, "").replace(
+        at_rest,
+        "base_from_head = [0.30, -0.12, -0.02, 0.0, 0.0, 2.0]",
+    ) + &head.replace(
+        "[head]\n",
+        &format!("[head]\nregistration = \"registration.toml\"\nmax_tre_mm = {max_tre_mm}\n"),
+    ) + "\n[session]\ntargets = \"targets.toml\"\ntarget = \"dlpfc\"\n";
+    let path = dir.path(&format!("run-{max_tre_mm}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn registered_and_targeted_at_f3_the_loop_compensates_on_the_nodding_head_and_the_gate_opens() {
+    let dir = TempDir::new("register-e2e");
+    let (nav, pointer, points) = write_setup(&dir);
+    let mut rng = SplitMix64(77);
+    let touch = [points["nasion"], points["lpa"], points["rpa"]];
+    let (_py, addr) = stream(session(&mut rng, &marker_from_image_near(), &touch, 150));
+    let reg = dir.path("registration.toml");
+    let out = mocomp(&[
+        "register",
+        "--config",
+        &nav,
+        "--pointer",
+        &pointer,
+        "--igtl",
+        &addr,
+        "--out",
+        &reg,
+    ]);
+    assert_success(&out);
+    let config = run_config(&dir, &nav, 3.0);
+    let targets = dir.path("targets.toml");
+    let out = mocomp(&[
+        "targets", "--file", &targets, "add", "dlpfc", "--config", &config, "--eeg", "F3",
+    ]);
+    assert_success(&out);
+
+    // The loop on the built-in simulated UR3e, the head nodding: the coil reaches F3, follows
+    // it, and the on-target gate opens.
+    let out = mocomp(&[
+        "run",
+        "--config",
+        &config,
+        "--seconds",
+        "15",
+        "--quiet",
+        "--json",
+    ]);
+    assert_success(&out);
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(said.contains("estimated target error at dlpfc"), "{said}");
+    let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+    eprintln!(
+        "run on F3: tracking {:.0} %, deviation RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; gate openings {}",
+        r["tracking_percent"].as_f64().unwrap(),
+        r["deviation_rms_mm"].as_f64().unwrap(),
+        r["deviation_p95_mm"].as_f64().unwrap(),
+        r["deviation_max_mm"].as_f64().unwrap(),
+        r["session"]["gate_openings"]
+    );
+    assert!(r["tracking_percent"].as_f64().unwrap() > 20.0, "{r}");
+    assert!(r["deviation_rms_mm"].as_f64().unwrap() < 1.5, "{r}");
+    assert!(r["session"]["gate_openings"].as_u64().unwrap() >= 1, "{r}");
+    assert_eq!(r["protective_stops"], 0);
+
+    // The same target in the paper's experiment, against the paper's pipeline.
+    let demo_out = dir.path("demo");
+    let out = mocomp(&[
+        "demo",
+        "--config",
+        &config,
+        "--target",
+        "dlpfc",
+        "--seconds",
+        "12",
+        "--motion",
+        "nods",
+        "--json",
+        "--quiet",
+        "--out",
+        &demo_out,
+    ]);
+    assert_success(&out);
+    let d: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let by = |name: &str| {
+        d["controllers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["controller"] == name)
+            .unwrap()
+            .clone()
+    };
+    let (ours, paper) = (by("mocomp"), by("paper"));
+    eprintln!(
+        "demo on F3: mocomp d RMS {:.2} / max {:.2} mm, least clearance {:.1} mm; paper {:.2} / {:.2} mm",
+        ours["d_rms"].as_f64().unwrap(),
+        ours["d_max"].as_f64().unwrap(),
+        ours["min_clearance_mm"].as_f64().unwrap(),
+        paper["d_rms"].as_f64().unwrap(),
+        paper["d_max"].as_f64().unwrap()
+    );
+    assert!(ours["d_rms"].as_f64().unwrap() < 1.5, "{ours}");
+    assert!(ours["min_clearance_mm"].as_f64().unwrap() > 0.0, "{ours}");
+    assert!(ours["d_rms"].as_f64().unwrap() * 3.0 < paper["d_rms"].as_f64().unwrap());
+
+    // A threshold below the estimate: refused, named; overridden with a reason: it starts, and
+    // the reason is in the registration file.
+    let strict = run_config(&dir, &nav, 0.2);
+    let out = mocomp(&["run", "--config", &strict, "--seconds", "1", "--quiet"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("head.max_tre_mm") && err.contains("--accept-registration"),
+        "{err}"
+    );
+    let out = mocomp(&[
+        "run",
+        "--config",
+        &strict,
+        "--seconds",
+        "1",
+        "--quiet",
+        "--accept-registration",
+        "phantom session, accepted for the test",
+    ]);
+    assert_success(&out);
+    let logged = std::fs::read_to_string(&reg).unwrap();
+    assert!(
+        logged.contains("[[override]]")
+            && logged.contains("phantom session, accepted for the test"),
+        "{logged}"
+    );
 }
