@@ -73,12 +73,7 @@ pub fn write_taught(
 ) -> Result<(), AppError> {
     let mut targets = load(file)?;
     targets
-        .teach(Target::new(
-            name,
-            &taught.head_from_coil,
-            note,
-            &now(),
-        ))
+        .teach(Target::new(name, &taught.head_from_coil, note, &now()))
         .map_err(input)?;
     save(file, &targets)
 }
