@@ -572,6 +572,11 @@ pub struct HeadSection {
     /// the touched ones), e.g. `nasion = [1.5, 85.1, -34.8]`.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub landmarks: std::collections::BTreeMap<String, [f64; 3]>,
+    /// Landmarks from a file (relative to the configuration's directory): 3D Slicer markups
+    /// (`.mrk.json`, LPS or RAS) or a SimNIBS positions CSV (its `Fiducial` rows); a landmark
+    /// also in `[head.landmarks]` is taken from there.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub landmarks_file: Option<PathBuf>,
     /// The registration `mocomp register` wrote (relative to the configuration's directory):
     /// its head_from_image replaces the one above.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -599,6 +604,7 @@ impl Default for HeadSection {
             max_triangles: mocomp_mri::DEFAULT_MAX_TRIANGLES,
             head_from_image: pose_const([0.0; 6]),
             landmarks: std::collections::BTreeMap::new(),
+            landmarks_file: None,
             registration: None,
             max_tre_mm: 3.0,
             registered: None,
@@ -1123,6 +1129,30 @@ impl Config {
         .map_err(|e| AppError::Config(format!("head.radii_m: {e}")))
     }
 
+    /// Reads `[head] landmarks_file` (relative to `dir`) once into `[head.landmarks]`, which
+    /// keeps its own where both name a landmark.
+    pub fn load_landmarks(&mut self, dir: &Path) -> Result<(), AppError> {
+        let Some(file) = self.head.landmarks_file.take() else {
+            return Ok(());
+        };
+        let path = dir.join(&file);
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| AppError::Config(format!("head.landmarks_file = {name}: {e}")))?;
+        let read = if name.ends_with(".json") {
+            crate::navigator_files::slicer_points(&name, &text)
+        } else {
+            crate::navigator_files::simnibs_fiducials(&name, &text)
+        }
+        .map_err(|e| AppError::Config(format!("head.landmarks_file: {e}")))?;
+        for l in read {
+            let mm = crate::navigation::mm_from_point(&l.point);
+            self.head.landmarks.entry(l.name).or_insert(mm);
+        }
+        self.head.landmarks_file = Some(std::fs::canonicalize(&path).unwrap_or(path));
+        Ok(())
+    }
+
     /// Reads `[head] registration` (relative to `dir`) once: its head_from_image becomes
     /// `[head]`'s, before the mesh is carried into the marker's frame by it.
     pub fn load_registration(&mut self, dir: &Path) -> Result<(), AppError> {
@@ -1149,6 +1179,7 @@ impl Config {
     /// the path becomes the one read. Nothing to do without a mesh or once loaded.
     pub fn load_head(&mut self, dir: &Path) -> Result<(), AppError> {
         self.load_registration(dir)?;
+        self.load_landmarks(dir)?;
         let Some(mesh) = &self.head.mesh else {
             return Ok(());
         };

@@ -18,6 +18,7 @@ macro_rules! refuse {
     };
 }
 
+pub mod affine_file;
 pub mod blame;
 pub mod camera;
 pub mod camera_k4a;
@@ -37,13 +38,16 @@ pub mod live;
 pub mod live_log;
 pub mod live_session;
 pub mod navigation;
+pub mod navigator_files;
 pub mod pointer;
 pub mod pose_lines;
 pub mod register;
 pub mod registration_file;
+pub mod registration_gate;
 pub mod ros2;
 pub mod servo_check;
 pub mod session_link;
+pub mod target_import;
 pub mod targets;
 pub mod teach;
 pub mod tuning;

@@ -29,24 +29,22 @@ pub fn mm_from_point(p: &Point3<f64>) -> [f64; 3] {
 /// image frame, m.
 pub fn cranial_landmarks(setup: &Setup) -> Result<CranialLandmarks, AppError> {
     let marks = &setup.file.head.landmarks;
-    let get =
-        |name: &str| {
-            marks
-            .iter()
-            .find(|(k, _)| k.eq_ignore_ascii_case(name))
-            .map(|(_, v)| point_from_mm(*v))
-            .ok_or_else(|| {
-                AppError::Config(format!(
-                    "head.landmarks: no {name} (the 10-20 system is measured from nasion, inion, \
-                     lpa and rpa, image RAS in mm){}",
-                    if marks.is_empty() {
-                        String::new()
-                    } else {
-                        format!("; it has {}", marks.keys().cloned().collect::<Vec<_>>().join(", "))
-                    }
-                ))
-            })
-        };
+    let get = |name: &str| {
+        find_landmark(marks, name).ok_or_else(|| {
+            AppError::Config(format!(
+                "head.landmarks: no {name} (the 10-20 system is measured from nasion, inion, lpa \
+                 and rpa, image RAS in mm){}",
+                if marks.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; it has {}",
+                        marks.keys().cloned().collect::<Vec<_>>().join(", ")
+                    )
+                }
+            ))
+        })
+    };
     Ok(CranialLandmarks {
         nasion: get("nasion")?,
         inion: get("inion")?,
@@ -55,8 +53,30 @@ pub fn cranial_landmarks(setup: &Setup) -> Result<CranialLandmarks, AppError> {
     })
 }
 
+/// Other names of the cranial landmarks, as SimNIBS's and MNE's files spell them.
+const ALIASES: [&[&str]; 2] = [&["nasion", "nz", "nas"], &["inion", "iz", "ini"]];
+
+/// The landmark `name` of `marks` (mm), without regard to case or to which of its usual names
+/// each uses, in metres.
+pub fn find_landmark(
+    marks: &std::collections::BTreeMap<String, [f64; 3]>,
+    name: &str,
+) -> Option<Point3<f64>> {
+    let same = |a: &str, b: &str| {
+        a.eq_ignore_ascii_case(b)
+            || ALIASES.iter().any(|g| {
+                g.iter().any(|n| n.eq_ignore_ascii_case(a))
+                    && g.iter().any(|n| n.eq_ignore_ascii_case(b))
+            })
+    };
+    marks
+        .iter()
+        .find(|(k, _)| same(k, name))
+        .map(|(_, v)| point_from_mm(*v))
+}
+
 /// The head model of `setup`, which must be a scan's scalp: an ellipsoid has no image frame.
-fn scan_head(setup: &Setup) -> Result<mocomp_control::HeadModel, AppError> {
+pub(crate) fn scan_head(setup: &Setup) -> Result<mocomp_control::HeadModel, AppError> {
     if setup.file.head.mesh.is_none() {
         return Err(AppError::Config(
             "head.mesh: navigation on the image needs the patient's scalp from the scan (the \
@@ -192,205 +212,4 @@ fn resolve(setup: &Setup, spec: &TargetSpec) -> Result<(Point3<f64>, String), Ap
             )
         }
     })
-}
-
-/// The registration's estimated error at the goal compensation starts on, against `[head]
-/// max_tre_mm`: `Ok(note)` to print when it is within, or when the operator overrides it with
-/// `accept` (the reason, then appended to the registration file); refused otherwise. Nothing to
-/// say without a registration.
-pub fn registration_gate(setup: &Setup, accept: Option<&str>) -> Result<Option<String>, AppError> {
-    let Some((path, record)) = &setup.file.head.registered else {
-        return Ok(None);
-    };
-    let (target, head_from_coil) = start_goal(setup)?;
-    let head = scan_head(setup)?;
-    let image_from_head = setup.file.head.head_from_image.iso().inverse();
-    let scalp = Reframed::new(head.shape(), image_from_head);
-    // The error where the coil meets the scalp: the point of the scalp nearest its face.
-    let under = mocomp_head::HeadShape::nearest(
-        &scalp,
-        &Point3::from((image_from_head * head_from_coil).translation.vector),
-    )
-    .point;
-    let tre_mm = record.tre_at(&under) * MM_PER_M;
-    let limit_mm = setup.file.head.max_tre_mm;
-    let said = format!(
-        "the registration's estimated target error at {target} is {tre_mm:.1} mm (head.max_tre_mm \
-         {limit_mm} mm; FRE {:.1} mm, surface RMS {:.1} mm)",
-        record.fre_mm, record.surface_rms_mm
-    );
-    if tre_mm <= limit_mm {
-        return Ok(Some(said));
-    }
-    let Some(reason) = accept.filter(|r| !r.trim().is_empty()) else {
-        return Err(AppError::Refused(format!(
-            "{said}: register again (touch the landmarks with care, sweep more of the scalp), or \
-             start with --accept-registration \"why\" (logged in {})",
-            path.display()
-        )));
-    };
-    let mut file = crate::registration_file::load(path)?;
-    file.overrides.push(crate::registration_file::Override {
-        at: crate::targets::now(),
-        target: target.clone(),
-        tre_mm,
-        limit_mm,
-        reason: reason.to_string(),
-    });
-    crate::registration_file::save(path, &file)?;
-    Ok(Some(format!(
-        "{said}: over the limit, accepted by the operator ({reason:?}, logged in {})",
-        path.display()
-    )))
-}
-
-/// The estimated target error (mm) of `record` at each of the session's targets and at
-/// `[goal]`, where the coil meets the scalp.
-pub fn target_errors(
-    setup: &Setup,
-    record: &crate::registration_file::Record,
-) -> Result<Vec<(String, f64)>, AppError> {
-    let head = scan_head(setup)?;
-    let head_from_image = record.head_from_image();
-    let image_from_head = setup.file.head.head_from_image.iso().inverse();
-    let scalp = Reframed::new(head.shape(), image_from_head);
-    let mut goals: Vec<(String, Isometry3<f64>)> = Vec::new();
-    if let Ok(g) = setup.file.head_from_coil() {
-        goals.push(("[goal]".into(), image_from_head * g));
-    }
-    if setup.file.session.targets.is_some() {
-        for t in crate::targets::load(&crate::targets::session_file(setup))?.targets {
-            // A target placed on the image stays where it is in the image under a new
-            // registration; a taught one stays where it is on the marker.
-            let image_from_coil = match t.image_from_coil {
-                Some(p) => Isometry3::new(
-                    mocomp_geom::nalgebra::Vector3::new(p[0], p[1], p[2]),
-                    mocomp_geom::nalgebra::Vector3::new(p[3], p[4], p[5]),
-                ),
-                None => head_from_image.inverse() * t.pose(),
-            };
-            goals.push((t.name.clone(), image_from_coil));
-        }
-    }
-    Ok(goals
-        .into_iter()
-        .map(|(name, image_from_coil)| {
-            let under = mocomp_head::HeadShape::nearest(
-                &scalp,
-                &Point3::from(image_from_coil.translation.vector),
-            )
-            .point;
-            (name, record.tre_at(&under) * MM_PER_M)
-        })
-        .collect())
-}
-
-/// The goal the loop starts on: `[session] target` in its targets file, else `[goal]`.
-fn start_goal(setup: &Setup) -> Result<(String, Isometry3<f64>), AppError> {
-    if let (Some(name), Some(_)) = (&setup.file.session.target, &setup.file.session.targets) {
-        let targets = crate::targets::load(&crate::targets::session_file(setup))?;
-        let t = targets
-            .get(name)
-            .map_err(|e| AppError::Config(format!("session.target: {e}")))?;
-        return Ok((name.clone(), crate::targets::head_from_coil(setup, t)));
-    }
-    Ok(("[goal]".into(), setup.file.head_from_coil()?))
-}
-
-/// Reads an affine (image_from_mni, millimetres) from a text file: four rows of four numbers
-/// (blank lines and `#` comments skipped), the last row 0 0 0 1.
-pub fn read_affine(path: &std::path::Path) -> Result<Matrix4<f64>, AppError> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| AppError::failed(format!("reading the affine {name}"), e))?;
-    parse_affine(&name, &text)
-}
-
-/// [`read_affine`] on the text of `file`.
-pub fn parse_affine(file: &str, text: &str) -> Result<Matrix4<f64>, AppError> {
-    let bad = |line: usize, why: String| AppError::Config(format!("{file}:{line}: {why}"));
-    let mut rows: Vec<[f64; 4]> = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line_no = i + 1;
-        let body = line.split('#').next().unwrap_or("").trim();
-        if body.is_empty() {
-            continue;
-        }
-        if rows.len() == 4 {
-            return Err(bad(line_no, "more than four rows".into()));
-        }
-        let v: Vec<&str> = body
-            .split(|c: char| c.is_whitespace() || c == ',')
-            .filter(|s| !s.is_empty())
-            .collect();
-        if v.len() != 4 {
-            return Err(bad(line_no, format!("{} numbers, a row has 4", v.len())));
-        }
-        let mut row = [0.0; 4];
-        for (k, (slot, s)) in row.iter_mut().zip(&v).enumerate() {
-            *slot = s
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    bad(
-                        line_no,
-                        format!("column {}: {s:?} is not a finite number", k + 1),
-                    )
-                })?;
-        }
-        rows.push(row);
-    }
-    if rows.len() != 4 {
-        return Err(AppError::Config(format!(
-            "{file}: {} rows, an affine has 4",
-            rows.len()
-        )));
-    }
-    let last = rows[3];
-    if (last[0].abs() + last[1].abs() + last[2].abs() + (last[3] - 1.0).abs()) > 1e-9 {
-        return Err(AppError::Config(format!(
-            "{file}: the last row is {last:?}, an affine's is 0 0 0 1"
-        )));
-    }
-    let m = Matrix4::from_fn(|r, c| rows[r][c]);
-    if m.fixed_view::<3, 3>(0, 0).determinant().abs() < 1e-9 {
-        return Err(AppError::Config(format!(
-            "{file}: the affine is singular (it flattens space)"
-        )));
-    }
-    Ok(m)
-}
-
-#[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)] // test code
-    use super::*;
-
-    #[test]
-    fn an_affine_file_is_read_and_every_fault_is_named_by_line() {
-        let m = parse_affine(
-            "a.txt",
-            "# image_from_mni\n1 0 0 -2\n0 1 0 3.5\n\n0,0,1,4\n0 0 0 1\n",
-        )
-        .unwrap();
-        assert_eq!(
-            m.transform_point(&Point3::origin()),
-            Point3::new(-2.0, 3.5, 4.0)
-        );
-        for (text, says) in [
-            ("1 0 0\n", "a.txt:1: 3 numbers"),
-            ("1 0 0 0\n0 1 0 0\n0 0 1 x\n0 0 0 1\n", "a.txt:3: column 4"),
-            ("1 0 0 0\n0 1 0 0\n0 0 1 0\n", "3 rows"),
-            ("1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n", "last row"),
-            ("1 0 0 0\n0 1 0 0\n0 0 0 0\n0 0 0 1\n", "singular"),
-            (
-                "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n0 0 0 1\n",
-                "a.txt:5: more than four",
-            ),
-        ] {
-            let e = parse_affine("a.txt", text).unwrap_err().to_string();
-            assert!(e.contains(says), "{text:?}: {e}");
-        }
-    }
 }

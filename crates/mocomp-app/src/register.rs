@@ -160,7 +160,7 @@ pub fn compute(
     touched: &[Landmark],
     swept: &[Point3<f64>],
 ) -> Result<Registered, AppError> {
-    let head = scan_head(setup)?;
+    let head = crate::navigation::scan_head(setup)?;
     let scalp = Reframed::new(
         head.shape(),
         setup.file.head.head_from_image.iso().inverse(),
@@ -179,26 +179,14 @@ pub fn compute(
     })
 }
 
-/// The configuration's scalp, which registration needs.
-fn scan_head(setup: &Setup) -> Result<mocomp_control::HeadModel, AppError> {
-    if setup.file.head.mesh.is_none() {
-        return Err(AppError::Config(
-            "head.mesh: registration needs the patient's scalp from the scan".into(),
-        ));
-    }
-    setup.file.head_model()
-}
-
 /// `[head.landmarks]` named `names` (image frame, m).
 pub fn image_landmarks(setup: &Setup, names: &[&str]) -> Result<Vec<Landmark>, AppError> {
     let marks = &setup.file.head.landmarks;
     names
         .iter()
         .map(|name| {
-            marks
-                .iter()
-                .find(|(k, _)| k.eq_ignore_ascii_case(name))
-                .map(|(_, v)| Landmark::new(name, crate::navigation::point_from_mm(*v)))
+            crate::navigation::find_landmark(marks, name)
+                .map(|p| Landmark::new(name, p))
                 .ok_or_else(|| {
                     AppError::Config(format!(
                         "head.landmarks: no {name} (it has {})",

@@ -125,7 +125,7 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     )?;
     mocomp_app::registration_file::save(&a.out, &r.file)?;
     let rec = &r.file.registration;
-    let targets = mocomp_app::navigation::target_errors(&setup, rec)?;
+    let targets = mocomp_app::registration_gate::target_errors(&setup, rec)?;
     if a.json {
         let json = serde_json::json!({
             "head_from_image": rec.head_from_image,

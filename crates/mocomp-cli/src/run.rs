@@ -70,9 +70,10 @@ impl RunCmd {
         if let Some(warning) = setup.file.head_note() {
             eprintln!("warning: {warning}");
         }
-        if let Some(note) =
-            mocomp_app::navigation::registration_gate(&setup, self.accept_registration.as_deref())?
-        {
+        if let Some(note) = mocomp_app::registration_gate::registration_gate(
+            &setup,
+            self.accept_registration.as_deref(),
+        )? {
             eprintln!("note: {note}");
         }
         if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated

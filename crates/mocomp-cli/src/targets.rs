@@ -2,6 +2,7 @@
 //! ([`mocomp_app::targets`]).
 
 use crate::UsageError;
+use anyhow::Context;
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
 use mocomp_session::GridParams;
@@ -39,6 +40,11 @@ enum TargetsCommand {
     /// unless `--handle` says otherwise, in the head marker's frame through `[head]
     /// head_from_image`; checked as the loop checks its goal.
     Add(AddCmd),
+    /// Import targets from another navigator's file: SimNIBS `matsimnibs` text, a Localite
+    /// InstrumentMarker/TriggerMarker XML, a Brainsight NIfTI:Aligned export (coil poses, kept
+    /// as planned), or 3D Slicer markups (points, each placed as `targets add --image` does);
+    /// each checked on this patient's scalp.
+    Import(ImportCmd),
     /// Delete a target.
     Delete {
         /// Its name.
@@ -105,9 +111,67 @@ struct AddCmd {
     note: String,
 }
 
+/// `targets import`.
+#[derive(Debug, Clone, Args)]
+struct ImportCmd {
+    /// The navigator's file.
+    #[arg(value_name = "FILE")]
+    from_file: PathBuf,
+    /// Which navigator wrote it.
+    #[arg(long, value_name = "simnibs|localite|brainsight|slicer")]
+    from: mocomp_app::target_import::Source,
+    /// The configuration whose `[head]` holds the scan and head_from_image.
+    #[arg(long, value_name = "FILE")]
+    config: PathBuf,
+    /// Slicer points: the coil face's distance from the scalp, mm.
+    #[arg(long, value_name = "MM", default_value_t = 4.0)]
+    standoff_mm: f64,
+}
+
+impl ImportCmd {
+    fn run(self, file: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()> {
+        let setup = Setup::load(&self.config)?;
+        let text = std::fs::read_to_string(&self.from_file)
+            .with_context(|| format!("reading {}", self.from_file.display()))?;
+        if !(self.standoff_mm.is_finite() && self.standoff_mm >= 0.0) {
+            return Err(UsageError(format!(
+                "--standoff-mm {}: must be a distance, 0 or more",
+                self.standoff_mm
+            ))
+            .into());
+        }
+        let found = mocomp_app::target_import::import(
+            &setup,
+            self.from,
+            &self.from_file.display().to_string(),
+            &text,
+            self.standoff_mm * 1e-3,
+            &mocomp_nav::Handle::default(),
+        )?;
+        let mut targets = mocomp_app::targets::load(file)?;
+        for t in &found {
+            targets
+                .teach(t.clone())
+                .map_err(|e| UsageError(e.to_string()))?;
+        }
+        mocomp_app::targets::save(file, &targets)?;
+        for t in &found {
+            writeln!(out, "{}", t.line())?;
+        }
+        writeln!(
+            out,
+            "imported {} targets into {}",
+            found.len(),
+            file.display()
+        )?;
+        Ok(())
+    }
+}
+
 impl AddCmd {
     fn run(self, file: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()> {
-        use mocomp_app::navigation::{TargetSpec, mm_from_point, place_target, read_affine};
+        use mocomp_app::affine_file::read_affine;
+        use mocomp_app::navigation::{TargetSpec, mm_from_point, place_target};
         let setup = Setup::load(&self.config)?;
         let spec = match (self.image, self.mni, self.eeg) {
             (Some(p), _, _) => TargetSpec::Image(p),
@@ -184,6 +248,7 @@ impl TargetsCmd {
                 }
             }
             TargetsCommand::Add(add) => return add.run(&self.file, out),
+            TargetsCommand::Import(import) => return import.run(&self.file, out),
             TargetsCommand::Delete { name } => {
                 targets
                     .delete(&name)

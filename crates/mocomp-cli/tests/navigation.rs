@@ -237,3 +237,193 @@ fn bad_targets_and_landmarks_are_refused_by_name() {
     std::fs::write(&missing, text.replace(&inion_mm, "")).unwrap();
     refused(&["head", "eeg", "--config", &missing], "no inion");
 }
+
+/// A target's `image_from_coil` in its file, as a 4×4 in mm.
+fn image_from_coil_mm(file: &str, name: &str) -> mocomp_geom::nalgebra::Matrix4<f64> {
+    let doc: toml::Value = toml::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+    let t = doc["target"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["name"].as_str() == Some(name))
+        .unwrap();
+    let p: Vec<f64> = (0..6)
+        .map(|i| t["image_from_coil"][i].as_float().unwrap())
+        .collect();
+    let mut m = Isometry3::new(
+        Vector3::new(p[0], p[1], p[2]),
+        Vector3::new(p[3], p[4], p[5]),
+    )
+    .to_homogeneous();
+    for r in 0..3 {
+        m[(r, 3)] *= 1000.0;
+    }
+    m
+}
+
+fn head_from_coil(list: &[Value], name: &str) -> Isometry3<f64> {
+    let t = list.iter().find(|t| t["name"] == name).unwrap();
+    let p: Vec<f64> = (0..6)
+        .map(|i| t["head_from_coil"][i].as_f64().unwrap())
+        .collect();
+    Isometry3::new(
+        Vector3::new(p[0], p[1], p[2]),
+        Vector3::new(p[3], p[4], p[5]),
+    )
+}
+
+#[test]
+fn targets_from_simnibs_localite_brainsight_and_slicer_land_where_ours_do() {
+    let dir = TempDir::new("nav-import");
+    let config = setup(&dir);
+    let ours = dir.path("ours.toml");
+    for (name, eeg) in [("f3", "F3"), ("c3", "C3")] {
+        let out = mocomp(&[
+            "targets", "--file", &ours, "add", name, "--config", &config, "--eeg", eeg,
+        ]);
+        assert_success(&out);
+    }
+    let m = image_from_coil_mm(&ours, "f3");
+    let rows = |m: &mocomp_geom::nalgebra::Matrix4<f64>| -> String {
+        (0..4)
+            .map(|r| {
+                (0..4)
+                    .map(|c| format!("{:.9}", m[(r, c)]))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    // Each navigator's file, written as SimNIBS's nnav.py writes (or reads) it.
+    let axes = mocomp_geom::nalgebra::Matrix4::new(
+        0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    );
+    let lps = mocomp_geom::nalgebra::Matrix4::from_diagonal(&mocomp_geom::nalgebra::Vector4::new(
+        -1.0, -1.0, 1.0, 1.0,
+    ));
+    let matrix4d = |m: &mocomp_geom::nalgebra::Matrix4<f64>| {
+        let mut s = String::from("<Matrix4D ");
+        for r in 0..4 {
+            for c in 0..4 {
+                s += &format!("data{r}{c}=\"{:+.17}\" ", m[(r, c)]);
+            }
+        }
+        s + "/>"
+    };
+    let localite = format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<InstrumentMarkerList coordinateSpace=\"LPS\">\n\
+         <InstrumentMarker alwaysVisible=\"false\" index=\"0\" selected=\"false\">\n\
+         <Marker additionalInformation=\"\" color=\"#ff0000\" description=\"f3-localite\" set=\"true\">\n{}\n\
+         </Marker></InstrumentMarker></InstrumentMarkerList>\n",
+        matrix4d(&(lps * m * axes))
+    );
+    let b = m * mocomp_geom::nalgebra::Matrix4::from_diagonal(
+        &mocomp_geom::nalgebra::Vector4::new(-1.0, 1.0, -1.0, 1.0),
+    );
+    let cells: Vec<String> = std::iter::once("f3-brainsight".to_string())
+        .chain((0..3).map(|r| format!("{:.4}", b[(r, 3)])))
+        .chain((0..3).flat_map(|c| (0..3).map(move |r| format!("{:.4}", b[(r, c)]))))
+        .collect();
+    let brainsight = format!(
+        "# Version: 12\n# Coordinate system: NIfTI:Aligned\n# Units: millimetres, degrees, milliseconds, and microvolts\n# Encoding: UTF-8\n\
+         # Target Name\tLoc. X\tLoc. Y\tLoc. Z\tm0n0\tm0n1\tm0n2\tm1n0\tm1n1\tm1n2\tm2n0\tm2n1\tm2n2\n{}\n",
+        cells.join("\t")
+    );
+    let c3 = point(&json(&mocomp(&["head", "eeg", "--config", &config, "--json"]))["C3"]);
+    let slicer = format!(
+        "{{\"@schema\": \"https://raw.githubusercontent.com/slicer/slicer/main/Modules/Loadable/Markups/Resources/Schema/markups-schema-v1.0.3.json#\", \
+         \"markups\": [{{\"type\": \"Fiducial\", \"coordinateSystem\": \"LPS\", \"coordinateUnits\": \"mm\", \
+         \"controlPoints\": [{{\"id\": \"1\", \"label\": \"c3-slicer\", \"position\": [{}, {}, {}]}}]}}]}}",
+        -c3.x, -c3.y, c3.z
+    );
+    let files = [
+        (
+            "simnibs",
+            "f3.txt",
+            format!("# f3-simnibs\n{}\n", rows(&m)),
+            "f3-simnibs",
+        ),
+        ("localite", "InstrumentMarker.xml", localite, "f3-localite"),
+        ("brainsight", "targets.txt", brainsight, "f3-brainsight"),
+        ("slicer", "c3.mrk.json", slicer, "c3-slicer"),
+    ];
+    let imported = dir.path("imported.toml");
+    for (from, name, text, _) in &files {
+        let path = dir.path(name);
+        std::fs::write(&path, text).unwrap();
+        let out = mocomp(&[
+            "targets", "--file", &imported, "import", &path, "--from", from, "--config", &config,
+        ]);
+        assert_success(&out);
+    }
+    let (a, b) = (targets(&ours), targets(&imported));
+    for (_, _, _, name) in &files {
+        let want = head_from_coil(&a, if name.starts_with("c3") { "c3" } else { "f3" });
+        let got = head_from_coil(&b, name);
+        let (d, r) = (
+            (got.translation.vector - want.translation.vector).norm(),
+            got.rotation.angle_to(&want.rotation),
+        );
+        eprintln!(
+            "{name}: {:.4} mm, {:.4}° from ours",
+            d * 1e3,
+            r.to_degrees()
+        );
+        // Brainsight's four decimals.
+        assert!(d < 2e-4 && r < 2e-3, "{name}: {d} m, {r} rad");
+    }
+    // A matsimnibs in metres where millimetres belong: the coil would sit at the image's
+    // origin, deep inside the head.
+    let mut metres = m;
+    for r in 0..3 {
+        metres[(r, 3)] /= 1000.0;
+    }
+    let bad = dir.path("metres.txt");
+    std::fs::write(&bad, rows(&metres)).unwrap();
+    let out = mocomp(&[
+        "targets", "--file", &imported, "import", &bad, "--from", "simnibs", "--config", &config,
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("inside the scalp") && err.contains("mm"),
+        "{err}"
+    );
+
+    // The image's landmarks from Slicer markups (LPS) instead of the table: the same 10-20.
+    let text = std::fs::read_to_string(&config).unwrap();
+    let table_start = text.find("[head.landmarks]").unwrap();
+    let (fid, eeg) = mocomp_testkit::anatomy::fsaverage_points("fsaverage_1005");
+    let point_json = |label: &str, p: &Point3<f64>| {
+        format!(
+            "{{\"label\": \"{label}\", \"position\": [{}, {}, {}]}}",
+            -p.x * 1e3,
+            -p.y * 1e3,
+            p.z * 1e3
+        )
+    };
+    let markups = format!(
+        "{{\"markups\": [{{\"type\": \"Fiducial\", \"coordinateSystem\": \"LPS\", \"coordinateUnits\": \"mm\", \"controlPoints\": [{}, {}, {}, {}]}}]}}",
+        point_json("Nz", &fid["nasion"]),
+        point_json("Iz", &eeg["Iz"]),
+        point_json("LPA", &fid["lpa"]),
+        point_json("RPA", &fid["rpa"]),
+    );
+    std::fs::write(dir.path("fiducials.mrk.json"), markups).unwrap();
+    let from_file = dir.path("from-file.toml");
+    std::fs::write(
+        &from_file,
+        text[..table_start].replace(
+            "[head]\n",
+            "[head]\nlandmarks_file = \"fiducials.mrk.json\"\n",
+        ),
+    )
+    .unwrap();
+    let again = json(&mocomp(&["head", "eeg", "--config", &from_file, "--json"]));
+    let table = json(&mocomp(&["head", "eeg", "--config", &config, "--json"]));
+    for name in ["F3", "C3", "Cz"] {
+        let d = (point(&again[name]) - point(&table[name])).norm();
+        assert!(d < 1e-6, "{name}: {d} mm apart");
+    }
+}
