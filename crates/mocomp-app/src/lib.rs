@@ -47,6 +47,7 @@ pub mod registration_gate;
 pub mod ros2;
 pub mod servo_check;
 pub mod session_link;
+pub mod slicer;
 pub mod target_import;
 pub mod targets;
 pub mod teach;

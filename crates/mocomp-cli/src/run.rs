@@ -42,6 +42,14 @@ pub struct RunCmd {
     /// every cycle record, CDR with the ROS 2 profile (Foxglove, `ros2 bag`).
     #[arg(long, value_name = "FILE.mcap")]
     pub record: Option<String>,
+    /// Serve the coil, its target and the head marker to 3D Slicer on this address
+    /// (OpenIGTLink TRANSFORMs CoilToImage, TargetToImage, HeadMarkerToImage in the image's
+    /// RAS; connect Slicer's OpenIGTLinkIF to it as a client).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub slicer: Option<String>,
+    /// The most updates a second sent to Slicer.
+    #[arg(long, value_name = "HZ", default_value_t = 30.0, value_parser = crate::args::rate_hz)]
+    pub slicer_rate_hz: f64,
     /// Start although the registration's estimated target error at the start goal is above
     /// `[head] max_tre_mm`, for this reason (appended to the registration file).
     #[arg(long, value_name = "WHY")]
@@ -103,6 +111,16 @@ impl RunCmd {
         }
         if let Some(o) = ros2.as_mut().and_then(Ros2FrontEnd::observer) {
             observer = Box::new(Both(observer, o));
+        }
+        if let Some(addr) = &self.slicer {
+            let slicer = mocomp_app::slicer::Slicer::serve(&setup, addr, self.slicer_rate_hz)?;
+            writeln!(
+                progress,
+                "3D Slicer: OpenIGTLink on {} ({}, image RAS)",
+                slicer.local_addr(),
+                mocomp_app::slicer::DEVICES.join(", ")
+            )?;
+            observer = Box::new(Both(observer, slicer));
         }
         let head = ros2.as_ref().and_then(Ros2FrontEnd::head_source);
         let log = setup.file.log_csv.as_deref().map(Path::new);

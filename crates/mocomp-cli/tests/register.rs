@@ -324,20 +324,90 @@ fn registered_and_targeted_at_f3_the_loop_compensates_on_the_nodding_head_and_th
     assert_success(&out);
 
     // The loop on the built-in simulated UR3e, the head nodding: the coil reaches F3, follows
-    // it, and the on-target gate opens.
-    let out = mocomp(&[
-        "run",
-        "--config",
-        &config,
-        "--seconds",
-        "15",
-        "--quiet",
-        "--json",
-    ]);
-    assert_success(&out);
-    let said = String::from_utf8_lossy(&out.stderr);
+    // it, and the on-target gate opens. 3D Slicer's side is pyigtl, a client of `--slicer`.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
+        .args([
+            "run",
+            "--config",
+            &config,
+            "--seconds",
+            "15",
+            "--quiet",
+            "--json",
+            "--slicer",
+            "127.0.0.1:0",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
+    let stderr = child.stderr.take().unwrap();
+    let drain = std::thread::spawn(move || {
+        use std::io::BufRead;
+        let mut all = String::new();
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
+            lines_tx.send(line.clone()).ok();
+            all += &line;
+            all.push('\n');
+        }
+        all
+    });
+    let port = loop {
+        let line = lines_rx
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("mocomp run said where it serves Slicer");
+        if let Some(rest) = line.split("3D Slicer: OpenIGTLink on ").nth(1) {
+            let addr = rest.split_whitespace().next().unwrap();
+            break addr.rsplit(':').next().unwrap().parse::<u16>().unwrap();
+        }
+    };
+    let mut slicer = PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
+    slicer.request(&json!({"op": "client", "port": port}));
+    let seen = |slicer: &mut PythonPeer, device: &str| {
+        let m = slicer.request(&json!({"op": "wait", "device": device, "timeout": 10}));
+        assert_eq!(m["found"], true, "{device}: {m}");
+        let v = &m["matrix"];
+        Isometry3::from_parts(
+            Translation3::new(
+                v[0][3].as_f64().unwrap() / 1e3,
+                v[1][3].as_f64().unwrap() / 1e3,
+                v[2][3].as_f64().unwrap() / 1e3,
+            ),
+            UnitQuaternion::from_matrix(&mocomp_geom::nalgebra::Matrix3::from_fn(|r, c| {
+                v[r][c].as_f64().unwrap()
+            })),
+        )
+    };
+    let apart = |a: &Isometry3<f64>, b: &Isometry3<f64>| {
+        (
+            (a.translation.vector - b.translation.vector).norm(),
+            a.rotation.angle_to(&b.rotation),
+        )
+    };
+    // Until the coil follows F3 (it reaches it about 6 s in), where Slicer sees it.
+    let started = std::time::Instant::now();
+    let (coil, target, marker) = loop {
+        let target = seen(&mut slicer, "TargetToImage");
+        let coil = seen(&mut slicer, "CoilToImage");
+        let (d, a) = apart(&coil, &target);
+        if d < 3e-3 && a < 2f64.to_radians() {
+            break (coil, target, seen(&mut slicer, "HeadMarkerToImage"));
+        }
+        assert!(
+            started.elapsed().as_secs() < 14,
+            "Slicer never saw the coil on F3's target: {d} m, {a} rad off"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
+    let output = child.wait_with_output().unwrap();
+    let said = drain.join().unwrap();
+    assert!(output.status.success(), "{said}");
     assert!(said.contains("estimated target error at dlpfc"), "{said}");
-    let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let r: Value = serde_json::from_slice(&output.stdout).unwrap();
     eprintln!(
         "run on F3: tracking {:.0} %, deviation RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; gate openings {}",
         r["tracking_percent"].as_f64().unwrap(),
@@ -350,6 +420,27 @@ fn registered_and_targeted_at_f3_the_loop_compensates_on_the_nodding_head_and_th
     assert!(r["deviation_rms_mm"].as_f64().unwrap() < 1.5, "{r}");
     assert!(r["session"]["gate_openings"].as_u64().unwrap() >= 1, "{r}");
     assert_eq!(r["protective_stops"], 0);
+    // In Slicer: the target where F3's coil was placed on the image, the coil on it, the
+    // marker where the registration put it.
+    let f3 = f3_image_from_coil(&targets);
+    let registered = registered_head_from_image(&reg);
+    let (d, a) = apart(&target, &f3);
+    assert!(
+        d < 1e-5 && a < 1e-4,
+        "TargetToImage {d} m, {a} rad from the target"
+    );
+    let (d, a) = apart(&coil, &target);
+    eprintln!(
+        "Slicer sees the coil {:.2} mm, {:.2}° from F3's target",
+        d * 1e3,
+        a.to_degrees()
+    );
+    assert!(
+        d < 3e-3 && a < 2f64.to_radians(),
+        "CoilToImage {d} m, {a} rad off"
+    );
+    let (d, a) = apart(&marker, &registered.inverse());
+    assert!(d < 1e-5 && a < 1e-4, "HeadMarkerToImage {d} m, {a} rad off");
 
     // The same target in the paper's experiment, against the paper's pipeline.
     let demo_out = dir.path("demo");
@@ -419,4 +510,31 @@ fn registered_and_targeted_at_f3_the_loop_compensates_on_the_nodding_head_and_th
             && logged.contains("phantom session, accepted for the test"),
         "{logged}"
     );
+}
+
+fn f3_image_from_coil(targets: &str) -> Isometry3<f64> {
+    let doc: toml::Value = toml::from_str(&std::fs::read_to_string(targets).unwrap()).unwrap();
+    let t = &doc["target"].as_array().unwrap()[0];
+    let p: Vec<f64> = (0..6)
+        .map(|i| t["image_from_coil"][i].as_float().unwrap())
+        .collect();
+    Isometry3::new(
+        Vector3::new(p[0], p[1], p[2]),
+        Vector3::new(p[3], p[4], p[5]),
+    )
+}
+
+fn registered_head_from_image(reg: &str) -> Isometry3<f64> {
+    let doc: toml::Value = toml::from_str(&std::fs::read_to_string(reg).unwrap()).unwrap();
+    let p: Vec<f64> = (0..6)
+        .map(|i| {
+            doc["registration"]["head_from_image"][i]
+                .as_float()
+                .unwrap()
+        })
+        .collect();
+    Isometry3::new(
+        Vector3::new(p[0], p[1], p[2]),
+        Vector3::new(p[3], p[4], p[5]),
+    )
 }
