@@ -48,7 +48,7 @@ impl Slicer {
             .map_err(|e| AppError::failed(format!("--slicer {addr}: serving OpenIGTLink"), e))?;
         Ok(Self {
             server,
-            arm: setup.arm.clone(),
+            arm: setup.arm,
             base_from_tracker: setup.base_from_tracker,
             flange_from_coil: setup.file.flange_from_coil()?,
             image_from_head: setup.file.head.head_from_image.iso().inverse(),
