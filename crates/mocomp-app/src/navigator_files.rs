@@ -51,6 +51,26 @@ impl std::str::FromStr for Navigator {
     }
 }
 
+impl Navigator {
+    /// Its name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Simnibs => "SimNIBS",
+            Self::Localite => "Localite",
+            Self::Brainsight => "Brainsight",
+        }
+    }
+
+    /// What its file must be in to be this image's frame.
+    pub fn frame_hint(self) -> &'static str {
+        match self {
+            Self::Simnibs => "matsimnibs in mm, in the subject space of this patient's T1",
+            Self::Localite => "planned on this patient's T1, coordinateSpace as written",
+            Self::Brainsight => "exported in NIfTI:Aligned from this patient's T1",
+        }
+    }
+}
+
 /// How far a rotation may be from orthonormal and still be taken as one: Brainsight writes four
 /// decimals.
 const RIGID_TOLERANCE: f64 = 2e-3;

@@ -85,10 +85,12 @@ fn pose_target(
     if !(-0.002..=MAX_OFF_SCALP_M).contains(&off) {
         return Err(AppError::Config(format!(
             "{file}: {}: the coil's face lies {:.1} mm {} the scalp: is the file in this image's \
-             frame (RAS, mm; {navigator:?}: see README)?",
+             frame ({}: {})?",
             p.name,
             off.abs() * 1e3,
-            if off > 0.0 { "outside" } else { "inside" }
+            if off > 0.0 { "outside" } else { "inside" },
+            navigator.name(),
+            navigator.frame_hint()
         )));
     }
     let head_from_coil = head_from_image * p.image_from_coil;
@@ -99,7 +101,7 @@ fn pose_target(
         setup.file.params.goal_min_distance_m(),
     )
     .map_err(|e| AppError::Config(format!("{file}: {}: {e}", p.name)))?;
-    let source = format!("{} {file}", format!("{navigator:?}").to_lowercase());
+    let source = format!("{} {file}", navigator.name());
     Ok(
         Target::new(&p.name, &head_from_coil, "", &crate::targets::now())
             .placed_on_image(&p.image_from_coil, &source),
