@@ -1146,7 +1146,7 @@ impl Config {
         }
         .map_err(|e| AppError::Config(format!("head.landmarks_file: {e}")))?;
         for l in read {
-            let mm = crate::navigation::mm_from_point(&l.point);
+            let mm: [f64; 3] = (l.point.coords * 1000.0).into();
             self.head.landmarks.entry(l.name).or_insert(mm);
         }
         self.head.landmarks_file = Some(std::fs::canonicalize(&path).unwrap_or(path));

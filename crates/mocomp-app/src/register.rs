@@ -169,7 +169,7 @@ pub fn compute(
         .map_err(|e| AppError::Refused(format!("registration: {e}")))?;
     let too_far = registration.surface.as_ref().map_or(0, |s| s.too_far);
     let file = RegistrationFile {
-        registration: Record::new(&registration, image, touched),
+        registration: Record::new(&registration, image, touched, &crate::targets::now()),
         overrides: Vec::new(),
     };
     Ok(Registered {

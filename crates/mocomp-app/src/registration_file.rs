@@ -96,8 +96,8 @@ fn mm(p: &Point3<f64>) -> [f64; 3] {
 }
 
 impl Record {
-    /// The record of `r`, from the `image` and `touched` landmarks it used.
-    pub fn new(r: &Registration, image: &[Landmark], touched: &[Landmark]) -> Self {
+    /// The record of `r`, from the `image` and `touched` landmarks it used, made `at` (a date).
+    pub fn new(r: &Registration, image: &[Landmark], touched: &[Landmark], at: &str) -> Self {
         let head_from_image = r.image_from_marker.inverse();
         let (t, v) = (
             head_from_image.translation.vector,
@@ -125,7 +125,7 @@ impl Record {
             fle_mm: r.fle_m * 1000.0,
             surface_rms_mm: r.surface.as_ref().map_or(0.0, |s| s.rms_m * 1000.0),
             surface_points: r.surface.as_ref().map_or(0, |s| s.kept),
-            registered_at: crate::targets::now(),
+            registered_at: at.to_string(),
             landmarks,
         }
     }

@@ -79,7 +79,10 @@ impl Slicer {
         });
         [
             (DEVICES[0], coil),
-            (DEVICES[1], Some(self.image_from_head * r.head_from_coil_goal)),
+            (
+                DEVICES[1],
+                Some(self.image_from_head * r.head_from_coil_goal),
+            ),
             (DEVICES[2], Some(self.image_from_head)),
         ]
     }
