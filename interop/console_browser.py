@@ -14,7 +14,8 @@ depth camera) it checks the IR frame with the pipeline's overlays shows, a scan 
 the mouse and a new threshold take effect in the pipeline, a bad depth range shows its error
 beside the field, and writes the IR screenshots (whole image, and the scan area drawn). With
 `calibrate` (a `calibrate collect --dashboard`) it starts the collection from the page's button
-after its confirmation and waits for the outcome. With `session` (a run with a `[session]` of
+after its confirmation and waits for the outcome. With `register` (a `register --dashboard`) it starts the registration from the page's
+button and waits for the three landmarks and the outcome. With `session` (a run with a `[session]` of
 two targets, `hot` and `beside`, and the simulated stimulator) it checks the targets list shows,
 "Go to target" takes the coil to `beside` by a path and back to tracking, the pulses show in the
 events, and free-drive starts only from a hold and hands back. Any failure is an exception (exit 1).
@@ -269,6 +270,33 @@ def calibrate_session(url, shots):
     return seen
 
 
+def register_session(url, shots):
+    d = browser()
+    seen = {}
+    try:
+        d.get(url)
+        panel = lambda: d.find_element(By.ID, "navigation-panel")  # noqa: E731
+        wait("the navigation panel", lambda: panel().is_displayed(), 90)
+        start = lambda: d.find_element(By.ID, "start-navigation")  # noqa: E731
+        wait("the start button", lambda: start().get_attribute("disabled") is None, 90)
+        assert d.find_element(By.ID, "hold").get_attribute("disabled") is not None
+        seen["waiting"] = text(d, "reason")
+        start().click()
+        wait("the landmarks", lambda: len(d.find_elements(By.CSS_SELECTOR, "#nav-landmarks tbody tr")) == 3, 90)
+        seen["landmarks"] = [r.text for r in d.find_elements(By.CSS_SELECTOR, "#nav-landmarks tbody tr")]
+        wait("the outcome", lambda: "registered: FRE" in text(d, "nav-result"), 120)
+        seen["result"] = [li.text for li in d.find_elements(By.CSS_SELECTOR, "#nav-result li")]
+        rows = d.execute_script(
+            "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
+        seen["events"] = rows
+        seen["mode"] = text(d, "mode")
+        d.execute_script("document.getElementById('navigation-panel').scrollIntoView()")
+        d.save_screenshot(os.path.join(shots, "console-registration.png"))
+    finally:
+        d.quit()
+    return seen
+
+
 def session_session(url, shots):
     d = browser()
     seen = {}
@@ -352,5 +380,6 @@ def head_session(url, shots):
 if __name__ == "__main__":
     which = sys.argv[3] if len(sys.argv) > 3 else "loop"
     run = {"camera": camera_session, "calibrate": calibrate_session,
-           "session": session_session, "head": head_session}.get(which, loop_session)
+           "session": session_session, "head": head_session,
+           "register": register_session}.get(which, loop_session)
     print(json.dumps(run(sys.argv[1], sys.argv[2])))

@@ -79,12 +79,13 @@ impl Pointer {
 }
 
 /// `count` poses of `device` from the OpenIGTLink server at `addr` (`tracker_from_marker`, m),
-/// and how many more arrived marked invalid (left out).
+/// and how many more arrived marked invalid (left out); `each` is told how many are in.
 pub fn collect(
     addr: &str,
     device: &str,
     count: usize,
     timeout: Duration,
+    each: &mut dyn FnMut(usize),
 ) -> Result<(Vec<Isometry3<f64>>, usize), AppError> {
     let mut poses = Vec::with_capacity(count);
     let mut invalid = 0usize;
@@ -101,7 +102,10 @@ pub fn collect(
             .then(|| iso_from_matrix_mm(&h.matrix_mm, F32_RIGID_TOLERANCE).ok())
             .flatten()
         {
-            Some(p) => poses.push(p),
+            Some(p) => {
+                poses.push(p);
+                each(poses.len());
+            }
             None => invalid += 1,
         }
         Ok(if poses.len() >= count {

@@ -107,8 +107,8 @@ pub struct Registered {
 }
 
 /// Registers live: the operator touches `names` in turn and sweeps `sweep_points` over the
-/// scalp; `say` is told each step. The registration is checked against the configuration's
-/// scalp and `[head.landmarks]`.
+/// scalp; `say` is told each step, `follow` the capture whenever it moved on. The registration
+/// is checked against the configuration's scalp and `[head.landmarks]`.
 pub fn register_live(
     setup: &Setup,
     streams: &Streams,
@@ -116,6 +116,7 @@ pub fn register_live(
     names: &[&str],
     sweep_points: usize,
     say: &mut dyn FnMut(&str),
+    follow: &mut dyn FnMut(&Capture),
 ) -> Result<Registered, AppError> {
     let image = image_landmarks(setup, names)?;
     let options = CaptureOptions {
@@ -124,6 +125,8 @@ pub fn register_live(
     };
     let mut capture = Capture::new(names, options);
     let mut last_step = None;
+    let mut last_swept = 0;
+    follow(&capture);
     tips_in_head(streams, pointer, &mut |tip| {
         let got = capture.feed(&tip);
         if let Some(Captured::Landmark(l, spread)) = &got {
@@ -142,7 +145,11 @@ pub fn register_live(
                 Step::Sweep(..) | Step::Done => {}
             }
             last_step = Some(step.clone());
+            follow(&capture);
+        } else if got.is_some() || capture.sweep().len() != last_swept {
+            follow(&capture);
         }
+        last_swept = capture.sweep().len();
         if step == Step::Done {
             ControlFlow::Break(())
         } else {

@@ -14,6 +14,7 @@ mod head;
 mod ik;
 mod listen;
 mod models;
+mod navigation_page;
 mod pointer;
 mod print;
 mod register;

@@ -40,6 +40,9 @@ pub struct CalibrateCmd {
     /// Print the calibration as one JSON object.
     #[arg(long)]
     json: bool,
+    /// The operator's console: the calibration waits for its Start, then shows the count.
+    #[command(flatten)]
+    dashboard: crate::dashboard::DashboardArgs,
 }
 
 impl PointerCmd {
@@ -55,17 +58,39 @@ impl PointerCmd {
             ))
             .into());
         }
+        let controls = mocomp_app::frontend::Controls::new();
+        let setup = mocomp_app::config::Setup::new(
+            mocomp_app::config::Config::default(),
+            None,
+            PathBuf::new(),
+        )?;
+        let mut stderr = std::io::stderr();
+        let progress: &mut dyn Write = if c.json { &mut stderr } else { out };
+        let console = c.dashboard.start(&setup, &controls, progress)?;
+        let mut page = crate::navigation_page::Page::new(console.as_ref(), "pivot");
+        if console.is_some() {
+            page.wait_for_go(&controls)?;
+        }
         eprintln!(
             "pivot the tip of {} in a divot, turning it every way, until {} poses are in",
             c.device, c.samples
         );
-        let (poses, invalid) = mocomp_app::pointer::collect(
+        let calibrated = mocomp_app::pointer::collect(
             &c.igtl,
             &c.device,
             c.samples,
             Duration::from_secs_f64(c.timeout),
-        )?;
-        let p = mocomp_app::pointer::calibrate(&c.device, &poses, invalid)?;
+            &mut |n| page.samples(n, c.samples),
+        )
+        .and_then(|(poses, invalid)| mocomp_app::pointer::calibrate(&c.device, &poses, invalid));
+        let p = match calibrated {
+            Ok(p) => p,
+            Err(e) => {
+                page.failed(&e.to_string());
+                return Err(e.into());
+            }
+        };
+        page.pivoted(&p);
         mocomp_app::pointer::save(&c.out, &p)?;
         if c.json {
             writeln!(out, "{}", serde_json::to_string(&p)?)?;

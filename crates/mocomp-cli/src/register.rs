@@ -88,6 +88,9 @@ struct LiveArgs {
     /// Print the result as one JSON object.
     #[arg(long)]
     json: bool,
+    /// The operator's console: the registration waits for its Start, then shows each step.
+    #[command(flatten)]
+    dashboard: crate::dashboard::DashboardArgs,
 }
 
 #[derive(Debug, Clone, Args)]
@@ -115,17 +118,35 @@ impl RegisterCmd {
 fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let (setup, streams, pointer) = a.common.open()?;
     let names: Vec<&str> = a.landmarks.iter().map(String::as_str).collect();
-    let r = mocomp_app::register::register_live(
+    let controls = mocomp_app::frontend::Controls::new();
+    // With --json, standard output is the result alone: the console's line goes to stderr.
+    let mut stderr = std::io::stderr();
+    let progress: &mut dyn Write = if a.json { &mut stderr } else { out };
+    let console = a.dashboard.start(&setup, &controls, progress)?;
+    let mut page = crate::navigation_page::Page::new(console.as_ref(), "registration");
+    if console.is_some() {
+        page.wait_for_go(&controls)?;
+    }
+    let result = mocomp_app::register::register_live(
         &setup,
         &streams,
         &pointer,
         &names,
         a.sweep_points,
         &mut |s| eprintln!("{s}"),
-    )?;
+        &mut |c| page.capture(c),
+    );
+    let r = match result {
+        Ok(r) => r,
+        Err(e) => {
+            page.failed(&e.to_string());
+            return Err(e.into());
+        }
+    };
     mocomp_app::registration_file::save(&a.out, &r.file)?;
     let rec = &r.file.registration;
     let targets = mocomp_app::registration_gate::target_errors(&setup, rec)?;
+    page.registered(rec, &targets);
     if a.json {
         let json = serde_json::json!({
             "head_from_image": rec.head_from_image,

@@ -12,11 +12,10 @@
 
 mod common;
 use common::mocomp;
-use common::session::{Session, write_example};
-use mocomp_testkit::{TempDir, workspace_root};
+use common::session::{Session, browse, write_example};
+use mocomp_testkit::TempDir;
 use serde_json::{Value, json};
 use std::path::Path;
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 #[test]
@@ -171,53 +170,6 @@ fn a_console_on_the_network_needs_the_flag_that_says_so() {
 }
 
 /// The Python that runs the browser helper (the test venv's, or `MOCOMP_PYTHON`).
-fn python() -> std::path::PathBuf {
-    std::env::var_os("MOCOMP_PYTHON")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| workspace_root().join(".venv/bin/python"))
-}
-
-/// Runs the browser helper (`interop/console_browser.py`) on the session's console in `mode`,
-/// its screenshots into `shots`; what it saw.
-fn browse(s: &Session, shots: &str, mode: &str) -> Value {
-    // A real headless Chromium (Debian's chromium and chromium-driver) through Selenium in the
-    // test venv; a missing browser, driver or Selenium fails here, with how to install them.
-    for p in ["/usr/bin/chromium", "/usr/bin/chromedriver"] {
-        let p = std::env::var(if p.ends_with("driver") {
-            "MOCOMP_CHROMEDRIVER"
-        } else {
-            "MOCOMP_CHROMIUM"
-        })
-        .unwrap_or_else(|_| p.to_string());
-        assert!(
-            Path::new(&p).exists(),
-            "{p} missing: apt-get install chromium chromium-driver (scripts/test.sh does)"
-        );
-    }
-    std::fs::create_dir_all(shots).unwrap();
-    let out = Command::new(python())
-        .arg(workspace_root().join("interop/console_browser.py"))
-        .arg(format!("{}/?token={}", s.base, s.token))
-        .arg(shots)
-        .arg(mode)
-        .stderr(Stdio::inherit())
-        .output()
-        .unwrap_or_else(|e| {
-            panic!(
-                "cannot run the browser helper: {e}; {}",
-                mocomp_testkit::INSTALL_HINT
-            )
-        });
-    assert!(
-        out.status.success(),
-        "the browser helper failed (see its message above); {}",
-        mocomp_testkit::INSTALL_HINT
-    );
-    let seen: Value = serde_json::from_slice(&out.stdout).unwrap();
-    eprintln!("console in the browser ({mode}): {seen}");
-    seen
-}
-
 #[test]
 fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
     let dir = TempDir::new("mocomp-console-browser");

@@ -12,6 +12,7 @@
 
 mod common;
 use common::assert_success;
+use common::session::Session;
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use mocomp_testkit::{PythonPeer, SplitMix64, TempDir};
 use serde_json::{Value, json};
@@ -135,4 +136,62 @@ fn a_pointer_barely_turned_is_refused_with_how_far_it_turned() {
         "{err}"
     );
     assert!(!std::path::Path::new(&file).exists());
+}
+
+#[test]
+fn the_pivot_calibration_waits_for_the_consoles_go_and_shows_its_outcome() {
+    let mut py = PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
+    let port = py.request(&json!({"op": "server", "port": 0}))["port"]
+        .as_u64()
+        .unwrap();
+    let mut rng = SplitMix64(33);
+    let frames: Vec<Value> = pivoting(&mut rng, 150)
+        .into_iter()
+        .map(|m| json!({"StylusToTracker": m}))
+        .collect();
+    // 40 a second: the page has 2.5 s to show the count before the process ends.
+    py.request(&json!({"op": "stream", "frames": frames, "rate_hz": 40}));
+    let dir = TempDir::new("pointer-console");
+    let file = dir.path("pointer.toml");
+    let addr = format!("127.0.0.1:{port}");
+    let s = Session::spawn(&[
+        "pointer",
+        "calibrate",
+        "--igtl",
+        &addr,
+        "--samples",
+        "100",
+        "--out",
+        &file,
+        "--dashboard",
+        "127.0.0.1:0",
+    ]);
+    let waiting = s.wait_status("the pivot waiting for the go", |v| {
+        v["navigation"]["state"] == "waiting"
+    });
+    assert_eq!(waiting["navigation"]["task"], "pivot", "{waiting}");
+    // Without the token the go is refused; nothing was collected.
+    let (code, _) = s.post("/api/navigate", &[], &json!({}));
+    assert_eq!(code, 401);
+    assert!(!std::path::Path::new(&file).exists());
+    let (code, _) = s.post_auth("/api/navigate", &json!({}));
+    assert_eq!(code, 200);
+    let (code, _) = s.post_auth("/api/navigate", &json!({}));
+    assert_eq!(code, 409, "a second go");
+    // The page follows the count (the process ends with the outcome: the browser test of
+    // `register --dashboard` reads the panel's last state).
+    let counting = s.wait_status("the pivot collecting", |v| {
+        v["navigation"]["state"] == "running" && v["navigation"]["samples"][1] == 100
+    });
+    assert!(
+        counting["reason"]
+            .as_str()
+            .unwrap()
+            .contains("pivot the tip"),
+        "{counting}"
+    );
+    let (ok, printed) = s.finish();
+    assert!(ok, "{printed}");
+    assert!(printed.contains("tip at"), "{printed}");
+    assert!(std::path::Path::new(&file).exists());
 }

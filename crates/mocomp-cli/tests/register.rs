@@ -14,6 +14,7 @@
 
 mod common;
 use common::assert_success;
+use common::session::{Session, browse};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use mocomp_head::{HeadShape, Mesh, MeshHead, repair};
 use mocomp_testkit::{PythonPeer, SplitMix64, TempDir};
@@ -537,4 +538,63 @@ fn registered_head_from_image(reg: &str) -> Isometry3<f64> {
         Vector3::new(p[0], p[1], p[2]),
         Vector3::new(p[3], p[4], p[5]),
     )
+}
+
+#[test]
+fn the_registration_is_started_and_followed_in_the_console_in_a_real_browser() {
+    let dir = TempDir::new("register-console");
+    let (config, pointer, points) = write_setup(&dir);
+    let mut rng = SplitMix64(555);
+    let touch = [points["nasion"], points["lpa"], points["rpa"]];
+    // The server streams once mocomp connects, which it does only after the page's Start.
+    let (_py, addr) = stream(session(&mut rng, &marker_from_image(), &touch, 150));
+    let reg = dir.path("registration.toml");
+    let s = Session::spawn(&[
+        "register",
+        "--config",
+        &config,
+        "--pointer",
+        &pointer,
+        "--igtl",
+        &addr,
+        "--out",
+        &reg,
+        "--dashboard",
+        "127.0.0.1:0",
+    ]);
+    s.wait_status("the registration waiting for the go", |v| {
+        v["navigation"]["state"] == "waiting"
+    });
+    let shots = dir.path("shots");
+    let seen = browse(&s, &shots, "register");
+    let landmarks: Vec<String> = seen["landmarks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l.as_str().unwrap().to_string())
+        .collect();
+    assert!(
+        landmarks[0].starts_with("nasion")
+            && landmarks[1].starts_with("lpa")
+            && landmarks[2].starts_with("rpa"),
+        "{seen}"
+    );
+    let result = seen["result"].to_string();
+    assert!(
+        result.contains("registered: FRE") && result.contains("estimated target error"),
+        "{seen}"
+    );
+    let events = seen["events"].to_string();
+    for step in [
+        "touch the nasion",
+        "take the pointer off the rpa",
+        "sweep the pointer over the scalp",
+    ] {
+        assert!(events.contains(step), "{step}: {seen}");
+    }
+    assert_eq!(seen["mode"], "done", "{seen}");
+    let (ok, printed) = s.finish();
+    assert!(ok, "{printed}");
+    assert!(printed.contains("registered: FRE"), "{printed}");
+    assert!(std::path::Path::new(&reg).exists());
 }

@@ -80,6 +80,7 @@ function showStatus(s) {
   }
   showCamera(s.camera);
   showCalibration(s.calibration);
+  showNavigation(s.navigation);
   drawPlot();
   drawScene();
 }
@@ -451,6 +452,44 @@ function calibrationControls() {
   $("confirm-calibrate").addEventListener("click", () => { $("calibrate-dialog").close(); command("/api/calibrate"); });
 }
 
+// ---- navigation: registration, pivot calibration ----------------------------------------------
+
+function showNavigation(n) {
+  $("navigation-panel").hidden = !n;
+  if (!n) return;
+  for (const id of ["hold", "resume", "teach"]) $(id).disabled = true;
+  $("nav-task").textContent = "(" + n.task + ": " + n.state + ")";
+  $("start-navigation").disabled = n.state !== "waiting";
+  $("nav-step").textContent = n.state === "running" ? n.step : (n.state === "waiting" ? "press Start when the patient is ready" : "");
+  $("nav-progress").max = Math.max(1, n.samples[1]);
+  $("nav-progress").value = n.samples[0];
+  $("nav-count").textContent = n.samples[0] + " of " + n.samples[1];
+  const body = $("nav-landmarks").tBodies[0];
+  if (body.rows.length !== n.landmarks.length) {
+    body.replaceChildren(...n.landmarks.map(([name, spread]) => {
+      const tr = document.createElement("tr");
+      for (const v of [name, fmt(spread, 2)]) {
+        const td = document.createElement("td");
+        td.textContent = v;
+        tr.appendChild(td);
+      }
+      return tr;
+    }));
+  }
+  const list = $("nav-result");
+  if (list.children.length !== n.result.length) {
+    list.replaceChildren(...n.result.map((line) => {
+      const li = document.createElement("li");
+      li.textContent = line;
+      return li;
+    }));
+  }
+}
+
+function navigationControls() {
+  $("start-navigation").addEventListener("click", () => command("/api/navigate"));
+}
+
 // ---- the camera -----------------------------------------------------------------------------
 
 const camera = { loading: false, drag: null, bitmap: null };
@@ -519,6 +558,7 @@ async function start() {
   orbit();
   cameraControls();
   calibrationControls();
+  navigationControls();
   $("apply-params").addEventListener("click", () => applyForm("loop"));
   const sc = await api("GET", "/api/scene");
   if (sc.ok) state.scene = sc.data;

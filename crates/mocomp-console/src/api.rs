@@ -11,6 +11,7 @@
 //! | `POST /api/params` | yes | a partial configuration (JSON); 400 `{"key", "error"}` when refused |
 //! | `POST /api/hold`, `/api/resume`, `/api/stop` | yes | the operator's hold, resume, stop |
 //! | `POST /api/calibrate` | yes | a calibration collection waiting for the go: start it (the arm moves); 409 otherwise |
+//! | `POST /api/navigate` | yes | a navigation task (registration, pivot calibration) waiting for the go: start it; 409 otherwise |
 //! | `GET /api/targets` | reading | the session's targets (name, position mm, approach axis) |
 //! | `POST /api/target` | yes | `{"name": …}`: go to that target by a planned path while compensating; 409 with why when refused |
 //! | `POST /api/freedrive`, `/api/handback` | yes | while held: free-drive (the arm yields to a hand); hand back to the loop from where the hand left it |
@@ -83,6 +84,7 @@ pub fn router(api: Api) -> Router {
         .route("/api/freedrive", post(freedrive))
         .route("/api/handback", post(handback))
         .route("/api/calibrate", post(calibrate))
+        .route("/api/navigate", post(navigate))
         .route("/ws", get(ws))
         .layer(DefaultBodyLimit::max(MAX_BODY))
         .with_state(api)
@@ -405,6 +407,25 @@ async fn calibrate(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> 
         return refuse(
             StatusCode::CONFLICT,
             "no calibration collection is waiting for the go (mocomp calibrate collect --dashboard)",
+        );
+    }
+    api.shared.controls.request_start();
+    axum::Json(json!({ "started": true })).into_response()
+}
+
+async fn navigate(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Response {
+    if let Err(r) = api.may_change(&headers) {
+        return r;
+    }
+    let waiting = api
+        .shared
+        .status()
+        .navigation
+        .is_some_and(|n| n.state == "waiting");
+    if !waiting || api.shared.controls.start_requested() {
+        return refuse(
+            StatusCode::CONFLICT,
+            "no navigation task is waiting for the go (mocomp register --dashboard)",
         );
     }
     api.shared.controls.request_start();

@@ -218,6 +218,12 @@ impl Console {
         self.shared.publish_calibration(c, Some(message));
     }
 
+    /// Tells the page how a navigation task goes (`mocomp register --dashboard`): its whole
+    /// progress each time, and what just happened.
+    pub fn navigation(&self, n: state::NavigationJson, event: Option<String>) {
+        self.shared.publish_navigation(n, event);
+    }
+
     /// The calibration progress published so far.
     fn calibration(&self) -> CalibrationJson {
         self.shared

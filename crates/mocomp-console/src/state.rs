@@ -105,6 +105,25 @@ pub struct CalibrationJson {
     pub message: Option<String>,
 }
 
+/// A navigation task's progress (`mocomp register --dashboard`, `mocomp pointer calibrate
+/// --dashboard`): what the operator must do now, what is in, and the outcome.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NavigationJson {
+    /// registration, pivot.
+    pub task: &'static str,
+    /// waiting (for the operator's go), running, done, failed.
+    pub state: &'static str,
+    /// What the operator does now ("touch the nasion and hold still").
+    pub step: String,
+    /// The landmarks touched so far and how far the burst's tips spread, mm.
+    pub landmarks: Vec<(String, f64)>,
+    /// Samples (swept points, pivot poses) in, of how many.
+    pub samples: [usize; 2],
+    /// The outcome, a line each (FRE per landmark, surface RMS, the target error at each
+    /// target; the tip and its error), or why it failed.
+    pub result: Vec<String>,
+}
+
 /// The status the page shows (`GET /api/status`, and each WebSocket message).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StatusJson {
@@ -151,6 +170,8 @@ pub struct StatusJson {
     pub camera: Option<CameraJson>,
     /// A calibration collection's progress (a `calibrate collect` session).
     pub calibration: Option<CalibrationJson>,
+    /// A navigation task's progress (a `register` or `pointer calibrate` session).
+    pub navigation: Option<NavigationJson>,
     /// The controller running (in the experiment: `paper` or `mocomp`).
     pub controller: Option<&'static str>,
     /// The scene's version ([`SceneJson::version`]).
@@ -183,6 +204,7 @@ impl StatusJson {
             cycle_unix_ms: f64::NAN,
             camera: None,
             calibration: None,
+            navigation: None,
             controller: None,
             scene_version: 0,
             scene: SceneNow {
@@ -549,6 +571,31 @@ impl Shared {
         self.publish(status, None, None);
     }
 
+    /// Publishes a navigation task's progress as the status, with an event when `event` says
+    /// what happened.
+    pub fn publish_navigation(&self, n: NavigationJson, event: Option<String>) {
+        let mut status = StatusJson::starting();
+        let reason = match n.state {
+            "waiting" => format!("{}: press Start when the patient is ready", n.task),
+            "running" => n.step.clone(),
+            _ => n.result.first().cloned().unwrap_or_default(),
+        };
+        status.mode = n.state.into();
+        status.mode_text = format!("{}: {reason}", n.state);
+        status.reason = Some(reason);
+        status.running = matches!(n.state, "waiting" | "running");
+        status.navigation = Some(n);
+        if let Some(text) = event {
+            self.push_event(EventJson {
+                t: self.started.elapsed().as_secs_f64(),
+                kind: "navigation",
+                reason: Some(text.clone()),
+                text,
+            });
+        }
+        self.publish(status, None, None);
+    }
+
     fn push_event(&self, e: EventJson) {
         let mut s = self.store();
         if s.events.len() == EVENTS_KEPT {
@@ -683,6 +730,7 @@ impl ConsoleObserver {
                 .and_then(|v| v.preview())
                 .map(|p| CameraJson::of(&p)),
             calibration: None,
+            navigation: None,
             controller: self.controller,
             scene_version: self.shared.scene().version,
             scene: SceneNow {

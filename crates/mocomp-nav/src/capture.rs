@@ -64,6 +64,7 @@ pub struct Capture {
     options: CaptureOptions,
     burst: Vec<Point3<f64>>,
     landmarks: Vec<Landmark>,
+    spreads: Vec<f64>,
     away: bool,
     sweep: Vec<Point3<f64>>,
 }
@@ -76,6 +77,7 @@ impl Capture {
             options,
             burst: Vec::with_capacity(options.hold_samples),
             landmarks: Vec::new(),
+            spreads: Vec::new(),
             away: true,
             sweep: Vec::with_capacity(options.sweep_points),
         }
@@ -101,6 +103,11 @@ impl Capture {
     /// The landmarks touched so far.
     pub fn landmarks(&self) -> &[Landmark] {
         &self.landmarks
+    }
+
+    /// How far each landmark's burst spread about its median, m (in the order touched).
+    pub fn landmark_spreads(&self) -> &[f64] {
+        &self.spreads
     }
 
     /// The sweep's points so far.
@@ -162,6 +169,7 @@ impl Capture {
         let name = self.names[self.landmarks.len()].clone();
         let landmark = Landmark::new(&name, median);
         self.landmarks.push(landmark.clone());
+        self.spreads.push(spread);
         self.burst.clear();
         self.away = false;
         Some(Captured::Landmark(landmark, spread))

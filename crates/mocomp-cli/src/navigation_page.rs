@@ -1,0 +1,139 @@
+//! What a navigation command (`register --dashboard`) shows in the operator's console: it waits
+//! for the page's Start, then each step, the landmarks as they are touched, the sweep's count,
+//! and the outcome. Without a console it does nothing.
+
+use mocomp_app::frontend::Controls;
+use mocomp_app::registration_file::Record;
+use mocomp_console::Console;
+use mocomp_console::state::NavigationJson;
+use mocomp_nav::{Capture, Step};
+use std::time::Duration;
+
+/// The console's navigation panel, or nothing.
+pub struct Page<'a> {
+    console: Option<&'a Console>,
+    shown: NavigationJson,
+}
+
+impl<'a> Page<'a> {
+    /// The panel for `task` on `console`, waiting.
+    pub fn new(console: Option<&'a Console>, task: &'static str) -> Self {
+        let shown = NavigationJson {
+            task,
+            state: "waiting",
+            step: String::new(),
+            landmarks: Vec::new(),
+            samples: [0, 0],
+            result: Vec::new(),
+        };
+        let page = Self { console, shown };
+        page.show(Some(format!("{task}: waiting for the go")));
+        page
+    }
+
+    fn show(&self, event: Option<String>) {
+        if let Some(c) = self.console {
+            c.navigation(self.shown.clone(), event);
+        }
+    }
+
+    /// Waits for the page's Start (or the page's Stop, Ctrl-C: then an error).
+    pub fn wait_for_go(&mut self, controls: &Controls) -> anyhow::Result<()> {
+        while !controls.start_requested() {
+            if controls.stop_requested() {
+                self.failed("stopped before it started");
+                anyhow::bail!("stopped before it started");
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        self.shown.state = "running";
+        self.show(Some(format!("{}: started", self.shown.task)));
+        Ok(())
+    }
+
+    /// The capture moved on.
+    pub fn capture(&mut self, c: &Capture) {
+        if self.console.is_none() {
+            return;
+        }
+        let step = match c.step() {
+            Step::Touch(n) => format!("touch the {n} with the pointer and hold still"),
+            Step::TakeAway(n) => format!("take the pointer off the {n}"),
+            Step::Sweep(..) => "sweep the pointer over the scalp".to_string(),
+            Step::Done => "computing the registration".to_string(),
+        };
+        let event = (step != self.shown.step).then(|| step.clone());
+        self.shown.state = "running";
+        self.shown.step = step;
+        self.shown.landmarks = c
+            .landmarks()
+            .iter()
+            .zip(c.landmark_spreads())
+            .map(|(l, s)| (l.name.clone(), s * 1e3))
+            .collect();
+        self.shown.samples = match c.step() {
+            Step::Sweep(n, of) => [n, of],
+            _ => [c.sweep().len(), self.shown.samples[1].max(c.sweep().len())],
+        };
+        self.show(event);
+    }
+
+    /// The registration is in: its figures.
+    pub fn registered(&mut self, rec: &Record, targets: &[(String, f64)]) {
+        self.shown.state = "done";
+        let mut lines = vec![format!(
+            "registered: FRE {:.2} mm; surface RMS {:.2} mm over {} points",
+            rec.fre_mm, rec.surface_rms_mm, rec.surface_points
+        )];
+        lines.extend(
+            rec.landmarks
+                .iter()
+                .map(|(k, l)| format!("{k}: {:.2} mm", l.error_mm)),
+        );
+        lines.extend(
+            targets
+                .iter()
+                .map(|(n, t)| format!("estimated target error at {n}: {t:.1} mm")),
+        );
+        self.shown.result = lines;
+        self.show(Some("registered".into()));
+    }
+
+    /// Pivot samples in, of how many (shown every tenth).
+    pub fn samples(&mut self, n: usize, of: usize) {
+        if self.console.is_none() || (n % 10 != 0 && n != of) {
+            return;
+        }
+        self.shown.state = "running";
+        self.shown.step = "pivot the tip in the divot, turning the pointer every way".into();
+        self.shown.samples = [n, of];
+        self.show(None);
+    }
+
+    /// The pointer is calibrated.
+    pub fn pivoted(&mut self, p: &mocomp_app::pointer::Pointer) {
+        self.shown.state = "done";
+        let [x, y, z] = p.tip_in_marker_mm;
+        self.shown.result = vec![
+            format!("{}: tip at ({x:.2}, {y:.2}, {z:.2}) mm", p.device),
+            format!(
+                "tips agree to {:.2} mm RMS, {:.2} mm at most",
+                p.rms_mm, p.max_mm
+            ),
+            format!(
+                "{} of {} poses kept, turned {:.0}°",
+                p.kept,
+                p.kept + p.rejected,
+                p.spread_deg
+            ),
+        ];
+        self.show(Some("pointer calibrated".into()));
+    }
+
+    /// It failed: why.
+    pub fn failed(&mut self, why: &str) {
+        self.shown.state = "failed";
+        self.shown.result = vec![why.to_string()];
+        self.show(Some(why.to_string()));
+    }
+}
