@@ -101,7 +101,7 @@ impl<'a> Page<'a> {
 
     /// Pivot samples in, of how many (shown every tenth).
     pub fn samples(&mut self, n: usize, of: usize) {
-        if self.console.is_none() || (n % 10 != 0 && n != of) {
+        if self.console.is_none() || (!n.is_multiple_of(10) && n != of) {
             return;
         }
         self.shown.state = "running";
