@@ -11,7 +11,7 @@
 //! and MNI coordinate through an affine; bad input refused by name.
 
 mod common;
-use common::{assert_success, mocomp};
+use common::{assert_success, mocomp, pose_json, pose_toml, pose6};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use mocomp_testkit::TempDir;
 use serde_json::Value;
@@ -55,11 +55,7 @@ fn point(v: &Value) -> Point3<f64> {
 }
 
 fn head_from_image() -> Isometry3<f64> {
-    let p = HEAD_FROM_IMAGE;
-    Isometry3::new(
-        Vector3::new(p[0], p[1], p[2]),
-        Vector3::new(p[3], p[4], p[5]),
-    )
+    pose6(&HEAD_FROM_IMAGE)
 }
 
 fn targets(file: &str) -> Vec<Value> {
@@ -145,16 +141,7 @@ fn eeg_positions_and_targets_from_the_image_land_on_the_scalp_in_the_marker_s_fr
     assert_success(&out);
     let list = targets(&file);
     assert_eq!(list.len(), 3);
-    let pose = |name: &str| {
-        let t = list.iter().find(|t| t["name"] == name).unwrap();
-        let p: Vec<f64> = (0..6)
-            .map(|i| t["head_from_coil"][i].as_f64().unwrap())
-            .collect();
-        Isometry3::new(
-            Vector3::new(p[0], p[1], p[2]),
-            Vector3::new(p[3], p[4], p[5]),
-        )
-    };
+    let pose = |name: &str| head_from_coil(&list, name);
     let image_from_head = head_from_image().inverse();
     let f3 = image_from_head * pose("dlpfc");
     let f3_point = point(&all["F3"]) / 1e3;
@@ -247,14 +234,7 @@ fn image_from_coil_mm(file: &str, name: &str) -> mocomp_geom::nalgebra::Matrix4<
         .iter()
         .find(|t| t["name"].as_str() == Some(name))
         .unwrap();
-    let p: Vec<f64> = (0..6)
-        .map(|i| t["image_from_coil"][i].as_float().unwrap())
-        .collect();
-    let mut m = Isometry3::new(
-        Vector3::new(p[0], p[1], p[2]),
-        Vector3::new(p[3], p[4], p[5]),
-    )
-    .to_homogeneous();
+    let mut m = pose_toml(&t["image_from_coil"]).to_homogeneous();
     for r in 0..3 {
         m[(r, 3)] *= 1000.0;
     }
@@ -262,14 +242,7 @@ fn image_from_coil_mm(file: &str, name: &str) -> mocomp_geom::nalgebra::Matrix4<
 }
 
 fn head_from_coil(list: &[Value], name: &str) -> Isometry3<f64> {
-    let t = list.iter().find(|t| t["name"] == name).unwrap();
-    let p: Vec<f64> = (0..6)
-        .map(|i| t["head_from_coil"][i].as_f64().unwrap())
-        .collect();
-    Isometry3::new(
-        Vector3::new(p[0], p[1], p[2]),
-        Vector3::new(p[3], p[4], p[5]),
-    )
+    pose_json(&list.iter().find(|t| t["name"] == name).unwrap()["head_from_coil"])
 }
 
 #[test]

@@ -11,10 +11,10 @@
 //! tilted up to 30° from upright every way and spun about its length.
 
 mod common;
-use common::assert_success;
 use common::session::Session;
+use common::{assert_success, pyigtl_streaming};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use mocomp_testkit::{PythonPeer, SplitMix64, TempDir};
+use mocomp_testkit::{SplitMix64, TempDir};
 use serde_json::{Value, json};
 
 /// The tip in the marker's frame and the divot in the tracker's, mm.
@@ -44,16 +44,12 @@ fn pivoting(rng: &mut SplitMix64, n: usize) -> Vec<[[f64; 4]; 4]> {
 
 #[test]
 fn a_stylus_pivoted_on_a_pyigtl_server_is_calibrated_to_its_tip() {
-    let mut py = PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
-    let port = py.request(&json!({"op": "server", "port": 0}))["port"]
-        .as_u64()
-        .unwrap();
     let mut rng = SplitMix64(32);
     let frames: Vec<Value> = pivoting(&mut rng, 260)
         .into_iter()
         .map(|m| json!({"StylusToTracker": m, "HeadToTracker": [[1,0,0,0],[0,1,0,0],[0,0,1,900],[0,0,0,1]]}))
         .collect();
-    py.request(&json!({"op": "stream", "frames": frames, "rate_hz": 200}));
+    let (_py, addr) = pyigtl_streaming(frames, 200.0);
     let dir = TempDir::new("pointer-cli");
     let file = dir.path("pointer.toml");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
@@ -61,7 +57,7 @@ fn a_stylus_pivoted_on_a_pyigtl_server_is_calibrated_to_its_tip() {
             "pointer",
             "calibrate",
             "--igtl",
-            &format!("127.0.0.1:{port}"),
+            &addr,
             "--samples",
             "200",
             "--out",
@@ -99,10 +95,6 @@ fn a_stylus_pivoted_on_a_pyigtl_server_is_calibrated_to_its_tip() {
 
 #[test]
 fn a_pointer_barely_turned_is_refused_with_how_far_it_turned() {
-    let mut py = PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
-    let port = py.request(&json!({"op": "server", "port": 0}))["port"]
-        .as_u64()
-        .unwrap();
     // Only spun about its own length: the tip along it is not fixed.
     let frames: Vec<Value> = (0..80)
         .map(|k| {
@@ -113,7 +105,7 @@ fn a_pointer_barely_turned_is_refused_with_how_far_it_turned() {
             json!({"StylusToTracker": rows})
         })
         .collect();
-    py.request(&json!({"op": "stream", "frames": frames, "rate_hz": 200}));
+    let (_py, addr) = pyigtl_streaming(frames, 200.0);
     let dir = TempDir::new("pointer-cli-narrow");
     let file = dir.path("pointer.toml");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
@@ -121,7 +113,7 @@ fn a_pointer_barely_turned_is_refused_with_how_far_it_turned() {
             "pointer",
             "calibrate",
             "--igtl",
-            &format!("127.0.0.1:{port}"),
+            &addr,
             "--samples",
             "60",
             "--out",
@@ -140,20 +132,15 @@ fn a_pointer_barely_turned_is_refused_with_how_far_it_turned() {
 
 #[test]
 fn the_pivot_calibration_waits_for_the_consoles_go_and_shows_its_outcome() {
-    let mut py = PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
-    let port = py.request(&json!({"op": "server", "port": 0}))["port"]
-        .as_u64()
-        .unwrap();
     let mut rng = SplitMix64(33);
     let frames: Vec<Value> = pivoting(&mut rng, 150)
         .into_iter()
         .map(|m| json!({"StylusToTracker": m}))
         .collect();
     // 40 a second: the page has 2.5 s to show the count before the process ends.
-    py.request(&json!({"op": "stream", "frames": frames, "rate_hz": 40}));
+    let (_py, addr) = pyigtl_streaming(frames, 40.0);
     let dir = TempDir::new("pointer-console");
     let file = dir.path("pointer.toml");
-    let addr = format!("127.0.0.1:{port}");
     let s = Session::spawn(&[
         "pointer",
         "calibrate",

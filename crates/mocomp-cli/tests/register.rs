@@ -13,8 +13,8 @@
 //! transform the configuration does not know; registration must find it.
 
 mod common;
-use common::assert_success;
 use common::session::{Session, browse};
+use common::{assert_success, pose_json, pose_toml, pose6, pyigtl_streaming};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use mocomp_head::{HeadShape, Mesh, MeshHead, repair};
 use mocomp_testkit::{PythonPeer, SplitMix64, TempDir};
@@ -24,19 +24,13 @@ const TIP_MM: [f64; 3] = [2.5, -4.0, 161.0];
 
 /// The truth: the image's frame in the head marker's.
 fn marker_from_image() -> Isometry3<f64> {
-    Isometry3::new(
-        Vector3::new(0.02, -0.05, 0.08),
-        Vector3::new(0.2, -0.3, 0.5),
-    )
+    pose6(&[0.02, -0.05, 0.08, 0.2, -0.3, 0.5])
 }
 
 /// A truth nearer the identity, for the simulated world, whose robot must reach F3 on the head
 /// the marker's frame holds.
 fn marker_from_image_near() -> Isometry3<f64> {
-    Isometry3::new(
-        Vector3::new(0.004, -0.006, 0.01),
-        Vector3::new(0.04, -0.03, 0.06),
-    )
+    pose6(&[0.004, -0.006, 0.01, 0.04, -0.03, 0.06])
 }
 
 /// The head marker in the tracker's view at frame k: nodding 3° at 0.5 Hz, 200 frames a second.
@@ -118,12 +112,7 @@ fn session(
 }
 
 fn stream(frames: Vec<Value>) -> (PythonPeer, String) {
-    let mut py = PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
-    let port = py.request(&json!({"op": "server", "port": 0}))["port"]
-        .as_u64()
-        .unwrap();
-    py.request(&json!({"op": "stream", "frames": frames, "rate_hz": 200}));
-    (py, format!("127.0.0.1:{port}"))
+    pyigtl_streaming(frames, 200.0)
 }
 
 fn write_setup(
@@ -165,6 +154,21 @@ fn write_setup(
     (config, pointer, points)
 }
 
+/// `mocomp register [sub] --config C --pointer P --igtl A` and `extra`.
+fn register(
+    sub: &[&str],
+    config: &str,
+    pointer: &str,
+    addr: &str,
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = vec!["register"];
+    args.extend(sub);
+    args.extend(["--config", config, "--pointer", pointer, "--igtl", addr]);
+    args.extend(extra);
+    mocomp(&args)
+}
+
 fn mocomp(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
         .args(args)
@@ -180,29 +184,12 @@ fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught(
     let touch = [points["nasion"], points["lpa"], points["rpa"]];
     let (_py, addr) = stream(session(&mut rng, &marker_from_image(), &touch, 150));
     let reg = dir.path("registration.toml");
-    let out = mocomp(&[
-        "register",
-        "--config",
-        &config,
-        "--pointer",
-        &pointer,
-        "--igtl",
-        &addr,
-        "--out",
-        &reg,
-        "--json",
-    ]);
+    let out = register(&[], &config, &pointer, &addr, &["--out", &reg, "--json"]);
     assert_success(&out);
     eprintln!("{}", String::from_utf8_lossy(&out.stderr));
     let got: Value = serde_json::from_slice(&out.stdout).unwrap();
     eprintln!("{got}");
-    let p: Vec<f64> = (0..6)
-        .map(|i| got["head_from_image"][i].as_f64().unwrap())
-        .collect();
-    let found = Isometry3::new(
-        Vector3::new(p[0], p[1], p[2]),
-        Vector3::new(p[3], p[4], p[5]),
-    );
+    let found = pose_json(&got["head_from_image"]);
     let truth = marker_from_image();
     for (name, at) in [
         ("F3", points["F3"]),
@@ -235,17 +222,7 @@ fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught(
         &[points["nasion"]],
         0,
     ));
-    let out = mocomp(&[
-        "register",
-        "check",
-        "--config",
-        &registered,
-        "--pointer",
-        &pointer,
-        "--igtl",
-        &addr,
-        "--json",
-    ]);
+    let out = register(&["check"], &registered, &pointer, &addr, &["--json"]);
     assert_success(&out);
     let held: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(held["moved"], false, "{held}");
@@ -254,17 +231,7 @@ fn a_session_streamed_by_pyigtl_registers_the_head_and_a_moved_marker_is_caught(
     // The marker slipped 6 mm on the head: the nasion is touched 6 mm from where it was.
     let slipped = [points["nasion"] + Vector3::new(0.0, 0.0, 0.006)];
     let (_py, addr) = stream(session(&mut rng, &marker_from_image(), &slipped, 0));
-    let out = mocomp(&[
-        "register",
-        "check",
-        "--config",
-        &registered,
-        "--pointer",
-        &pointer,
-        "--igtl",
-        &addr,
-        "--json",
-    ]);
+    let out = register(&["check"], &registered, &pointer, &addr, &["--json"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("moved on the head"), "{err}");
@@ -305,17 +272,7 @@ fn registered_and_targeted_at_f3_the_loop_compensates_on_the_nodding_head_and_th
     let touch = [points["nasion"], points["lpa"], points["rpa"]];
     let (_py, addr) = stream(session(&mut rng, &marker_from_image_near(), &touch, 150));
     let reg = dir.path("registration.toml");
-    let out = mocomp(&[
-        "register",
-        "--config",
-        &nav,
-        "--pointer",
-        &pointer,
-        "--igtl",
-        &addr,
-        "--out",
-        &reg,
-    ]);
+    let out = register(&[], &nav, &pointer, &addr, &["--out", &reg]);
     assert_success(&out);
     let config = run_config(&dir, &nav, 3.0);
     let targets = dir.path("targets.toml");
@@ -515,29 +472,12 @@ fn registered_and_targeted_at_f3_the_loop_compensates_on_the_nodding_head_and_th
 
 fn f3_image_from_coil(targets: &str) -> Isometry3<f64> {
     let doc: toml::Value = toml::from_str(&std::fs::read_to_string(targets).unwrap()).unwrap();
-    let t = &doc["target"].as_array().unwrap()[0];
-    let p: Vec<f64> = (0..6)
-        .map(|i| t["image_from_coil"][i].as_float().unwrap())
-        .collect();
-    Isometry3::new(
-        Vector3::new(p[0], p[1], p[2]),
-        Vector3::new(p[3], p[4], p[5]),
-    )
+    pose_toml(&doc["target"].as_array().unwrap()[0]["image_from_coil"])
 }
 
 fn registered_head_from_image(reg: &str) -> Isometry3<f64> {
     let doc: toml::Value = toml::from_str(&std::fs::read_to_string(reg).unwrap()).unwrap();
-    let p: Vec<f64> = (0..6)
-        .map(|i| {
-            doc["registration"]["head_from_image"][i]
-                .as_float()
-                .unwrap()
-        })
-        .collect();
-    Isometry3::new(
-        Vector3::new(p[0], p[1], p[2]),
-        Vector3::new(p[3], p[4], p[5]),
-    )
+    pose_toml(&doc["registration"]["head_from_image"])
 }
 
 #[test]

@@ -57,3 +57,38 @@ pub fn run_args<'a>(config: &'a str, seconds: &'a str, extra: &[&'a str]) -> Vec
     args.extend_from_slice(extra);
     args
 }
+
+/// The pose of six numbers (x, y, z in m, a rotation vector in rad) at `key` of a JSON object.
+pub fn pose_json(v: &serde_json::Value) -> mocomp_geom::nalgebra::Isometry3<f64> {
+    let p: Vec<f64> = (0..6).map(|i| v[i].as_f64().unwrap()).collect();
+    pose6(&p)
+}
+
+/// The pose of six numbers (x, y, z in m, a rotation vector in rad) in a TOML array.
+pub fn pose_toml(v: &toml::Value) -> mocomp_geom::nalgebra::Isometry3<f64> {
+    let p: Vec<f64> = (0..6).map(|i| v[i].as_float().unwrap()).collect();
+    pose6(&p)
+}
+
+/// The pose of six numbers: x, y, z (m) and a rotation vector (rad).
+pub fn pose6(p: &[f64]) -> mocomp_geom::nalgebra::Isometry3<f64> {
+    use mocomp_geom::nalgebra::{Isometry3, Vector3};
+    Isometry3::new(
+        Vector3::new(p[0], p[1], p[2]),
+        Vector3::new(p[3], p[4], p[5]),
+    )
+}
+
+/// A pyigtl 0.3.4 server (required) on a free loopback port streaming `frames` (device → 4×4
+/// mm) at `rate_hz` once a client connects; the peer (keep it alive) and its address.
+pub fn pyigtl_streaming(
+    frames: Vec<serde_json::Value>,
+    rate_hz: f64,
+) -> (mocomp_testkit::PythonPeer, String) {
+    let mut py = mocomp_testkit::PythonPeer::start("pyigtl_peer.py", "pyigtl", "0.3.4");
+    let port = py.request(&serde_json::json!({"op": "server", "port": 0}))["port"]
+        .as_u64()
+        .unwrap();
+    py.request(&serde_json::json!({"op": "stream", "frames": frames, "rate_hz": rate_hz}));
+    (py, format!("127.0.0.1:{port}"))
+}
