@@ -1129,8 +1129,9 @@ impl Config {
         .map_err(|e| AppError::Config(format!("head.radii_m: {e}")))
     }
 
-    /// Reads `[head] landmarks_file` (relative to `dir`) once into `[head.landmarks]`, which
-    /// keeps its own where both name a landmark.
+    /// Reads `[head] landmarks_file` (relative to `dir`) into `[head.landmarks]`, which keeps
+    /// its own where both name a landmark; the path becomes the one read (reading it again adds
+    /// nothing).
     pub fn load_landmarks(&mut self, dir: &Path) -> Result<(), AppError> {
         let Some(file) = self.head.landmarks_file.take() else {
             return Ok(());

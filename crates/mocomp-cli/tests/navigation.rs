@@ -11,7 +11,7 @@
 //! and MNI coordinate through an affine; bad input refused by name.
 
 mod common;
-use common::{assert_success, mocomp, pose_json, pose_toml, pose6};
+use common::{assert_success, fsaverage_config, mocomp, pose_json, pose_toml, pose6};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use mocomp_testkit::TempDir;
 use serde_json::Value;
@@ -20,25 +20,7 @@ use serde_json::Value;
 const HEAD_FROM_IMAGE: [f64; 6] = [0.01, -0.02, 0.03, 0.1, -0.2, 0.3];
 
 fn setup(dir: &TempDir) -> String {
-    let mesh = dir.path("fsaverage.ply");
-    mocomp_testkit::anatomy::write_fsaverage(&mesh, "ply");
-    let (fid, eeg) = mocomp_testkit::anatomy::fsaverage_points("fsaverage_1005");
-    let mm = |p: &Point3<f64>| format!("[{}, {}, {}]", p.x * 1e3, p.y * 1e3, p.z * 1e3);
-    let config = dir.path("nav.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "[head]\nmesh = \"fsaverage.ply\"\nunits = \"mm\"\nhead_from_image = {:?}\n\n\
-             [head.landmarks]\nnasion = {}\nInion = {}\nlpa = {}\nrpa = {}\n",
-            HEAD_FROM_IMAGE,
-            mm(&fid["nasion"]),
-            mm(&eeg["Iz"]),
-            mm(&fid["lpa"]),
-            mm(&fid["rpa"]),
-        ),
-    )
-    .unwrap();
-    config
+    fsaverage_config(dir, &format!("head_from_image = {HEAD_FROM_IMAGE:?}\n")).0
 }
 
 fn json(out: &std::process::Output) -> Value {

@@ -12,7 +12,7 @@
 
 mod common;
 use common::session::Session;
-use common::{assert_success, pyigtl_streaming};
+use common::{assert_success, mocomp, pyigtl_streaming, rows4};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use mocomp_testkit::{SplitMix64, TempDir};
 use serde_json::{Value, json};
@@ -37,7 +37,7 @@ fn pivoting(rng: &mut SplitMix64, n: usize) -> Vec<[[f64; 4]; 4]> {
             let t =
                 divot.coords - r * tip + Vector3::new(rng.gauss(), rng.gauss(), rng.gauss()) * 0.25;
             let m = Isometry3::from_parts(Translation3::from(t), noisy_r).to_homogeneous();
-            std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
+            rows4(&m)
         })
         .collect()
 }
@@ -52,20 +52,17 @@ fn a_stylus_pivoted_on_a_pyigtl_server_is_calibrated_to_its_tip() {
     let (_py, addr) = pyigtl_streaming(frames, 200.0);
     let dir = TempDir::new("pointer-cli");
     let file = dir.path("pointer.toml");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args([
-            "pointer",
-            "calibrate",
-            "--igtl",
-            &addr,
-            "--samples",
-            "200",
-            "--out",
-            &file,
-            "--json",
-        ])
-        .output()
-        .unwrap();
+    let out = mocomp(&[
+        "pointer",
+        "calibrate",
+        "--igtl",
+        &addr,
+        "--samples",
+        "200",
+        "--out",
+        &file,
+        "--json",
+    ]);
     assert_success(&out);
     let got: Value = serde_json::from_slice(&out.stdout).unwrap();
     let tip: Vec<f64> = (0..3)
@@ -101,26 +98,22 @@ fn a_pointer_barely_turned_is_refused_with_how_far_it_turned() {
             let r = UnitQuaternion::from_scaled_axis(Vector3::z() * (k as f64 * 0.05));
             let t = Vector3::from(DIVOT_MM) - r * Vector3::from(TIP_MM);
             let m = Isometry3::from_parts(Translation3::from(t), r).to_homogeneous();
-            let rows: [[f64; 4]; 4] = std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]));
-            json!({"StylusToTracker": rows})
+            json!({"StylusToTracker": rows4(&m)})
         })
         .collect();
     let (_py, addr) = pyigtl_streaming(frames, 200.0);
     let dir = TempDir::new("pointer-cli-narrow");
     let file = dir.path("pointer.toml");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args([
-            "pointer",
-            "calibrate",
-            "--igtl",
-            &addr,
-            "--samples",
-            "60",
-            "--out",
-            &file,
-        ])
-        .output()
-        .unwrap();
+    let out = mocomp(&[
+        "pointer",
+        "calibrate",
+        "--igtl",
+        &addr,
+        "--samples",
+        "60",
+        "--out",
+        &file,
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(

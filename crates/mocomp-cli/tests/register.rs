@@ -14,7 +14,9 @@
 
 mod common;
 use common::session::{Session, browse};
-use common::{assert_success, pose_json, pose_toml, pose6, pyigtl_streaming};
+use common::{
+    assert_success, fsaverage_config, mocomp, pose_json, pose_toml, pose6, pyigtl_streaming, rows4,
+};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use mocomp_head::{HeadShape, Mesh, MeshHead, repair};
 use mocomp_testkit::{PythonPeer, SplitMix64, TempDir};
@@ -42,12 +44,13 @@ fn tracker_from_head(k: usize) -> Isometry3<f64> {
     )
 }
 
+/// A pose (m) as the rows of its 4×4, translation in mm.
 fn rows(m: &Isometry3<f64>) -> [[f64; 4]; 4] {
     let mut h = m.to_homogeneous();
     for r in 0..3 {
         h[(r, 3)] *= 1000.0;
     }
-    std::array::from_fn(|i| std::array::from_fn(|j| h[(i, j)]))
+    rows4(&h)
 }
 
 /// One frame: the head marker and the pointer whose tip is at `tip_in_head`.
@@ -122,23 +125,7 @@ fn write_setup(
     String,
     std::collections::BTreeMap<String, Point3<f64>>,
 ) {
-    let mesh = dir.path("fsaverage.ply");
-    mocomp_testkit::anatomy::write_fsaverage(&mesh, "ply");
-    let (fid, eeg) = mocomp_testkit::anatomy::fsaverage_points("fsaverage_1005");
-    let mm = |p: &Point3<f64>| format!("[{}, {}, {}]", p.x * 1e3, p.y * 1e3, p.z * 1e3);
-    let config = dir.path("nav.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "[head]\nmesh = \"fsaverage.ply\"\nunits = \"mm\"\n\n[head.landmarks]\nnasion = {}\n\
-             inion = {}\nlpa = {}\nrpa = {}\n",
-            mm(&fid["nasion"]),
-            mm(&eeg["Iz"]),
-            mm(&fid["lpa"]),
-            mm(&fid["rpa"]),
-        ),
-    )
-    .unwrap();
+    let (config, points) = fsaverage_config(dir, "");
     let pointer = dir.path("pointer.toml");
     std::fs::write(
         &pointer,
@@ -149,8 +136,6 @@ fn write_setup(
         ),
     )
     .unwrap();
-    let mut points = fid.clone();
-    points.insert("F3".into(), eeg["F3"]);
     (config, pointer, points)
 }
 
@@ -167,13 +152,6 @@ fn register(
     args.extend(["--config", config, "--pointer", pointer, "--igtl", addr]);
     args.extend(extra);
     mocomp(&args)
-}
-
-fn mocomp(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_mocomp"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]
@@ -252,13 +230,19 @@ fn run_config(dir: &TempDir, nav: &str, max_tre_mm: f64) -> String {
     assert!(example.contains(ellipsoid), "the example's [head] changed");
     let at_rest = "base_from_head = [0.30, -0.12, -0.02, 0.0, 0.0, 0.3]";
     assert!(example.contains(at_rest), "the example's head changed");
-    let text = example.replace(ellipsoid, "").replace(
-        at_rest,
-        "base_from_head = [0.30, -0.12, -0.02, 0.0, 0.0, 2.0]",
-    ) + &head.replace(
-        "[head]\n",
-        &format!("[head]\nregistration = \"registration.toml\"\nmax_tre_mm = {max_tre_mm}\n"),
-    ) + "\n[session]\ntargets = \"targets.toml\"\ntarget = \"dlpfc\"\n";
+    // Its own loopback addresses for the simulated robots, as every test has.
+    let text = example
+        .replace("host = \"127.0.0.2\"", "host = \"127.0.0.130\"")
+        .replace(ellipsoid, "")
+        .replace(
+            at_rest,
+            "base_from_head = [0.30, -0.12, -0.02, 0.0, 0.0, 2.0]",
+        )
+        + &head.replace(
+            "[head]\n",
+            &format!("[head]\nregistration = \"registration.toml\"\nmax_tre_mm = {max_tre_mm}\n"),
+        )
+        + "\n[session]\ntargets = \"targets.toml\"\ntarget = \"dlpfc\"\n";
     let path = dir.path(&format!("run-{max_tre_mm}.toml"));
     std::fs::write(&path, text).unwrap();
     path
@@ -425,6 +409,8 @@ fn registered_and_targeted_at_f3_the_loop_compensates_on_the_nodding_head_and_th
         "nods",
         "--json",
         "--quiet",
+        "--head-host",
+        "127.0.0.131",
         "--out",
         &demo_out,
     ]);

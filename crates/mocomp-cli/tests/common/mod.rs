@@ -92,3 +92,44 @@ pub fn pyigtl_streaming(
     py.request(&serde_json::json!({"op": "stream", "frames": frames, "rate_hz": rate_hz}));
     (py, format!("127.0.0.1:{port}"))
 }
+
+/// The rows of a 4×4 matrix, as JSON and OpenIGTLink peers take them.
+pub fn rows4(m: &mocomp_geom::nalgebra::Matrix4<f64>) -> [[f64; 4]; 4] {
+    std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
+}
+
+/// FreeSurfer's fsaverage scalp (MNE's, through the head peer) written to `dir`/fsaverage.ply,
+/// and a configuration `dir`/nav.toml whose `[head]` is that scan (mm, `head_lines` added) with
+/// MNE's fiducials and its 10-05 inion (Iz) as `[head.landmarks]` (the inion's key capitalised:
+/// names match without regard to case). Returns the configuration's path and the fiducials,
+/// `Iz` and `F3` (head frame = image frame, m).
+pub fn fsaverage_config(
+    dir: &TempDir,
+    head_lines: &str,
+) -> (
+    String,
+    std::collections::BTreeMap<String, mocomp_geom::nalgebra::Point3<f64>>,
+) {
+    use mocomp_geom::nalgebra::Point3;
+    let mesh = dir.path("fsaverage.ply");
+    mocomp_testkit::anatomy::write_fsaverage(&mesh, "ply");
+    let (fid, eeg) = mocomp_testkit::anatomy::fsaverage_points("fsaverage_1005");
+    let mm = |p: &Point3<f64>| format!("[{}, {}, {}]", p.x * 1e3, p.y * 1e3, p.z * 1e3);
+    let config = dir.path("nav.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[head]\nmesh = \"fsaverage.ply\"\nunits = \"mm\"\n{head_lines}\n\
+             [head.landmarks]\nnasion = {}\nInion = {}\nlpa = {}\nrpa = {}\n",
+            mm(&fid["nasion"]),
+            mm(&eeg["Iz"]),
+            mm(&fid["lpa"]),
+            mm(&fid["rpa"]),
+        ),
+    )
+    .unwrap();
+    let mut points = fid;
+    points.insert("Iz".into(), eeg["Iz"]);
+    points.insert("F3".into(), eeg["F3"]);
+    (config, points)
+}
