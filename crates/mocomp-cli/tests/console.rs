@@ -16,10 +16,17 @@ use common::session::{Session, browse, write_example};
 use mocomp_testkit::TempDir;
 use serde_json::{Value, json};
 use std::path::Path;
+use std::sync::Mutex;
+
+/// One session at a time in this file: each is a loop and a simulated controller at real-time
+/// priority, pinned to one CPU (the example's `[realtime] cpu = 1`), with a browser beside it;
+/// two at once on the same core starve each other's cycles on a busy two-core machine.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 use std::time::{Duration, Instant};
 
 #[test]
 fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_allowed() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console");
     let token_file = dir.path("token");
     let s = Session::start(
@@ -159,6 +166,7 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
 
 #[test]
 fn a_console_on_the_network_needs_the_flag_that_says_so() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     // The configuration is read first: an empty one (the simulated world) is good.
     let dir = TempDir::new("mocomp-console-remote");
     let path = dir.path("run.toml");
@@ -172,6 +180,7 @@ fn a_console_on_the_network_needs_the_flag_that_says_so() {
 /// The Python that runs the browser helper (the test venv's, or `MOCOMP_PYTHON`).
 #[test]
 fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-browser");
     let s = Session::start(&dir, "run-sim.toml", "127.0.0.96", 90, &[]);
     let shots = dir.path("shots");
@@ -201,6 +210,7 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
 
 #[test]
 fn the_page_shows_the_cameras_frames_and_tunes_its_pipeline_in_a_real_browser() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-camera");
     let s = Session::start(&dir, "run-camera.toml", "127.0.0.99", 90, &[]);
     let shots = dir.path("shots");
@@ -229,6 +239,7 @@ fn the_page_shows_the_cameras_frames_and_tunes_its_pipeline_in_a_real_browser() 
 
 #[test]
 fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-teach");
     // A still head: the goal is taught from the loop's head estimates of its last 0.5 s.
     let path = write_example(&dir, "run-sim.toml", "127.0.0.94");
@@ -325,6 +336,7 @@ fn session_example(dir: &TempDir, host: &str, extra: &str) -> String {
 
 #[test]
 fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_and_back() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-session");
     let path = session_example(&dir, "127.0.0.78", "");
     let s = Session::start_file(&path, 90, &[]);
@@ -383,6 +395,7 @@ fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_a
 
 #[test]
 fn the_session_in_a_real_browser_switches_targets_shows_pulses_and_hands_the_arm_over() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-session-browser");
     let path = session_example(
         &dir,
@@ -436,6 +449,7 @@ fn start_collection(dir: &TempDir, host: &str) -> (Session, String) {
 
 #[test]
 fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_saves() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-calibrate");
     let (s, out) = start_collection(&dir, "127.0.0.93");
     let waiting = s.wait_status("the collection waiting for the go", |v| {
@@ -498,6 +512,7 @@ fn a_calibration_collection_waits_for_the_consoles_go_shows_its_progress_and_sav
 
 #[test]
 fn the_demo_with_a_console_runs_in_real_time_shows_each_controller_and_records_the_same() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-demo");
     let (paced, plain) = (dir.path("paced"), dir.path("plain"));
     let hosts = ["--coil-host", "127.0.0.91", "--head-host", "127.0.0.92"];
@@ -550,6 +565,7 @@ fn the_demo_with_a_console_runs_in_real_time_shows_each_controller_and_records_t
 
 #[test]
 fn the_calibration_collection_is_started_and_followed_in_a_real_browser() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-calibrate-browser");
     let (s, out) = start_collection(&dir, "127.0.0.90");
     let shots = dir.path("shots");
@@ -574,6 +590,7 @@ fn the_calibration_collection_is_started_and_followed_in_a_real_browser() {
 
 #[test]
 fn the_page_draws_the_patients_scalp_in_a_real_browser() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     // FreeSurfer's fsaverage scalp (MNE, through the head peer) as `[head] mesh`.
     let dir = TempDir::new("mocomp-console-scalp");
     mocomp_testkit::anatomy::write_fsaverage(&dir.path("scalp.ply"), "ply");
