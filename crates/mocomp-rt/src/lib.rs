@@ -46,10 +46,15 @@ pub struct RtConfig {
     pub lock_memory: bool,
     /// Hold `/dev/cpu_dma_latency` at 0 µs while running, as `cyclictest` does: idle CPUs then
     /// poll instead of entering sleep states that take long to wake from, so the loop wakes on
-    /// time for the next state. On the 2-vCPU VM this was measured on, it took the unloaded run
-    /// from 1–3 % missed cycles to under 0.1 %; the price is idle CPUs that do not sleep while
-    /// the loop runs. [true]
-    pub prevent_cpu_sleep: bool,
+    /// time for the next state; the price is idle CPUs that do not sleep while the loop runs.
+    /// `true`, `false`, or `"auto"`: held on bare metal, not under a hypervisor. A virtual
+    /// machine's idle vCPU that polls is a busy thread to its host, which then spends the VM's
+    /// CPU share on it and freezes the vCPUs when it runs out: on the 2-vCPU VM this was measured
+    /// on (`bench/cpu_sleep_on_vm.py`), holding it beside one busy process froze each vCPU for
+    /// 100 ms about ten times a minute (223 jiffies of steal a minute), against a 10 ms worst
+    /// wake-up and 2 jiffies without, and a 100 ms freeze stops the robot's program on its
+    /// 50 ms watchdog. ["auto"]
+    pub prevent_cpu_sleep: CpuSleep,
     /// Pin the loop and the robot and tracker clients' receive threads to this CPU (and the
     /// in-process simulators too, unless `simulator_cpu` says otherwise), leaving the other
     /// CPUs to the rest of the PC. One core for the loop and the thread that wakes it spares a
@@ -68,11 +73,79 @@ impl Default for RtConfig {
             priority: DEFAULT_PRIORITY,
             simulator_priority: DEFAULT_PRIORITY - 1,
             lock_memory: true,
-            prevent_cpu_sleep: true,
+            prevent_cpu_sleep: CpuSleep::Auto,
             cpu: None,
             simulator_cpu: None,
         }
     }
+}
+
+/// `[realtime] prevent_cpu_sleep`: whether to hold the CPUs' idle latency at zero.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CpuSleep {
+    /// Held on bare metal, not under a hypervisor (`"auto"`).
+    Auto,
+    /// Always held (`true`).
+    Prevent,
+    /// Never held (`false`).
+    Allow,
+}
+
+impl Serialize for CpuSleep {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Self::Auto => s.serialize_str("auto"),
+            Self::Prevent => s.serialize_bool(true),
+            Self::Allow => s.serialize_bool(false),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for CpuSleep {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Bool(bool),
+            Word(String),
+        }
+        match Raw::deserialize(d)? {
+            Raw::Bool(true) => Ok(Self::Prevent),
+            Raw::Bool(false) => Ok(Self::Allow),
+            Raw::Word(w) if w == "auto" => Ok(Self::Auto),
+            Raw::Word(w) => Err(serde::de::Error::custom(format!(
+                "prevent_cpu_sleep = {w:?}: true, false or \"auto\""
+            ))),
+        }
+    }
+}
+
+impl CpuSleep {
+    /// Whether to hold the latency on this machine (`virtual_machine`: under a hypervisor).
+    pub fn hold(self, virtual_machine: bool) -> bool {
+        match self {
+            Self::Auto => !virtual_machine,
+            Self::Prevent => true,
+            Self::Allow => false,
+        }
+    }
+}
+
+/// Whether this machine runs under a hypervisor: the CPU says so (x86's `hypervisor` flag in
+/// `/proc/cpuinfo`), or the kernel names one (`/sys/hypervisor/type`).
+pub fn under_hypervisor() -> bool {
+    let flagged =
+        std::fs::read_to_string("/proc/cpuinfo").is_ok_and(|t| cpuinfo_flags_hypervisor(&t));
+    flagged || std::fs::read_to_string("/sys/hypervisor/type").is_ok_and(|t| !t.trim().is_empty())
+}
+
+/// Whether a `/proc/cpuinfo` text has the `hypervisor` CPU flag.
+pub fn cpuinfo_flags_hypervisor(cpuinfo: &str) -> bool {
+    cpuinfo.lines().any(|l| {
+        l.split_once(':').is_some_and(|(k, v)| {
+            k.trim() == "flags" && v.split_whitespace().any(|f| f == "hypervisor")
+        })
+    })
 }
 
 /// A setting out of range, or a request the operating system refused.
@@ -293,6 +366,8 @@ pub struct RtReport {
     pub cpu: Option<usize>,
     /// CPUs kept out of deep idle states.
     pub cpu_sleep_prevented: bool,
+    /// `prevent_cpu_sleep = "auto"` left the CPUs to sleep: a virtual machine.
+    pub cpu_sleep_allowed_on_vm: bool,
     /// What was asked for and refused, each with its reason.
     pub refused: Vec<String>,
     /// Real-time scheduling was switched off in the configuration.
@@ -325,6 +400,9 @@ impl RtReport {
         }
         if self.cpu_sleep_prevented {
             parts.push("CPU idle latency 0 µs".into());
+        }
+        if self.cpu_sleep_allowed_on_vm {
+            parts.push("CPUs may sleep (a virtual machine)".into());
         }
         parts.join(", ")
     }
@@ -366,7 +444,9 @@ pub fn apply(cfg: &RtConfig, priority: u8) -> (RtReport, Option<CpuLatencyGuard>
         }
     }
     let mut guard = None;
-    if cfg.prevent_cpu_sleep {
+    let vm = cfg.prevent_cpu_sleep == CpuSleep::Auto && under_hypervisor();
+    r.cpu_sleep_allowed_on_vm = vm;
+    if cfg.prevent_cpu_sleep.hold(vm) {
         match hold_cpu_latency_zero() {
             Ok(g) => {
                 guard = Some(g);
@@ -480,6 +560,44 @@ mod tests {
     }
 
     #[test]
+    fn cpu_sleep_is_a_switch_or_auto_and_auto_lets_a_virtual_machine_sleep() {
+        let parse = |v: &str| {
+            toml::from_str::<RtConfig>(&format!("prevent_cpu_sleep = {v}"))
+                .map(|c| c.prevent_cpu_sleep)
+        };
+        assert_eq!(parse("true").unwrap(), CpuSleep::Prevent);
+        assert_eq!(parse("false").unwrap(), CpuSleep::Allow);
+        assert_eq!(parse("\"auto\"").unwrap(), CpuSleep::Auto);
+        assert_eq!(RtConfig::default().prevent_cpu_sleep, CpuSleep::Auto);
+        let e = parse("\"always\"").unwrap_err().to_string();
+        assert!(e.contains("\"always\"") && e.contains("auto"), "{e}");
+        // Written back as read.
+        for v in [CpuSleep::Auto, CpuSleep::Prevent, CpuSleep::Allow] {
+            let c = RtConfig {
+                prevent_cpu_sleep: v,
+                ..RtConfig::default()
+            };
+            let back: RtConfig = toml::from_str(&toml::to_string(&c).unwrap()).unwrap();
+            assert_eq!(back.prevent_cpu_sleep, v);
+        }
+        assert!(CpuSleep::Auto.hold(false) && !CpuSleep::Auto.hold(true));
+        assert!(CpuSleep::Prevent.hold(true) && !CpuSleep::Allow.hold(false));
+    }
+
+    #[test]
+    fn the_hypervisor_flag_is_read_from_the_flags_line_only() {
+        let vm =
+            "processor\t: 0\nflags\t\t: fpu vme sse2 hypervisor lahf_lm\nbugs\t\t: spectre_v1\n";
+        let metal =
+            "processor\t: 0\nflags\t\t: fpu vme sse2 lahf_lm\nmodel name\t: not a hypervisor\n";
+        assert!(cpuinfo_flags_hypervisor(vm));
+        assert!(!cpuinfo_flags_hypervisor(metal));
+        assert!(!cpuinfo_flags_hypervisor(""));
+        // A flag that only contains the word is not it.
+        assert!(!cpuinfo_flags_hypervisor("flags : hypervisor_x\n"));
+    }
+
+    #[test]
     fn out_of_range_settings_are_named() {
         let mut c = RtConfig {
             priority: 0,
@@ -542,7 +660,7 @@ mod tests {
         std::thread::spawn(|| {
             let cfg = RtConfig {
                 lock_memory: false,
-                prevent_cpu_sleep: false,
+                prevent_cpu_sleep: CpuSleep::Allow,
                 ..RtConfig::default()
             };
             let (r, _) = apply(&cfg, 42);
