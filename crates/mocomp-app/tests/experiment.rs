@@ -99,3 +99,96 @@ fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
         mocomp.d.max
     );
 }
+
+/// The oracle (mocomp's loop knowing the head's true future, no latency) on the same robot and
+/// nods: its error is the bound, so mocomp's is no smaller; what it aims for is the truth, so its
+/// prediction's share is nil and mocomp's is not. The head robot plays the nods within its limits.
+#[test]
+fn the_oracle_bounds_mocomp_and_its_prediction_share_is_nil() {
+    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
+    cfg.coil_host = IpAddr::from([127, 0, 0, 140]);
+    cfg.head_host = IpAddr::from([127, 0, 0, 141]);
+    cfg.duration_s = 8.0;
+    cfg.motion = mocomp_sim::HeadMotion::named("nods").unwrap();
+    let out = run_experiment(
+        &cfg,
+        &[Controller::Mocomp, Controller::Oracle],
+        &mut |_, _| {},
+    )
+    .unwrap();
+    let (mocomp, oracle) = (&out.runs[0], &out.runs[1]);
+    for r in &out.runs {
+        eprintln!(
+            "{:>6}: d rms {:.3} max {:.3}; prediction's share rms {:.4} p95 {:.4} mm, execution's rms {:.4} p95 {:.4} mm",
+            r.controller.name(),
+            r.d.rms,
+            r.d.max,
+            r.prediction_mm.rms,
+            r.prediction_mm.p95,
+            r.execution_mm.rms,
+            r.execution_mm.p95
+        );
+        assert!(r.head_lags.is_empty(), "{:?}", r.head_lags);
+    }
+    assert!(
+        oracle.d.rms < mocomp.d.rms,
+        "{} vs {}",
+        oracle.d.rms,
+        mocomp.d.rms
+    );
+    assert!(
+        oracle.d.max < mocomp.d.max,
+        "{} vs {}",
+        oracle.d.max,
+        mocomp.d.max
+    );
+    // The oracle aims at the truth: only the joints' interpolation between ticks is left.
+    assert!(
+        oracle.prediction_mm.p95 < 0.01,
+        "{:?}",
+        oracle.prediction_mm
+    );
+    assert!(
+        mocomp.prediction_mm.rms > 10.0 * oracle.prediction_mm.rms,
+        "{:?} vs {:?}",
+        mocomp.prediction_mm,
+        oracle.prediction_mm
+    );
+    // Most ticks of both runs are split (tracking, a command aimed for them).
+    for r in &out.runs {
+        let split = r
+            .records
+            .iter()
+            .filter(|x| x.prediction_m.is_finite())
+            .count();
+        assert!(
+            split * 10 > r.records.len() * 7,
+            "{split} of {}",
+            r.records.len()
+        );
+    }
+}
+
+/// A head that turns faster than the UR5 carrying it can (250°/s; its elbow tops out at
+/// 180°/s): the head robot lags the motion within its limits instead of tripping its controller's
+/// protective stop, and the run says for how long.
+#[test]
+fn a_motion_faster_than_the_head_robot_is_played_within_its_limits_and_reported() {
+    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
+    cfg.coil_host = IpAddr::from([127, 0, 0, 142]);
+    cfg.head_host = IpAddr::from([127, 0, 0, 143]);
+    cfg.duration_s = 4.0;
+    cfg.motion = mocomp_sim::HeadMotion::named("turn").unwrap();
+    let out = run_experiment(&cfg, &[Controller::Mocomp], &mut |_, _| {}).unwrap();
+    let lags = &out.runs[0].head_lags;
+    eprintln!("head robot lagged: {lags:?}");
+    assert!(!lags.is_empty());
+    // Within the turn (from 1 s, 0.32 s away, 1 s held, 0.32 s back) and caught up after.
+    for l in lags {
+        assert!(
+            l.from_s >= 1.0 && l.to_s <= 3.0 && l.to_s > l.from_s,
+            "{l:?}"
+        );
+        assert!(l.max_joint_rad > 0.05 && l.max_joint_rad < 1.0, "{l:?}");
+    }
+}

@@ -77,6 +77,12 @@ pub fn model(s: &str) -> Result<Model, String> {
     s.parse::<Model>().map_err(|e| e.to_string())
 }
 
+/// A demo controller by name (`paper`, `mocomp`, `oracle`).
+pub fn controller(s: &str) -> Result<mocomp_app::experiment::Controller, String> {
+    mocomp_app::experiment::Controller::from_name(s)
+        .ok_or_else(|| format!("{s:?}: one of paper, mocomp, oracle"))
+}
+
 /// Builds the arm from the command line's robot, calibration file and tool.
 pub fn arm(model: Model, calibration: Option<&Path>, tool: Option<[f64; 6]>) -> Result<Arm> {
     let mut arm = match calibration {

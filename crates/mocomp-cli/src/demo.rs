@@ -54,6 +54,12 @@ pub struct DemoCmd {
     /// same), its status shows in the page, and its hold (mocomp's run) and stop reach it.
     #[command(flatten)]
     pub dashboard: DashboardArgs,
+    /// The controllers to run, in this order: `paper` (the original pipeline), `mocomp`, and
+    /// `oracle` (mocomp's loop knowing the head's true future with no latency, on the same robot:
+    /// the least error any controller could make; the summary gives the others' excess over it)
+    /// [paper,mocomp].
+    #[arg(long, value_delimiter = ',', value_parser = crate::args::controller, value_name = "NAMES")]
+    pub controllers: Option<Vec<Controller>>,
     /// Compensation time per controller, seconds [30].
     #[arg(long)]
     pub seconds: Option<f64>,
@@ -191,6 +197,26 @@ impl DemoCmd {
         Ok(c.config)
     }
 
+    /// The controllers to run, each once.
+    fn order(&self) -> Result<Vec<Controller>, crate::UsageError> {
+        let order = self
+            .controllers
+            .clone()
+            .unwrap_or_else(|| vec![Controller::Paper, Controller::Mocomp]);
+        if order.is_empty() {
+            return Err(crate::UsageError("--controllers: none named".into()));
+        }
+        for (i, c) in order.iter().enumerate() {
+            if order[..i].contains(c) {
+                return Err(crate::UsageError(format!(
+                    "--controllers: {} named twice",
+                    c.name()
+                )));
+            }
+        }
+        Ok(order)
+    }
+
     /// Runs the demo (or prints its configuration).
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let config = self.configuration()?;
@@ -215,6 +241,7 @@ impl DemoCmd {
             )
             .map_err(|e| crate::UsageError(e.to_string()))?;
         }
+        let order = self.order()?;
         let file = mocomp_app::config_file::print(&config)?;
         if self.print_config {
             write!(out, "{file}")?;
@@ -264,7 +291,7 @@ impl DemoCmd {
         };
         let outcome = run_experiment_watched(
             &exp,
-            &[Controller::Paper, Controller::Mocomp],
+            &order,
             &mut |phase, f| {
                 let name = phase.to_string();
                 if let Some(c) = &console

@@ -294,6 +294,64 @@ fn bad_settings_are_refused_naming_the_key_or_option() {
     }
 }
 
+/// `--controllers mocomp,oracle`: the oracle's row beside mocomp's, mocomp's excess over it and
+/// both runs' split into the prediction's and the execution's share, in the JSON and the CSV;
+/// a controller named twice or unknown is refused by name.
+#[test]
+fn the_oracle_runs_beside_mocomp_and_its_excess_and_split_are_reported() {
+    let dir = TempDir::new("mocomp-demo-oracle");
+    let out_dir = dir.path("out");
+    let out = demo_json(
+        &out_dir,
+        "4",
+        ("127.0.0.144", "127.0.0.145"),
+        &["--motion", "nods", "--controllers", "mocomp,oracle"],
+    );
+    assert_success(&out);
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = j["controllers"].as_array().unwrap();
+    assert_eq!(rows.len(), 2, "{j}");
+    assert_eq!(
+        (
+            rows[0]["controller"].as_str(),
+            rows[1]["controller"].as_str()
+        ),
+        (Some("mocomp"), Some("oracle"))
+    );
+    let excess = &rows[0]["excess_over_oracle"];
+    let d = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap();
+    assert!(
+        (d(excess, "d_rms") - (d(&rows[0], "d_rms") - d(&rows[1], "d_rms"))).abs() < 1e-9,
+        "{j}"
+    );
+    assert!(d(excess, "d_rms") > 0.0, "{j}");
+    assert!(rows[1]["excess_over_oracle"].is_null(), "{j}");
+    assert!(j["ratio_d_rms"].is_null(), "no paper, no ratio: {j}");
+    for r in rows {
+        assert!(
+            d(&r["prediction_mm"], "rms").is_finite() && d(&r["execution_mm"], "rms").is_finite(),
+            "{j}"
+        );
+    }
+    assert!(d(&rows[1]["prediction_mm"], "rms") < 0.01, "{j}");
+    let csv = std::fs::read_to_string(format!("{out_dir}/demo.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    assert!(header.ends_with(",prediction_mm,execution_mm"), "{header}");
+    assert_eq!(
+        csv.lines().filter(|l| l.starts_with("oracle,")).count(),
+        500
+    );
+    for (opts, named) in [
+        ("mocomp,mocomp", "mocomp named twice"),
+        ("mocomp,pilot", "one of paper, mocomp, oracle"),
+    ] {
+        let out = mocomp(&["demo", "--print-config", "--controllers", opts]);
+        assert_eq!(out.status.code(), Some(2), "{opts}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(named), "{opts}: {err}");
+    }
+}
+
 /// A recorded motion replayed: irregular samples of a 30 mm/s sway with a turn, the head at rest
 /// before it; the demo reports the trace's speeds and writes the file's path into its config.
 #[test]

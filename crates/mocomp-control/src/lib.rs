@@ -24,7 +24,7 @@ pub mod safety;
 pub mod supervisor;
 pub mod transit;
 
-pub use compensator::{Compensator, CycleRecord, Event, Mode, Plan, Reason};
+pub use compensator::{Compensator, CycleRecord, Event, HeadOracle, Mode, Plan, Reason};
 pub use config::{LoopConfig, LoopParams, ParamError};
 pub use controller::Controller;
 pub use force::{ForceInputs, ForceMonitor, force_rules};

@@ -29,6 +29,8 @@
 
 use crate::calibration::MoveState;
 use crate::driver::Requests;
+use crate::head_drive::{HeadPlayer, Lag};
+use crate::oracle::{HeadTruth, OracleSource, TruthOracle};
 use crate::session_plan::SessionPlan;
 use mocomp_calib::plan::{PlanOptions, plan};
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
@@ -122,15 +124,27 @@ pub enum Controller {
     Paper,
     /// mocomp's compensation loop.
     Mocomp,
+    /// mocomp's loop knowing the head's true future, with no latency ([`crate::oracle`]): the
+    /// bound.
+    Oracle,
 }
 
 impl Controller {
+    /// Every controller, in the order a full comparison runs them.
+    pub const ALL: [Controller; 3] = [Self::Paper, Self::Mocomp, Self::Oracle];
+
     /// Its name in reports.
     pub fn name(self) -> &'static str {
         match self {
             Self::Paper => "paper",
             Self::Mocomp => "mocomp",
+            Self::Oracle => "oracle",
         }
+    }
+
+    /// The controller named `name`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.name() == name)
     }
 }
 
@@ -617,6 +631,20 @@ pub struct Record {
     pub measured_error: (f64, f64),
     /// The gate after this tick's cycle.
     pub gate_open: bool,
+    /// The coil the cycle's command aimed for (the goal on the head it predicted), in the loop's
+    /// base frame, m, and the run time it was for, s. `None` without a prediction, or while not
+    /// tracking.
+    pub aimed_coil: Option<(f64, Vector3<f64>)>,
+    /// The coil's goal on the true head at this tick, through the loop's own calibration, m.
+    pub goal_coil: Vector3<f64>,
+    /// The coil where the arm's joints put it at this tick, through the loop's own calibration,
+    /// m.
+    pub model_coil: Vector3<f64>,
+    /// The prediction's share of the coil's error at this tick: the coil aimed for this time
+    /// against the goal on the true head then, m (NaN where no command aimed for it).
+    pub prediction_m: f64,
+    /// The execution's share: the coil against the one aimed for this time, m (NaN likewise).
+    pub execution_m: f64,
 }
 
 /// A pulse the session logged, with the truth at its time.
@@ -689,12 +717,30 @@ pub struct Run {
     pub pulses: Vec<LoggedPulse>,
     /// With a session: the stimulator's gated tries the shut gate withheld.
     pub withheld_pulses: usize,
+    /// Where the head robot could not follow the head's trace within its joint limits (it
+    /// lagged, and caught up as soon as it could); the score is of the head it played.
+    pub head_lags: Vec<Lag>,
+    /// The prediction's share of the coil's error, mm, over the ticks a tracking command aimed
+    /// for ([`Record::prediction_m`]).
+    pub prediction_mm: Stats,
+    /// The execution's share, mm, over the same ticks ([`Record::execution_m`]).
+    pub execution_mm: Stats,
 }
 
 impl Run {
-    fn new(controller: Controller, records: Vec<Record>, period_s: f64) -> Self {
+    fn new(controller: Controller, mut records: Vec<Record>, period_s: f64) -> Self {
+        split_errors(&mut records, period_s);
         let col = |f: &dyn Fn(&Record) -> f64| records.iter().map(f).collect::<Vec<f64>>();
+        let finite = |f: &dyn Fn(&Record) -> f64| {
+            records
+                .iter()
+                .map(f)
+                .filter(|x| x.is_finite())
+                .collect::<Vec<f64>>()
+        };
         Self {
+            prediction_mm: Stats::of(&finite(&|r| r.prediction_m * 1e3)),
+            execution_mm: Stats::of(&finite(&|r| r.execution_m * 1e3)),
             min_clearance_m: records
                 .iter()
                 .map(|r| r.coil_clearance_m)
@@ -709,8 +755,36 @@ impl Run {
             bump_detected_after_s: None,
             pulses: Vec::new(),
             withheld_pulses: 0,
+            head_lags: Vec::new(),
             records,
         }
+    }
+}
+
+/// Fills each tick's prediction and execution shares. Each command that aimed for a time is
+/// judged at that time, the truth and the arm interpolated between the ticks around it (records
+/// are one per period, record `i` at `(i + 1)·period_s`), and the shares go to the tick nearest
+/// it (the newest command's, when several aimed for one tick).
+fn split_errors(records: &mut [Record], period_s: f64) {
+    let n = records.len();
+    let mut shares: Vec<Option<(f64, f64)>> = vec![None; n];
+    for r in records.iter() {
+        let Some((t, coil)) = r.aimed_coil else {
+            continue;
+        };
+        let x = t / period_s - 1.0;
+        if !(x >= 0.0 && x <= (n - 1) as f64) {
+            continue;
+        }
+        let i = (x.floor() as usize).min(n.saturating_sub(2));
+        let (a, b) = (&records[i], &records[(i + 1).min(n - 1)]);
+        let s = x - i as f64;
+        let goal = a.goal_coil + (b.goal_coil - a.goal_coil) * s;
+        let arm = a.model_coil + (b.model_coil - a.model_coil) * s;
+        shares[(x.round() as usize).min(n - 1)] = Some(((coil - goal).norm(), (arm - coil).norm()));
+    }
+    for (r, share) in records.iter_mut().zip(shares) {
+        (r.prediction_m, r.execution_m) = share.unwrap_or((f64::NAN, f64::NAN));
     }
 }
 
@@ -1363,6 +1437,51 @@ impl Rig {
         Ok(())
     }
 
+    /// Plays `cfg`'s head motion from the start with the coil robot still (it is out of the
+    /// head's way at its start, as every run begins), and returns the head robot's joints at
+    /// every tick: the truth a run then meets, since the head robot's motion does not depend on
+    /// the coil's. Half a second beyond the run's end, for the commands that act after it.
+    fn play_head(&mut self, cfg: &ExperimentConfig) -> Result<HeadTruth, ExperimentError> {
+        self.reset(cfg)?;
+        let mut player = self.head_player(cfg);
+        let servo = ServoParams::for_period(self.period);
+        let n = ((cfg.duration_s + 0.5) / self.period).round() as usize;
+        let mut q = Vec::with_capacity(n + 1);
+        q.push(self.q_now.1);
+        let t0 = self.clock.now_s();
+        for _ in 0..n {
+            // The tracker keeps up as in any run (its clock and the clients' counts stay in
+            // step; the next reset starts it afresh).
+            self.track()?;
+            let q2 = player.setpoint(self.clock.now_s() - t0);
+            let (sim2, robot2) = (&self.sim2, &mut self.robot2);
+            Self::sent(sim2, || robot2.servo(&q2, &servo).map(|_| ()))?;
+            let (sim1, robot1) = (&self.sim1, &mut self.robot1);
+            Self::sent(sim1, || robot1.keep_alive())?;
+            self.advance()?;
+            q.push(self.q_now.1);
+        }
+        Ok(HeadTruth::new(
+            self.arm2,
+            self.scene.world_from_tracker.inverse(),
+            self.scene.e2_from_head,
+            self.period,
+            q,
+        ))
+    }
+
+    /// The head robot's player of `cfg`'s motion from its start.
+    fn head_player(&self, cfg: &ExperimentConfig) -> HeadPlayer {
+        HeadPlayer::new(
+            cfg.motion.trajectory(),
+            self.scene.world_from_head_rest,
+            &self.scene.e2_from_head,
+            self.arm2,
+            self.scene.q2_start,
+            self.period,
+        )
+    }
+
     /// Moves the coil robot back along its flange axis from its start (away from the head), as
     /// far as it reaches up to 20 cm, where the head robot's moves cannot reach it (10 cm was not
     /// enough for a UR10's calibration poses).
@@ -1431,6 +1550,11 @@ impl Rig {
         progress: &mut dyn FnMut(Phase, f64),
         watch: Option<&mut Watch<'_>>,
     ) -> Result<Run, ExperimentError> {
+        // The oracle's knowledge: the head's whole run, played first.
+        let truth = match controller {
+            Controller::Oracle => Some(Arc::new(self.play_head(cfg)?)),
+            _ => None,
+        };
         self.reset(cfg)?;
         let watching = watch.map(|w| Watching {
             controls: w.controls,
@@ -1456,26 +1580,39 @@ impl Rig {
         let params = plan.map_or_else(SessionParams::default, |p| p.params);
         let session = Session::new(params, drift_sigma, 0);
         let goal_head_from_coil = loop_cfg.head_from_coil_goal;
-        let trajectory = cfg.motion.trajectory();
-        let rest = self.scene.world_from_head_rest;
-        let head_from_e2 = self.scene.e2_from_head.inverse();
         let head_servo = ServoParams::for_period(self.period);
         // The world's scalp, which the true coil is measured against.
         let (head, coil) = (cfg.head.clone(), loop_cfg.coil);
-        let mut ctl: Box<dyn mocomp_control::Controller> = match controller {
-            Controller::Mocomp => Box::new(Compensator::new(loop_cfg, self.arm1, self.period)),
-            Controller::Paper => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
+        let loop_frames = (loop_cfg.base_from_tracker, loop_cfg.flange_from_coil);
+        let mut oracle_source = None;
+        let mut ctl: Box<dyn mocomp_control::Controller> = match (controller, truth) {
+            (Controller::Oracle, Some(truth)) => {
+                let oracle = TruthOracle { truth, t0 };
+                // Its tracker is perfect: a still head gives identical samples, which from a
+                // real tracker only a frozen stream does.
+                let mut loop_cfg = loop_cfg;
+                loop_cfg.params.frozen_samples = u32::MAX;
+                let clock: Arc<dyn Clock> = self.clock.clone();
+                oracle_source = Some(OracleSource::new(oracle.clone(), clock));
+                Box::new(
+                    Compensator::new(loop_cfg, self.arm1, self.period)
+                        .with_head_oracle(Arc::new(oracle)),
+                )
+            }
+            (Controller::Mocomp | Controller::Oracle, _) => {
+                Box::new(Compensator::new(loop_cfg, self.arm1, self.period))
+            }
+            (Controller::Paper, _) => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
         };
         let n = (cfg.duration_s / self.period).round() as usize;
         let mut pace = Lockstep {
-            q2_cmd: self.scene.q2_start,
+            player: self.head_player(cfg),
+            loop_frames,
+            oracle_source,
             world: self,
             cfg,
             controller,
             t0,
-            trajectory,
-            rest,
-            head_from_e2,
             head_servo,
             head,
             coil,
@@ -1518,9 +1655,11 @@ impl Rig {
             })?;
         }
         let (pulses, withheld) = (std::mem::take(&mut pace.pulses), pace.withheld);
+        let head_lags = pace.player.lags(cfg.duration_s);
         let records = pace.records;
         progress(Phase::Compensating(controller), 1.0);
         let mut run = Run::new(controller, records, self.period);
+        run.head_lags = head_lags;
         run.pulses = pulses;
         run.withheld_pulses = withheld;
         run.bump_detected_after_s = cfg.tracker_bump.and_then(|(at, _)| {
@@ -1542,13 +1681,15 @@ struct Lockstep<'a, 'p> {
     controller: Controller,
     /// The clock at the run's start.
     t0: f64,
-    trajectory: mocomp_sim::motion::Trajectory,
-    rest: Isometry3<f64>,
-    head_from_e2: Isometry3<f64>,
     head_servo: ServoParams,
     head: mocomp_control::HeadModel,
     coil: mocomp_control::CoilModel,
-    q2_cmd: [f64; 6],
+    /// The head robot playing the head's motion.
+    player: HeadPlayer,
+    /// The loop's calibration: `base_from_tracker` and `flange_from_coil`.
+    loop_frames: (Isometry3<f64>, Isometry3<f64>),
+    /// The oracle's tracker, when the oracle runs: the true head, in place of the tracker's.
+    oracle_source: Option<OracleSource>,
     /// Ticks in all, and done.
     n: usize,
     k: usize,
@@ -1653,14 +1794,8 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
         self.t = w.clock.now_s();
         let tr = self.t - self.t0;
         // The head robot follows the trajectory.
-        let target = self.rest * self.trajectory.rest_from_head(tr + w.period) * self.head_from_e2;
-        if let Ok(c) = w
-            .arm2
-            .ik_closest(&target, &self.q2_cmd, &Selection::tracking(0.02))
-        {
-            self.q2_cmd = c.joints;
-        }
-        let (robot2, q2, servo) = (&mut w.robot2, self.q2_cmd, &self.head_servo);
+        let q2 = self.player.setpoint(tr);
+        let (robot2, servo) = (&mut w.robot2, &self.head_servo);
         Rig::sent(&w.sim2, || robot2.servo(&q2, servo).map(|_| ()))?;
         self.session_tick(tr)?;
         let w = &mut *self.world;
@@ -1671,7 +1806,10 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
     }
 
     fn loop_io(&mut self) -> (&mut dyn Robot, &mut dyn PoseSource) {
-        (&mut self.world.robot1, &mut self.world.head_source)
+        match &mut self.oracle_source {
+            Some(oracle) => (&mut self.world.robot1, oracle),
+            None => (&mut self.world.robot1, &mut self.world.head_source),
+        }
     }
 
     fn cycle_done(&mut self, rec: CycleRecord) -> Result<(), ExperimentError> {
@@ -1746,6 +1884,25 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
         let e2 = w.world_from_e2(&w.q_now.1);
         let e1 = w.world_from_e1(&w.q_now.0);
         let actual = e2.inverse() * e1;
+        // The coil's error in the loop's own frames, for its split into prediction and
+        // execution ([`split_errors`]).
+        let (base_from_tracker, flange_from_coil) = self.loop_frames;
+        let tracker_from_head = w.scene.world_from_tracker.inverse() * e2 * w.scene.e2_from_head;
+        let goal_coil = (base_from_tracker * tracker_from_head * rec.head_from_coil_goal)
+            .translation
+            .vector;
+        let model_coil = (w.arm1.fk_flange(&w.q_now.0) * flange_from_coil)
+            .translation
+            .vector;
+        let aimed_coil = match (rec.mode, rec.head_at_target) {
+            (Mode::Tracking, Some((t, head))) => Some((
+                t - self.t0,
+                (base_from_tracker * head * rec.head_from_coil_goal)
+                    .translation
+                    .vector,
+            )),
+            _ => None,
+        };
         let goal = self.cfg.goal_e2_from_e1;
         let head_from_coil = (e2 * w.scene.e2_from_head).inverse() * e1 * w.scene.e1_from_coil;
         self.records.push(Record {
@@ -1753,7 +1910,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             d: frobenius_deviation(&goal, &actual, LengthUnit::Millimetre),
             translation_m: translation_error(&goal, &actual),
             rotation_rad: rotation_error(&goal, &actual),
-            head_speed: self.trajectory.speed_at(tr + w.period),
+            head_speed: self.player.trajectory().speed_at(tr + w.period),
             sample_age_s: rec.sample_age_s,
             horizon_s: rec.horizon_s,
             mode: rec.mode,
@@ -1765,6 +1922,11 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             target_error,
             measured_error: rec.coil_error,
             gate_open: step.gate_open,
+            aimed_coil,
+            goal_coil,
+            model_coil,
+            prediction_m: f64::NAN,
+            execution_m: f64::NAN,
         });
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);

@@ -13,4 +13,6 @@
 pub mod calibration;
 pub mod driver;
 pub mod experiment;
+pub mod head_drive;
+pub mod oracle;
 pub mod session_plan;

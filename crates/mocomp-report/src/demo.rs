@@ -2,6 +2,7 @@
 //! the figures ([`crate::plots`]), in one directory.
 
 use mocomp_experiment::experiment::{ExperimentConfig, Outcome};
+use mocomp_experiment::head_drive::Lag;
 use mocomp_geom::units::{m_to_mm, rad_to_deg};
 use mocomp_sim::HeadMotion;
 use serde::Serialize;
@@ -49,6 +50,33 @@ pub struct Row {
     /// With `--tracker-bump-at-s`: how long after the bump the drift monitor called the
     /// calibration invalid, s (null: no bump, or never).
     pub tracker_bump_detected_s: Option<f64>,
+    /// The prediction's share of the coil's error, mm: the coil aimed for each tick against the
+    /// goal on the true head then (null where nothing predicted: the paper's pipeline).
+    pub prediction_mm: Option<ShareStats>,
+    /// The execution's share, mm: the coil against the one aimed for that tick.
+    pub execution_mm: Option<ShareStats>,
+    /// d less the oracle's, when the oracle ran: what any better controller could still win.
+    pub excess_over_oracle: Option<Excess>,
+}
+
+/// A share of the error: RMS and 95th percentile, mm.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ShareStats {
+    /// Root mean square.
+    pub rms: f64,
+    /// 95th percentile.
+    pub p95: f64,
+}
+
+/// A controller's d beyond the oracle's.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Excess {
+    /// d RMS less the oracle's.
+    pub d_rms: f64,
+    /// d max less the oracle's.
+    pub d_max: f64,
+    /// Translation RMS less the oracle's, mm.
+    pub translation_mm_rms: f64,
 }
 
 /// The experiment's summary (`mocomp demo --json`).
@@ -80,10 +108,15 @@ pub struct Summary {
     pub tracker_dropouts_per_s: f64,
     /// One row per controller, in the order run.
     pub controllers: Vec<Row>,
-    /// paper ÷ mocomp: d RMS.
-    pub ratio_d_rms: f64,
-    /// paper ÷ mocomp: d max.
-    pub ratio_d_max: f64,
+    /// paper ÷ mocomp: d RMS (null unless both ran).
+    pub ratio_d_rms: Option<f64>,
+    /// paper ÷ mocomp: d max (null unless both ran).
+    pub ratio_d_max: Option<f64>,
+    /// Time the head robot could not follow the head's motion within its joint limits, s (the
+    /// same in every run: the head robot plays the motion alone).
+    pub head_robot_lagged_s: f64,
+    /// Those intervals, with each one's largest joint error.
+    pub head_robot_lags: Vec<Lag>,
 }
 
 /// The summary of an outcome.
@@ -113,10 +146,32 @@ pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
                 contact_force_n_max: r.contact_force_n.max,
                 contact_force_n_rms: r.contact_force_n.rms,
                 tracker_bump_detected_s: r.bump_detected_after_s,
+                prediction_mm: share(&r.prediction_mm),
+                execution_mm: share(&r.execution_mm),
+                excess_over_oracle: None,
             }
         })
         .collect();
-    let (p, m) = (&rows[0], &rows[rows.len() - 1]);
+    let mut rows = rows;
+    let named = |rows: &[Row], name: &str| rows.iter().find(|r| r.controller == name).cloned();
+    if let Some(o) = named(&rows, "oracle") {
+        for r in rows.iter_mut().filter(|r| r.controller != "oracle") {
+            r.excess_over_oracle = Some(Excess {
+                d_rms: r.d_rms - o.d_rms,
+                d_max: r.d_max - o.d_max,
+                translation_mm_rms: r.translation_mm_rms - o.translation_mm_rms,
+            });
+        }
+    }
+    let ratio = match (named(&rows, "paper"), named(&rows, "mocomp")) {
+        (Some(p), Some(m)) => Some((p.d_rms / m.d_rms, p.d_max / m.d_max)),
+        _ => None,
+    };
+    let lags = o
+        .runs
+        .first()
+        .map(|r| r.head_lags.clone())
+        .unwrap_or_default();
     Summary {
         seconds: cfg.duration_s,
         seed: cfg.tracker.seed,
@@ -130,10 +185,20 @@ pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
         tracker_noise_mm: m_to_mm(cfg.tracker.noise_m),
         tracker_noise_deg: rad_to_deg(cfg.tracker.noise_rad),
         tracker_dropouts_per_s: cfg.tracker.dropouts_per_s,
-        ratio_d_rms: p.d_rms / m.d_rms,
-        ratio_d_max: p.d_max / m.d_max,
+        ratio_d_rms: ratio.map(|r| r.0),
+        ratio_d_max: ratio.map(|r| r.1),
+        head_robot_lagged_s: lags.iter().map(|l| l.to_s - l.from_s).sum(),
+        head_robot_lags: lags,
         controllers: rows,
     }
+}
+
+/// A share's figures, `None` where no tick had one.
+fn share(s: &mocomp_experiment::experiment::Stats) -> Option<ShareStats> {
+    s.rms.is_finite().then_some(ShareStats {
+        rms: s.rms,
+        p95: s.p95,
+    })
 }
 
 /// The motion, in words.
@@ -171,10 +236,10 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
         s.tracker_dropouts_per_s,
         s.seed,
     ));
-    t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | retreats | dropouts coasted | outliers rejected | least coil clearance (mm) | coil in the head (s) | contact force max (N) | RMS (N) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | retreats | dropouts coasted | outliers rejected | least coil clearance (mm) | coil in the head (s) | contact force max (N) | RMS (N) | prediction's share RMS (mm) | execution's share RMS (mm) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in &s.controllers {
         t.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |\n",
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} |\n",
             r.controller,
             r.d_rms,
             r.d_p95,
@@ -193,12 +258,51 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
             r.inside_head_s,
             r.contact_force_n_max,
             r.contact_force_n_rms,
+            r.prediction_mm
+                .map_or("–".to_string(), |x| format!("{:.3}", x.rms)),
+            r.execution_mm
+                .map_or("–".to_string(), |x| format!("{:.3}", x.rms)),
         ));
     }
-    t.push_str(&format!(
-        "\npaper ÷ mocomp: d RMS {:.1}×, d max {:.1}×.\n\n",
-        s.ratio_d_rms, s.ratio_d_max
-    ));
+    t.push('\n');
+    if let (Some(a), Some(b)) = (s.ratio_d_rms, s.ratio_d_max) {
+        t.push_str(&format!("paper ÷ mocomp: d RMS {a:.1}×, d max {b:.1}×.\n"));
+    }
+    let excess: Vec<String> = s
+        .controllers
+        .iter()
+        .filter_map(|r| {
+            r.excess_over_oracle.map(|e| {
+                format!(
+                    "{} d RMS {:+.3}, d max {:+.3}",
+                    r.controller, e.d_rms, e.d_max
+                )
+            })
+        })
+        .collect();
+    if !excess.is_empty() {
+        t.push_str(&format!(
+            "Over the oracle (the same loop knowing the head's future, no latency: the least any controller could do on this robot): {}.\n",
+            excess.join("; ")
+        ));
+    }
+    t.push('\n');
+    if let Some(worst) = s
+        .head_robot_lags
+        .iter()
+        .max_by(|a, b| a.max_joint_rad.total_cmp(&b.max_joint_rad))
+    {
+        t.push_str(&format!(
+            "The head moved faster than the {} can: it lagged the motion for {:.2} s in {} intervals (the worst {:.2}–{:.2} s, {:.2}° behind at a joint), within its joint speeds and {} rad/s² of acceleration. Every controller was scored on the head the robot played.\n\n",
+            s.head_robot.to_uppercase(),
+            s.head_robot_lagged_s,
+            s.head_robot_lags.len(),
+            worst.from_s,
+            worst.to_s,
+            rad_to_deg(worst.max_joint_rad),
+            mocomp_experiment::head_drive::HEAD_ACCEL_RAD_S2,
+        ));
+    }
     if let Some((at, b)) = cfg.tracker_bump {
         t.push_str(&format!(
             "The tracker was bumped {at:.1} s into each run ({:.1} mm, {:.2}°). The drift monitor on the coil's marker called the calibration invalid after: {}.\n\n",
@@ -251,6 +355,8 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
         "mode",
         "event",
         "drift",
+        "prediction_mm",
+        "execution_mm",
     ])?;
     for r in &o.runs {
         for x in &r.records {
@@ -269,6 +375,8 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
                 format!("{:?}", x.mode),
                 x.event.map(|e| format!("{e:?}")).unwrap_or_default(),
                 x.drift.map(|d| format!("{d:?}")).unwrap_or_default(),
+                format!("{:.4}", x.prediction_m * 1e3),
+                format!("{:.4}", x.execution_m * 1e3),
             ])?;
         }
     }

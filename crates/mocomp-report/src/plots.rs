@@ -68,11 +68,12 @@ fn font() -> Result<(), PlotError> {
     if ok { Ok(()) } else { Err(PlotError::Font) }
 }
 
-/// Each controller's colour: the paper's pipeline red, mocomp blue.
+/// Each controller's colour: the paper's pipeline red, mocomp blue, the oracle green.
 fn colour(c: Controller) -> RGBColor {
     match c {
         Controller::Paper => RGBColor(214, 39, 40),
         Controller::Mocomp => RGBColor(31, 119, 180),
+        Controller::Oracle => RGBColor(44, 160, 44),
     }
 }
 

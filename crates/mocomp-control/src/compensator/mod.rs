@@ -49,6 +49,7 @@ use mocomp_ur::Robot;
 use plan::ApproachState;
 pub use record::CycleRecord;
 use robot::{FaultState, RobotStep};
+pub use sense::HeadOracle;
 use sense::{ForceState, HeadState};
 use target::StandoffState;
 
@@ -227,6 +228,16 @@ impl Compensator {
             cmd: CommandState::new(period_s),
             clearance: clearance::Memories::default(),
         }
+    }
+
+    /// The same loop with perfect knowledge of the head: `oracle`'s truth at the time each
+    /// command acts instead of the prediction, and at the cycle's time for its errors, with no
+    /// uncertainty. Everything else — the robot, its limits, the servo, the clearance, the
+    /// rules — is the loop's own, so its error is the least any controller could make on this
+    /// robot. The experiment's bound; never a real loop's.
+    pub fn with_head_oracle(mut self, oracle: std::sync::Arc<dyn HeadOracle>) -> Self {
+        self.head.oracle = Some(oracle);
+        self
     }
 
     /// The operator's hold (`true`) or resume (`false`). A hold stops following the head where

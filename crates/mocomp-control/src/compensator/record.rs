@@ -55,6 +55,10 @@ pub struct CycleRecord {
     /// The head marker now (`tracker_from_head` estimated for the cycle's time), when known:
     /// what teaching the goal while the loop runs averages.
     pub head_now: Option<Isometry3<f64>>,
+    /// The head predicted for the time this cycle's command acts, and that time (s, the loop's
+    /// clock): what the prediction's share of the error is measured on. `None` without a
+    /// prediction.
+    pub head_at_target: Option<(f64, Isometry3<f64>)>,
     /// The filtered contact force's magnitude, N (NaN without `force_sensing`).
     pub contact_force_n: f64,
     /// The filtered force pushing the coil out along its axis, N (NaN without `force_sensing`).
@@ -91,6 +95,7 @@ impl CycleRecord {
             deviation: (f64::NAN, f64::NAN),
             coil_error: (f64::NAN, f64::NAN),
             head_now: None,
+            head_at_target: None,
             contact_force_n: f64::NAN,
             contact_axial_n: f64::NAN,
             press_m: 0.0,

@@ -26,6 +26,16 @@ pub(super) struct HeadState {
     pub(super) coasting: bool,
     /// The head (`base_from_head`) the previous command was checked against.
     pub(super) last_head: Option<Isometry3<f64>>,
+    /// The head's true pose at any time, for a bound no predictor can beat (the experiment's
+    /// oracle); `None` for every real loop.
+    pub(super) oracle: Option<std::sync::Arc<dyn HeadOracle>>,
+}
+
+/// Where the head truly is at any time, past or future (`tracker_from_head`, the tracker's
+/// samples' frame): what the experiment's oracle controller knows and no real one can.
+pub trait HeadOracle: std::fmt::Debug + Send + Sync {
+    /// The head at time `t` (s, the loop's clock), if known then.
+    fn tracker_from_head(&self, t: f64) -> Option<Isometry3<f64>>;
 }
 
 /// The force sensor's side.
@@ -58,6 +68,7 @@ impl HeadState {
             identical: 0,
             coasting: false,
             last_head: None,
+            oracle: None,
         }
     }
 
@@ -212,12 +223,15 @@ impl Compensator {
         let mut required = p.coil_min_distance_m;
         if head_known {
             let predictor = &self.head.predictor;
-            let (head, sigma) = if p.predict {
-                // The servo follows its setpoint with a lag of the lookahead less one controller
-                // period (the cycle that takes a setpoint already moves towards it; measured on
-                // the simulated controller: 22 ms for 30 ms on a CB3, 28 ms on an e-Series).
-                let servo_lag = (self.cfg.servo.lookahead_s - self.period).max(0.0);
-                let target_t = now + self.cmd.delay.estimate() + servo_lag;
+            // The servo follows its setpoint with a lag of the lookahead less one controller
+            // period (the cycle that takes a setpoint already moves towards it; measured on
+            // the simulated controller: 22 ms for 30 ms on a CB3, 28 ms on an e-Series).
+            let servo_lag = (self.cfg.servo.lookahead_s - self.period).max(0.0);
+            let target_t = now + self.cmd.delay.estimate() + servo_lag;
+            let (head, sigma) = if let Some(oracle) = &self.head.oracle {
+                rec.horizon_s = target_t - predictor.time_s();
+                (oracle.tracker_from_head(target_t), (0.0, 0.0))
+            } else if p.predict {
                 rec.horizon_s = target_t - predictor.time_s();
                 (predictor.predict(target_t), predictor.sigma(target_t))
             } else {
@@ -226,6 +240,9 @@ impl Compensator {
                     predictor.sigma(predictor.time_s()),
                 )
             };
+            if p.predict || self.head.oracle.is_some() {
+                rec.head_at_target = head.map(|h| (target_t, h));
+            }
             if let Some(tracker_from_head) = head {
                 base_from_head = Some(self.cfg.base_from_tracker * tracker_from_head);
                 required = required_clearance(p, sigma.0, sigma.1, self.goal.coil_lever);
@@ -242,7 +259,11 @@ impl Compensator {
             required = -p.contact_max_press_m;
         }
         rec.required_m = required;
-        if head_known && let Some(tracker_from_head) = self.head.predictor.predict(now) {
+        let head_now = match &self.head.oracle {
+            Some(oracle) => oracle.tracker_from_head(now),
+            None => self.head.predictor.predict(now),
+        };
+        if head_known && let Some(tracker_from_head) = head_now {
             rec.head_now = Some(tracker_from_head);
             (rec.deviation, rec.coil_error) = self.measured_errors(q_actual, &tracker_from_head);
         }
