@@ -187,7 +187,7 @@ pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
         tracker_dropouts_per_s: cfg.tracker.dropouts_per_s,
         ratio_d_rms: ratio.map(|r| r.0),
         ratio_d_max: ratio.map(|r| r.1),
-        head_robot_lagged_s: lags.iter().map(|l| l.to_s - l.from_s).sum(),
+        head_robot_lagged_s: lags.iter().fold(0.0, |s, l| s + (l.to_s - l.from_s)),
         head_robot_lags: lags,
         controllers: rows,
     }
