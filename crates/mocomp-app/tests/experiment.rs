@@ -192,3 +192,28 @@ fn a_motion_faster_than_the_head_robot_is_played_within_its_limits_and_reported(
         assert!(l.max_joint_rad > 0.05 && l.max_joint_rad < 1.0, "{l:?}");
     }
 }
+
+/// The irregular recorded head of `examples/` wanders (15 mm, 12°) where the head robot, placed
+/// for its start alone, could not follow on its branch: it is placed for the whole motion, plays
+/// it within its limits (lagging at most a few ticks), and the oracle then follows it to within
+/// the calibration's error.
+#[test]
+fn a_wandering_recorded_head_places_the_head_robot_for_the_whole_motion() {
+    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
+    cfg.coil_host = IpAddr::from([127, 0, 0, 146]);
+    cfg.head_host = IpAddr::from([127, 0, 0, 147]);
+    cfg.duration_s = 60.0;
+    let examples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    cfg.motion = mocomp_sim::HeadMotion::from_file("head-irregular-60s.csv", &examples).unwrap();
+    let out = run_experiment(&cfg, &[Controller::Oracle], &mut |_, _| {}).unwrap();
+    let oracle = &out.runs[0];
+    let lagged: f64 = oracle.head_lags.iter().map(|l| l.to_s - l.from_s).sum();
+    eprintln!(
+        "head robot lagged {lagged:.3} s in {} intervals; oracle d rms {:.3} max {:.3}",
+        oracle.head_lags.len(),
+        oracle.d.rms,
+        oracle.d.max
+    );
+    assert!(lagged < 0.1, "{:?}", oracle.head_lags);
+    assert!(oracle.d.max < 1.0, "{}", oracle.d.max);
+}

@@ -336,7 +336,10 @@ fn the_oracle_runs_beside_mocomp_and_its_excess_and_split_are_reported() {
     assert!(d(&rows[1]["prediction_mm"], "rms") < 0.01, "{j}");
     let csv = std::fs::read_to_string(format!("{out_dir}/demo.csv")).unwrap();
     let header = csv.lines().next().unwrap();
-    assert!(header.ends_with(",prediction_mm,execution_mm"), "{header}");
+    assert!(
+        header.ends_with(",prediction_mm,execution_mm,standoff_mm"),
+        "{header}"
+    );
     assert_eq!(
         csv.lines().filter(|l| l.starts_with("oracle,")).count(),
         500

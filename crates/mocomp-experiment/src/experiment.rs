@@ -446,6 +446,26 @@ fn best_placement(
     best
 }
 
+/// The least singularity margin ([`mocomp_kin::Singularity::margin`]) a placement may have.
+const MIN_MARGIN: f64 = 0.05;
+
+/// The least singularity margin of `arm` following `flanges` on the branch of `q`
+/// (`-inf` where it cannot reach one).
+fn margin_along(arm: &Arm, q: &[f64; 6], flanges: impl Iterator<Item = Isometry3<f64>>) -> f64 {
+    let mut q = *q;
+    let mut least = arm.singularity(&q).margin(arm.geometry());
+    for f in flanges {
+        match arm.ik_closest(&f, &q, &Selection::tracking(0.05)) {
+            Ok(c) => {
+                q = c.joints;
+                least = least.min(arm.singularity(&q).margin(arm.geometry()));
+            }
+            Err(_) => return f64::NEG_INFINITY,
+        }
+    }
+    least
+}
+
 /// The chosen placement, or why there is none (`task`: what the robot must do).
 fn placed(
     best: Option<(f64, Isometry3<f64>, [f64; 6])>,
@@ -456,7 +476,7 @@ fn placed(
         None => Err(ExperimentError::Scene(format!(
             "the {robot} cannot {task} from anywhere tried"
         ))),
-        Some((margin, _, _)) if margin < 0.05 => Err(ExperimentError::Scene(format!(
+        Some((margin, _, _)) if margin < MIN_MARGIN => Err(ExperimentError::Scene(format!(
             "the {robot} can {task} only near a singularity"
         ))),
         Some((_, frame, q)) => Ok((frame, q)),
@@ -501,11 +521,32 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
             (head, head * e2_from_head.inverse())
         })
     });
-    let (world_from_head_rest, q2_start) = placed(
-        best_placement(&arm2, &seed, &select, heads),
-        cfg.head_robot,
-        "hold the phantom",
-    )?;
+    // Placed for its start; but a motion that leads the head robot out of reach or near a
+    // singularity from there (a wandering recorded head) places it for the whole motion.
+    let trajectory = cfg.motion.trajectory();
+    let path = &trajectory;
+    let flanges = move |head: &Isometry3<f64>| {
+        let head = *head;
+        (0..=MOTION_SAMPLES).map(move |k| {
+            let t = cfg.duration_s * f64::from(k) / f64::from(MOTION_SAMPLES);
+            head * path.rest_from_head(t) * e2_from_head.inverse()
+        })
+    };
+    let best = best_placement(&arm2, &seed, &select, heads.clone())
+        .filter(|(_, head, q)| margin_along(&arm2, q, flanges(head)) >= MIN_MARGIN)
+        .or_else(|| {
+            heads
+                .filter_map(|(head, flange)| {
+                    let q = arm2.ik_closest(&flange, &seed, &select).ok()?.joints;
+                    // Its calibration goes round a centre backed off from the start.
+                    let centre = arm2.fk_flange(&q) * calibration_backoff();
+                    arm2.ik_closest(&centre, &q, &Selection::tracking(0.1))
+                        .ok()?;
+                    Some((margin_along(&arm2, &q, flanges(&head)), head, q))
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0))
+        });
+    let (world_from_head_rest, q2_start) = placed(best, cfg.head_robot, "hold the phantom")?;
     // U1 upright, beside the head: search its yaw, distance and height, for the start pose
     // farthest from a singularity over the whole head motion, its links clear of the head all
     // the way (the coil follows the head through all of it: a start chosen alone can put the
@@ -645,6 +686,10 @@ pub struct Record {
     pub prediction_m: f64,
     /// The execution's share: the coil against the one aimed for this time, m (NaN likewise).
     pub execution_m: f64,
+    /// How far the safety filter backed this tick's command off along the approach axis (the
+    /// standoff it asked for, and this cycle's move back), m: part of the execution's share,
+    /// on purpose.
+    pub standoff_m: f64,
 }
 
 /// A pulse the session logged, with the truth at its time.
@@ -1927,6 +1972,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             model_coil,
             prediction_m: f64::NAN,
             execution_m: f64::NAN,
+            standoff_m: rec.standoff_m + rec.filtered_m,
         });
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);

@@ -357,6 +357,7 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
         "drift",
         "prediction_mm",
         "execution_mm",
+        "standoff_mm",
     ])?;
     for r in &o.runs {
         for x in &r.records {
@@ -377,6 +378,7 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
                 x.drift.map(|d| format!("{d:?}")).unwrap_or_default(),
                 format!("{:.4}", x.prediction_m * 1e3),
                 format!("{:.4}", x.execution_m * 1e3),
+                format!("{:.4}", x.standoff_m * 1e3),
             ])?;
         }
     }
