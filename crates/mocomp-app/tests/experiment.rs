@@ -9,15 +9,22 @@
 //! `mocomp` controllers on the same trajectory and noise. mocomp must beat the paper's pipeline
 //! by the margins the issue asks for.
 
-use mocomp_app::experiment::{Controller, run_experiment};
+use mocomp_app::experiment::{Controller, ExperimentConfig, run_experiment};
 use std::net::IpAddr;
+
+/// The defaults, the robots on `127.0.0.{hosts.0}` and `{hosts.1}` (each test its own), for
+/// `seconds`.
+fn config(hosts: (u8, u8), seconds: f64) -> ExperimentConfig {
+    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
+    cfg.coil_host = IpAddr::from([127, 0, 0, hosts.0]);
+    cfg.head_host = IpAddr::from([127, 0, 0, hosts.1]);
+    cfg.duration_s = seconds;
+    cfg
+}
 
 #[test]
 fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
-    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
-    cfg.coil_host = IpAddr::from([127, 0, 0, 51]);
-    cfg.head_host = IpAddr::from([127, 0, 0, 52]);
-    cfg.duration_s = 20.0;
+    let cfg = config((51, 52), 20.0);
     let out = run_experiment(
         &cfg,
         &[Controller::Paper, Controller::Mocomp],
@@ -105,10 +112,7 @@ fn mocomp_beats_the_papers_pipeline_on_the_same_trajectory() {
 /// prediction's share is nil and mocomp's is not. The head robot plays the nods within its limits.
 #[test]
 fn the_oracle_bounds_mocomp_and_its_prediction_share_is_nil() {
-    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
-    cfg.coil_host = IpAddr::from([127, 0, 0, 140]);
-    cfg.head_host = IpAddr::from([127, 0, 0, 141]);
-    cfg.duration_s = 8.0;
+    let mut cfg = config((140, 141), 8.0);
     cfg.motion = mocomp_sim::HeadMotion::named("nods").unwrap();
     let out = run_experiment(
         &cfg,
@@ -174,10 +178,7 @@ fn the_oracle_bounds_mocomp_and_its_prediction_share_is_nil() {
 /// protective stop, and the run says for how long.
 #[test]
 fn a_motion_faster_than_the_head_robot_is_played_within_its_limits_and_reported() {
-    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
-    cfg.coil_host = IpAddr::from([127, 0, 0, 142]);
-    cfg.head_host = IpAddr::from([127, 0, 0, 143]);
-    cfg.duration_s = 4.0;
+    let mut cfg = config((142, 143), 4.0);
     cfg.motion = mocomp_sim::HeadMotion::named("turn").unwrap();
     let out = run_experiment(&cfg, &[Controller::Mocomp], &mut |_, _| {}).unwrap();
     let lags = &out.runs[0].head_lags;
@@ -199,10 +200,7 @@ fn a_motion_faster_than_the_head_robot_is_played_within_its_limits_and_reported(
 /// the calibration's error.
 #[test]
 fn a_wandering_recorded_head_places_the_head_robot_for_the_whole_motion() {
-    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
-    cfg.coil_host = IpAddr::from([127, 0, 0, 146]);
-    cfg.head_host = IpAddr::from([127, 0, 0, 147]);
-    cfg.duration_s = 60.0;
+    let mut cfg = config((146, 147), 60.0);
     let examples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
     cfg.motion = mocomp_sim::HeadMotion::from_file("head-irregular-60s.csv", &examples).unwrap();
     let out = run_experiment(&cfg, &[Controller::Oracle], &mut |_, _| {}).unwrap();
