@@ -42,6 +42,30 @@ fn pivoting(rng: &mut SplitMix64, n: usize) -> Vec<[[f64; 4]; 4]> {
         .collect()
 }
 
+/// `mocomp pointer calibrate` on `frames` streamed by a pyigtl server at 200 Hz, taking
+/// `samples`, writing `pointer.toml` in `dir`; its output and the file's path.
+fn calibrate(
+    frames: Vec<Value>,
+    dir: &TempDir,
+    samples: &str,
+    extra: &[&str],
+) -> (std::process::Output, String) {
+    let (_py, addr) = pyigtl_streaming(frames, 200.0);
+    let file = dir.path("pointer.toml");
+    let mut args = vec![
+        "pointer",
+        "calibrate",
+        "--igtl",
+        &addr,
+        "--samples",
+        samples,
+        "--out",
+        &file,
+    ];
+    args.extend_from_slice(extra);
+    (mocomp(&args), file)
+}
+
 #[test]
 fn a_stylus_pivoted_on_a_pyigtl_server_is_calibrated_to_its_tip() {
     let mut rng = SplitMix64(32);
@@ -49,20 +73,8 @@ fn a_stylus_pivoted_on_a_pyigtl_server_is_calibrated_to_its_tip() {
         .into_iter()
         .map(|m| json!({"StylusToTracker": m, "HeadToTracker": [[1,0,0,0],[0,1,0,0],[0,0,1,900],[0,0,0,1]]}))
         .collect();
-    let (_py, addr) = pyigtl_streaming(frames, 200.0);
     let dir = TempDir::new("pointer-cli");
-    let file = dir.path("pointer.toml");
-    let out = mocomp(&[
-        "pointer",
-        "calibrate",
-        "--igtl",
-        &addr,
-        "--samples",
-        "200",
-        "--out",
-        &file,
-        "--json",
-    ]);
+    let (out, file) = calibrate(frames, &dir, "200", &["--json"]);
     assert_success(&out);
     let got: Value = serde_json::from_slice(&out.stdout).unwrap();
     let tip: Vec<f64> = (0..3)
@@ -101,19 +113,8 @@ fn a_pointer_barely_turned_is_refused_with_how_far_it_turned() {
             json!({"StylusToTracker": rows4(&m)})
         })
         .collect();
-    let (_py, addr) = pyigtl_streaming(frames, 200.0);
     let dir = TempDir::new("pointer-cli-narrow");
-    let file = dir.path("pointer.toml");
-    let out = mocomp(&[
-        "pointer",
-        "calibrate",
-        "--igtl",
-        &addr,
-        "--samples",
-        "60",
-        "--out",
-        &file,
-    ]);
+    let (out, file) = calibrate(frames, &dir, "60", &[]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(

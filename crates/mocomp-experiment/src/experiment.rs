@@ -806,29 +806,20 @@ impl Run {
     }
 }
 
-/// Fills each tick's prediction and execution shares. Each command that aimed for a time is
-/// judged at that time, the truth and the arm interpolated between the ticks around it (records
-/// are one per period, record `i` at `(i + 1)·period_s`), and the shares go to the tick nearest
-/// it (the newest command's, when several aimed for one tick).
+/// Fills each tick's prediction and execution shares ([`crate::split`]).
 fn split_errors(records: &mut [Record], period_s: f64) {
-    let n = records.len();
-    let mut shares: Vec<Option<(f64, f64)>> = vec![None; n];
-    for r in records.iter() {
-        let Some((t, coil)) = r.aimed_coil else {
-            continue;
-        };
-        let x = t / period_s - 1.0;
-        if !(x >= 0.0 && x <= (n - 1) as f64) {
-            continue;
-        }
-        let i = (x.floor() as usize).min(n.saturating_sub(2));
-        let (a, b) = (&records[i], &records[(i + 1).min(n - 1)]);
-        let s = x - i as f64;
-        let goal = a.goal_coil + (b.goal_coil - a.goal_coil) * s;
-        let arm = a.model_coil + (b.model_coil - a.model_coil) * s;
-        shares[(x.round() as usize).min(n - 1)] = Some(((coil - goal).norm(), (arm - coil).norm()));
-    }
-    for (r, share) in records.iter_mut().zip(shares) {
+    let ticks: Vec<crate::split::Tick> = records
+        .iter()
+        .map(|r| crate::split::Tick {
+            aimed: r.aimed_coil,
+            goal: r.goal_coil,
+            model: r.model_coil,
+        })
+        .collect();
+    for (r, share) in records
+        .iter_mut()
+        .zip(crate::split::shares(&ticks, period_s))
+    {
         (r.prediction_m, r.execution_m) = share.unwrap_or((f64::NAN, f64::NAN));
     }
 }

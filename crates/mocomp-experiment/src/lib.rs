@@ -3,7 +3,10 @@
 //! lockstep on one stepped clock, scored by the paper's `d`. Beside it, what the experiment and
 //! the live session share: the one loop that drives a controller ([`driver`], a `Pace` per
 //! mode), the one calibration procedure ([`calibration`]), and the experiment's scripted
-//! clinical session ([`session_plan`]).
+//! clinical session ([`session_plan`]). The experiment's own parts: the head robot playing a
+//! motion within its limits ([`head_drive`]), the oracle's knowledge of the true head
+//! ([`oracle`]), and the error's split into the prediction's and the execution's share
+//! ([`split`]).
 //!
 //! **Limits.** It knows no configuration file, no command line and no front end beyond the
 //! contract (`mocomp-frontend`): the application turns its configuration into an
@@ -16,3 +19,4 @@ pub mod experiment;
 pub mod head_drive;
 pub mod oracle;
 pub mod session_plan;
+pub mod split;
