@@ -18,6 +18,7 @@ pub mod controller;
 pub mod force;
 pub mod geometry;
 pub mod goal;
+pub mod learned;
 pub mod planner;
 pub mod predict;
 pub mod safety;

@@ -1,7 +1,8 @@
-//! The prediction study of issue 16: how far the predicted head puts the coil from where the head
-//! really puts it, for the filter before issue 16 (constant velocity) and the new one (constant
-//! acceleration, adaptive noise), at horizons of 30–80 ms, on the patient studies' fast nods, the
-//! demo's random motion and a replayed trace.
+//! The prediction study of issues 16 and 33: how far the predicted head puts the coil from where
+//! the head really puts it, for the filter before issue 16 (constant velocity), the filter of
+//! issue 16 (constant acceleration, adaptive noise) and the default since issue 33 (that filter
+//! blended with the prediction learned from the head's own motion), at horizons of 30–80 ms, on
+//! the patient studies' fast nods, the demo's random motion and a replayed trace.
 //!
 //! The tracker is modelled as in the demo: 60 Hz, 0.1 mm and 1 mrad of Gaussian noise per axis
 //! (seeded). The error is measured at the coil's centre, 113 mm from the head marker on its z
@@ -10,6 +11,10 @@
 //! ```text
 //! cargo run --release -p mocomp-sim --example prediction_study [-- TRACE.csv]
 //! ```
+//!
+//! To compare other settings, `VARIANTS` lists `[predictor]` settings, `;` between variants and
+//! `,` between keys (`VARIANTS='learned=false;jerk_noise=0.3' …`); `NOISE` scales the tracker's
+//! noise (`NOISE=0` for none).
 
 #![allow(clippy::print_stdout)] // a study: its output is the table it prints
 
@@ -29,12 +34,13 @@ fn study(
     motion: &HeadMotion,
     cfg: PredictorConfig,
     seed: u64,
+    noise_scale: f64,
 ) -> Result<Vec<(f64, f64)>, rand_distr::NormalError> {
     let traj = motion.trajectory();
     let coil = Point3::new(0.0, 0.0, 0.113);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let pos = Normal::new(0.0, 1e-4)?;
-    let rot = Normal::new(0.0, 1e-3)?;
+    let pos = Normal::new(0.0, 1e-4 * noise_scale)?;
+    let rot = Normal::new(0.0, 1e-3 * noise_scale)?;
     let mut f = PosePredictor::new(cfg);
     let mut sums = vec![(0.0, 0.0, 0usize); HORIZONS_MS.len()];
     let n = (SECONDS * RATE_HZ) as usize;
@@ -86,8 +92,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let m = HeadMotion::from_file(&path, std::path::Path::new("."))?;
         motions.push(("replayed trace", m));
     }
-    let old = PredictorConfig::constant_velocity();
-    let new = PredictorConfig::default();
+    let variants: Vec<(String, PredictorConfig)> = match std::env::var("VARIANTS") {
+        Ok(v) => v
+            .split(';')
+            .map(|spec| Ok((spec.to_string(), toml::from_str(&spec.replace(',', "\n"))?)))
+            .collect::<Result<_, toml::de::Error>>()?,
+        Err(_) => vec![
+            (
+                "before issue 16: cv".into(),
+                PredictorConfig::constant_velocity(),
+            ),
+            (
+                "issue 16: ca, adaptive".into(),
+                PredictorConfig {
+                    learned: false,
+                    ..PredictorConfig::default()
+                },
+            ),
+            (
+                "issue 33: ca and learned (default)".into(),
+                PredictorConfig::default(),
+            ),
+        ],
+    };
+    let noise_scale: f64 = match std::env::var("NOISE") {
+        Ok(v) => v.parse()?,
+        Err(_) => 1.0,
+    };
     print!("| motion | filter |");
     for h in HORIZONS_MS {
         print!(" {h:.0} ms RMS / max |");
@@ -95,16 +126,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!();
     println!("|---|---|{}", "---|".repeat(HORIZONS_MS.len()));
     for (name, m) in &motions {
-        for (label, cfg) in [("old: cv", old), ("new: ca, adaptive", new)] {
+        for (label, cfg) in variants.iter().map(|(l, c)| (l.as_str(), *c)) {
             print!("| {name} | {label} |");
-            for (rms, max) in study(m, cfg, 1)? {
+            for (rms, max) in study(m, cfg, 1, noise_scale)? {
                 print!(" {rms:.2} / {max:.2} |");
             }
             println!();
         }
     }
     println!(
-        "\nerrors in mm at the coil's centre (113 mm from the head marker); 60 Hz, 0.1 mm, 1 mrad, seed 1"
+        "\nerrors in mm at the coil's centre (113 mm from the head marker); 60 Hz, {:.2} mm, {:.1} mrad, seed 1",
+        0.1 * noise_scale,
+        noise_scale
     );
     Ok(())
 }
