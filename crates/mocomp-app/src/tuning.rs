@@ -160,7 +160,7 @@ mod tests {
     #[test]
     fn the_same_value_changes_nothing() {
         let c = Config::default();
-        let t = apply(&c, &json!({"loop": {"speed_fraction": 0.5}})).unwrap();
+        let t = apply(&c, &json!({"loop": {"speed_fraction": 0.75}})).unwrap();
         assert!(t.changed.is_empty());
         assert_eq!(t.config, c);
     }

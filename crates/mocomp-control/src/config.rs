@@ -29,9 +29,13 @@ pub struct LoopParams {
     pub predict: bool,
     /// Keep this far inside every joint limit, rad. [0.05]
     pub joint_margin_rad: f64,
-    /// Fraction of each joint's maximum speed the loop may command. [0.5]
+    /// Fraction of each joint's maximum speed the loop may command. [0.75] (0.5 left a UR3
+    /// following a 29°/s turn at its elbow's limit: issue 33's irregular trace)
     pub speed_fraction: f64,
-    /// Joint acceleration limit of the command, rad/s². [25] (the patient studies' fast nods need about 20 on a UR3 following at 3 mm)
+    /// Joint acceleration limit of the command, rad/s². [40] UR publishes none; 40 is the
+    /// ceiling ur_rtde's client enforces and the simulated controller's own limit. The patient
+    /// studies' fast nods need about 20 on a UR3 following at 3 mm; a prediction corrected at
+    /// an onset needs more (issue 33: 25 left the irregular trace's execution share at 0.57 mm).
     pub max_joint_accel_rad_s2: f64,
     /// TCP (coil) speed limit, m/s. [0.25]
     pub max_tcp_speed_m_s: f64,
@@ -168,8 +172,8 @@ impl Default for LoopParams {
         Self {
             predict: true,
             joint_margin_rad: 0.05,
-            speed_fraction: 0.5,
-            max_joint_accel_rad_s2: 25.0,
+            speed_fraction: 0.75,
+            max_joint_accel_rad_s2: 40.0,
             max_tcp_speed_m_s: 0.25,
             servo_deviation_m: 0.02,
             plan_rotation_rad: 0.7,

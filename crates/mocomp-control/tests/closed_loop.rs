@@ -334,7 +334,7 @@ fn a_turn_too_fast_to_follow_retreats_along_the_axis_then_tracks_again() {
 
 #[test]
 fn a_goal_inside_the_head_is_refused() {
-    let mut sc = Scenario::new(still(), 0.5);
+    let mut sc = Scenario::new(still(), 1.0);
     sc.goal = Isometry3::from_parts(
         Translation3::new(0.0, 0.0, 0.05),
         head_from_coil_goal().rotation,

@@ -547,8 +547,12 @@ fn a_held_coil_gives_way_to_a_head_moving_into_it_and_holds_again() {
     let end = r.records.last().unwrap();
     assert_eq!(end.mode, Mode::Holding(Reason::Operator), "{ev:?}");
     assert!(largest_step(&r, 2.2, 2.5) < 1e-9);
-    let last_clearance = *r.clearance.last().unwrap();
-    assert!(last_clearance > 0.01, "{last_clearance}");
+    // (The run starts with the coil on its goal.)
+    let (goal_clearance, last_clearance) = (r.clearance[0], *r.clearance.last().unwrap());
+    assert!(
+        last_clearance > goal_clearance + 0.005,
+        "{last_clearance} m, the goal's {goal_clearance} m"
+    );
 }
 
 fn lost_while_moving(t: f64) -> Option<Isometry3<f64>> {
@@ -571,7 +575,7 @@ fn a_hold_decelerates_the_arm_to_standstill_on_its_last_command() {
         .find(|(_, e)| matches!(e, Event::Hold(Reason::MarkerInvalid)))
         .map(|(t, _)| *t);
     let held = held.unwrap_or_else(|| panic!("{ev:?}"));
-    // Moving when the hold began, standing 0.3 s later (25 rad/s² stops 1 rad/s in 0.04 s).
+    // Moving when the hold began, standing 0.3 s later (40 rad/s² stops 1 rad/s in 0.025 s).
     assert!(largest_step(&r, held - 0.05, held) > 1e-4);
     assert!(
         largest_step(&r, held + 0.3, 2.5) < 1e-9,

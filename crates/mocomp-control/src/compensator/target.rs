@@ -23,6 +23,9 @@ const STANDOFF_LANDING_M_S2: f64 = 1.0;
 /// An axial force above this means the coil touches the scalp, N (well above a sensor's noise
 /// after the filter).
 const TOUCH_N: f64 = 0.5;
+/// How much closer than the safety filter's clearance a head must come to a held coil for it
+/// to give way, m: more than the clearance's cycle-to-cycle noise.
+const GIVE_WAY_DEADBAND_M: f64 = 0.5e-3;
 
 /// Where along the approach axis the coil is kept.
 #[derive(Debug, Clone)]
@@ -367,7 +370,11 @@ impl Compensator {
         let s = &mut self.standoff;
         let giving_way =
             matches!(self.mode, Mode::Retreating(_)) && now - s.gave_way_at < p.retreat_resume_s;
-        if clearance < required {
+        // A coil that has given way rests where the safety filter holds it, at `required`, which
+        // the prediction's uncertainty moves by tenths of a millimetre from cycle to cycle: only
+        // a head that comes closer by more than that gives way (again), or the coil would give
+        // way for ever and never hold. The filter still keeps `required` on every command.
+        if clearance < required - GIVE_WAY_DEADBAND_M {
             if !giving_way {
                 s.anchor = here;
                 s.distance = 0.0;

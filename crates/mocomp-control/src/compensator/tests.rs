@@ -168,6 +168,57 @@ fn a_hold_with_a_head_that_comes_in_gives_way_and_without_one_stands() {
 }
 
 #[test]
+fn a_coil_that_gave_way_holds_once_the_head_keeps_within_the_filters_noise() {
+    let (mut c, _) = fixture();
+    c.cmd.q = at_goal(&c, 0.0);
+    let clearance = c.coil_distance(&c.head_from_coil_at(&c.cmd.q, &head_rest()));
+    let decision = Decision::hold(Reason::Operator);
+    let mut rec = CycleRecord::new(1.0, c.mode, c.cmd.q);
+    let mut event = None;
+    let at = |required: f64| HeadEstimate {
+        base_from_head: Some(head_rest()),
+        required,
+    };
+    // The head comes in: the coil gives way.
+    c.target(
+        1.0,
+        decision,
+        None,
+        &at(clearance + 0.002),
+        &mut rec,
+        &mut event,
+    );
+    assert!(matches!(c.mode(), Mode::Retreating(_)));
+    let wait = c.cfg.params.retreat_resume_s;
+    // Where the coil rests the requirement moves a tenth of a millimetre either way each
+    // cycle (the prediction's uncertainty): that starts no new wait, and it holds again.
+    let mut t = 1.0;
+    while t < 1.0 + 2.0 * wait {
+        t += PERIOD;
+        let jitter = if (t / PERIOD) as i64 % 2 == 0 {
+            1e-4
+        } else {
+            -1e-4
+        };
+        let rest = c.coil_distance(&c.head_from_coil_at(&c.cmd.q, &head_rest()));
+        let (q, _) = c.target(t, decision, None, &at(rest + jitter), &mut rec, &mut event);
+        c.cmd.q = q;
+    }
+    assert_eq!(c.mode(), Mode::Holding(Reason::Operator));
+    // A head that comes closer by more than that: it gives way again.
+    let rest = c.coil_distance(&c.head_from_coil_at(&c.cmd.q, &head_rest()));
+    c.target(
+        t + PERIOD,
+        decision,
+        None,
+        &at(rest + 0.001),
+        &mut rec,
+        &mut event,
+    );
+    assert!(matches!(c.mode(), Mode::Retreating(_)));
+}
+
+#[test]
 fn a_retreat_backs_the_goal_off_at_once_and_returns_softly() {
     let (mut c, _) = fixture();
     let bh = head_rest();
