@@ -129,7 +129,7 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     let (code, v) = s.post_auth("/api/params", &json!({"robot": {"model": "ur5"}}));
     assert_eq!((code, v["key"].as_str()), (400, Some("robot.model")), "{v}");
     let (_, c) = s.get("/api/config");
-    assert_eq!(c["config"]["loop"]["speed_fraction"], 0.5, "{c}");
+    assert_eq!(c["config"]["loop"]["speed_fraction"], 0.75, "{c}");
     let (code, v) = s.post_auth("/api/params", &json!({"loop": {"speed_fraction": 0.4}}));
     assert_eq!(code, 200, "{v}");
     assert_eq!(v["changed"], json!(["loop.speed_fraction"]));

@@ -166,7 +166,7 @@ fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
             "tracker_stale",
         ),
         (
-            "speed_fraction = 0.5",
+            "speed_fraction = 0.75",
             "speed_fraction = 2.0",
             "speed_fraction",
         ),
@@ -210,7 +210,7 @@ fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
         ),
         ("model = \"ur3e\"", "model = \"ur4\"", "known: ur3, ur5"),
         (
-            "speed_fraction = 0.5",
+            "speed_fraction = 0.75",
             "speed_fraction = \"half\"",
             "loop.speed_fraction",
         ),
