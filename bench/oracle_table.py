@@ -6,13 +6,16 @@ the oracle and the split of the error into the prediction's and the execution's 
 
 Runs `mocomp demo --controllers paper,mocomp,oracle --json` with each row's options and prints
 one Markdown table. The experiment is deterministic: the same binary gives the same table.
-Nothing here is a test.
+With `--before`, each row also runs with the settings issue 33 started from (no learned
+prediction, 25 rad/s² and half of each joint's speed), merged into the row's configuration, so
+one binary shows both in one run. Nothing here is a test.
 """
 
 import argparse
 import json
 import os
 import subprocess
+import tomllib
 
 RUNS = [
     ("default", []),
@@ -23,33 +26,91 @@ RUNS = [
 ]
 
 
+# What issue 33 changed, as settings: the same binary runs both.
+BEFORE = {
+    "predictor": {"learned": False},
+    "loop": {"max_joint_accel_rad_s2": 25.0, "speed_fraction": 0.5},
+}
+
+
 def f(x):
     return "–" if x is None else f"{x:.3f}"
+
+
+def toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    raise ValueError(f"cannot write {v!r} as TOML")
+
+
+def toml_text(table, path=()):
+    """The table as TOML: its own keys under its header, then its subtables."""
+    own = [f"{k} = {toml_value(v)}" for k, v in table.items() if not isinstance(v, dict)]
+    out = ([f"[{'.'.join(path)}]"] if path and own else []) + own
+    for k, v in table.items():
+        if isinstance(v, dict):
+            out += toml_text(v, path + (k,))
+    return out
+
+
+def merged(base, extra):
+    out = dict(base)
+    for k, v in extra.items():
+        out[k] = merged(out.get(k, {}), v) if isinstance(v, dict) else v
+    return out
+
+
+def with_before(opts, out_dir):
+    """The row's options with its configuration file (if any) and BEFORE merged into one."""
+    base, rest = {}, list(opts)
+    if "--config" in rest:
+        i = rest.index("--config")
+        with open(rest[i + 1], "rb") as fh:
+            base = tomllib.load(fh)
+        del rest[i:i + 2]
+    os.makedirs(out_dir, exist_ok=True)
+    path = os.path.join(out_dir, "before.toml")
+    with open(path, "w") as fh:
+        fh.write("\n".join(toml_text(merged(base, BEFORE))) + "\n")
+    return ["--config", path] + rest
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bin", default="target/release/mocomp")
     ap.add_argument("--out", default="/tmp/oracle-table")
+    ap.add_argument("--before", action="store_true",
+                    help="also run each row with the settings before issue 33's improvements")
     a = ap.parse_args()
-    print("| run | controller | d RMS | d max | translation RMS (mm) | excess d RMS | excess d max "
-          "| prediction's share RMS (mm) | execution's share RMS (mm) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| run | settings | controller | d RMS | d max | translation RMS (mm) | excess d RMS "
+          "| excess d max | prediction's share RMS (mm) | execution's share RMS (mm) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for name, opts in RUNS:
-        out = subprocess.run(
-            [a.bin, "demo", "--controllers", "paper,mocomp,oracle", "--json", "--quiet",
-             "--out", os.path.join(a.out, name)] + opts,
-            capture_output=True, text=True, check=True)
-        j = json.loads(out.stdout)
-        for r in j["controllers"]:
-            ex = r.get("excess_over_oracle") or {}
-            share = lambda k: (r.get(k) or {}).get("rms")
-            print(f"| {name} | {r['controller']} | {r['d_rms']:.3f} | {r['d_max']:.3f} "
-                  f"| {r['translation_mm_rms']:.3f} | {f(ex.get('d_rms'))} | {f(ex.get('d_max'))} "
-                  f"| {f(share('prediction_mm'))} | {f(share('execution_mm'))} |")
-        if j.get("head_robot_lags"):
-            print(f"| {name} | head robot lagged {j['head_robot_lagged_s']:.2f} s in "
-                  f"{len(j['head_robot_lags'])} intervals | | | | | | | |")
+        settings = [("before", "before"), ("after", "now")] if a.before else [("now", "now")]
+        for tag, label in settings:
+            out_dir = os.path.join(a.out, f"{name}-{tag}")
+            run_opts = with_before(opts, out_dir) if tag == "before" else opts
+            out = subprocess.run(
+                [a.bin, "demo", "--controllers", "paper,mocomp,oracle", "--json", "--quiet",
+                 "--out", out_dir] + run_opts,
+                capture_output=True, text=True, check=True)
+            j = json.loads(out.stdout)
+            for r in j["controllers"]:
+                ex = r.get("excess_over_oracle") or {}
+                share = lambda k: (r.get(k) or {}).get("rms")
+                print(f"| {name} | {label} | {r['controller']} | {r['d_rms']:.3f} "
+                      f"| {r['d_max']:.3f} | {r['translation_mm_rms']:.3f} "
+                      f"| {f(ex.get('d_rms'))} | {f(ex.get('d_max'))} "
+                      f"| {f(share('prediction_mm'))} | {f(share('execution_mm'))} |")
+            if j.get("head_robot_lags"):
+                print(f"| {name} | {label} | head robot lagged {j['head_robot_lagged_s']:.2f} s "
+                      f"in {len(j['head_robot_lags'])} intervals | | | | | | | |")
 
 
 if __name__ == "__main__":

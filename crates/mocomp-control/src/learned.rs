@@ -34,8 +34,10 @@ const CAP: usize = LAGS + STEPS + 1;
 const ERROR_RATE: f64 = 0.02;
 /// The regression's prior: a large covariance, a weak prior towards zero coefficients.
 const P0: f64 = 1e3;
-/// Examples trained on before the learned prediction may be used.
-const MIN_TRAINED: u32 = 2 * LAGS as u32;
+/// Examples trained on before the learned prediction may be used (3 s at 60 Hz): a model that
+/// has seen half a second of a motion's start has not seen it reverse yet, and its record is
+/// too short to say so (on the nods' ramp-in it put the coil 2.8 mm off at the first reversal).
+const MIN_TRAINED: u32 = 180;
 
 /// One grid point: the resampled measurement, and what the filter predicted from it.
 #[derive(Debug, Clone, Copy)]
