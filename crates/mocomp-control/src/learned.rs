@@ -125,8 +125,14 @@ impl Regression {
         }
         for axis in 0..3 {
             let x: [f64; LAGS] = std::array::from_fn(|j| phi[j][axis] * inv);
-            let px: [f64; LAGS] =
-                std::array::from_fn(|i| (0..LAGS).map(|j| self.p[i][j] * x[j]).sum());
+            // P·x as a sum of P's rows (P is symmetric): independent lanes the compiler can
+            // vectorise, where a dot product per row is one long chain of additions.
+            let mut px = [0.0; LAGS];
+            for (row, xj) in self.p.iter().zip(&x) {
+                for (acc, pij) in px.iter_mut().zip(row) {
+                    *acc += pij * xj;
+                }
+            }
             let denom = forgetting + (0..LAGS).map(|i| x[i] * px[i]).sum::<f64>();
             if !(denom.is_finite() && denom > 0.0) {
                 continue;
@@ -138,25 +144,28 @@ impl Regression {
                     *t += g * e;
                 }
             }
+            let inv_forgetting = 1.0 / forgetting;
             for (row, g) in self.p.iter_mut().zip(&gain) {
                 for (p, pxj) in row.iter_mut().zip(&px) {
-                    *p = (*p - g * pxj) / forgetting;
+                    *p = (*p - g * pxj) * inv_forgetting;
                 }
             }
         }
         // A still head excites nothing, and forgetting alone would grow the covariance without
         // bound (and the next movement's first examples would throw the coefficients about):
-        // it is held to its prior's size, and symmetric against rounding.
+        // it is held to its prior's size.
         let trace: f64 = (0..LAGS).map(|i| self.p[i][i]).sum();
-        let scale = if trace > LAGS as f64 * P0 {
-            LAGS as f64 * P0 / trace
-        } else {
-            1.0
-        };
-        for i in 0..LAGS {
-            for j in i..LAGS {
-                let s = 0.5 * (self.p[i][j] + self.p[j][i]) * scale;
-                (self.p[i][j], self.p[j][i]) = (s, s);
+        if trace > LAGS as f64 * P0 {
+            let scale = LAGS as f64 * P0 / trace;
+            self.p.iter_mut().flatten().for_each(|p| *p *= scale);
+        }
+        // P − g·(Px)ᵀ is symmetric but for rounding, which a long run would let grow.
+        if self.trained.is_multiple_of(64) {
+            for i in 0..LAGS {
+                for j in i + 1..LAGS {
+                    let v = 0.5 * (self.p[i][j] + self.p[j][i]);
+                    (self.p[i][j], self.p[j][i]) = (v, v);
+                }
             }
         }
         self.trained = self.trained.saturating_add(1);
@@ -200,7 +209,16 @@ pub struct Learned {
     last: Option<(f64, Vector3<f64>, UnitQuaternion<f64>)>,
     pos: Regression,
     rot: Regression,
+    /// The last `STEPS + 1` points' features (position, orientation), each computed once when
+    /// its point was laid: the loop predicts from the newest several times a cycle, and trains
+    /// on the one `STEPS` back; `features_at` is the newest's slot.
+    features: [Features; STEPS + 1],
+    features_at: usize,
 }
+
+/// A point's features: its displacement from each of the `LAGS` points before it, in position
+/// and in orientation.
+type Features = ([Vector3<f64>; LAGS], [Vector3<f64>; LAGS]);
 
 /// What [`Learned::predict`] returns: the learned pose at a time, the filter's pose there it
 /// should be blended with, and each channel's learned share.
@@ -231,6 +249,8 @@ impl Learned {
             last: None,
             pos: Regression::new(noise.0),
             rot: Regression::new(noise.1),
+            features: [([Vector3::zeros(); LAGS], [Vector3::zeros(); LAGS]); STEPS + 1],
+            features_at: 0,
         }
     }
 
@@ -293,6 +313,10 @@ impl Learned {
         self.head = (self.head + 1) % CAP;
         self.grid[self.head] = g;
         self.len = (self.len + 1).min(CAP);
+        if self.len > LAGS {
+            self.features_at = (self.features_at + 1) % (STEPS + 1);
+            self.features[self.features_at] = self.features(0);
+        }
         if self.len == CAP {
             self.train();
         }
@@ -301,7 +325,7 @@ impl Learned {
     /// The features at the point `back` steps before the newest: its displacement from each of
     /// the `LAGS` points before it (position, then orientation as a world-frame rotation
     /// vector).
-    fn features(&self, back: usize) -> ([Vector3<f64>; LAGS], [Vector3<f64>; LAGS]) {
+    fn features(&self, back: usize) -> Features {
         let now = self.at(back);
         (
             std::array::from_fn(|j| now.p - self.at(back + j + 1).p),
@@ -312,7 +336,8 @@ impl Learned {
     /// Learns from the oldest complete example: its features, and what happened in the
     /// `STEPS` grid steps after it.
     fn train(&mut self) {
-        let (fp, fq) = self.features(STEPS);
+        // Laid `STEPS` points ago, with `LAGS` points before it: its features were kept.
+        let (fp, fq) = self.features[(self.features_at + 1) % (STEPS + 1)];
         let origin = *self.at(STEPS);
         let ahead = |m: usize| self.at(STEPS - m - 1);
         let tp: [Vector3<f64>; STEPS] = std::array::from_fn(|m| ahead(m).p - origin.p);
@@ -338,7 +363,7 @@ impl Learned {
         }
         let s = ((t - self.grid_t) / self.period).max(0.0);
         let sc = s.min(STEPS as f64);
-        let (fp, fq) = self.features(0);
+        let (fp, fq) = &self.features[self.features_at];
         let newest = self.at(0);
         let at = |r: &Regression, phi: &[Vector3<f64>; LAGS]| {
             let m0 = sc.floor() as usize;
@@ -352,8 +377,8 @@ impl Learned {
             };
             d(m0) * (1.0 - f) + d(m0 + 1) * f
         };
-        let mut p = newest.p + at(&self.pos, &fp);
-        let mut q = UnitQuaternion::from_scaled_axis(at(&self.rot, &fq)) * newest.q;
+        let mut p = newest.p + at(&self.pos, fp);
+        let mut q = UnitQuaternion::from_scaled_axis(at(&self.rot, fq)) * newest.q;
         if s > sc {
             let (p1, q1) = filter(self.grid_t + sc * self.period);
             let (p2, q2) = filter(t);
