@@ -7,7 +7,8 @@
 //! noisy head and prints their median, p99 and max (the goal: p99 under 20 µs), for each
 //! head model in the same run: the ellipsoid, FreeSurfer's fsaverage scalp (4 k triangles, from
 //! MNE through the interop peer, which `scripts/test.sh` installs) and that scalp split to
-//! 110 k triangles (a clinical scalp's size).
+//! 110 k triangles (a clinical scalp's size); and on the ellipsoid without the learned
+//! prediction (`[predictor] learned = false`), for its cost.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -53,8 +54,8 @@ fn heads() -> Vec<(String, HeadModel)> {
     out
 }
 
-fn percentiles(name: &str, head: &HeadModel) {
-    let mut w = World::with_head(head.clone());
+fn percentiles(name: &str, head: &HeadModel, learned: bool) {
+    let mut w = World::with_config(head.clone(), |c| c.predictor.learned = learned);
     let mut ns: Vec<u64> = Vec::with_capacity(20_000);
     let mut tracking = 0;
     for _ in 0..20_000 {
@@ -76,8 +77,14 @@ fn percentiles(name: &str, head: &HeadModel) {
 fn bench(c: &mut Criterion) {
     let heads = heads();
     for (name, head) in &heads {
-        percentiles(name, head);
+        percentiles(name, head, true);
     }
+    // What the learned prediction costs, in the same run.
+    percentiles(
+        "ellipsoid, the filter alone (learned = false)",
+        &heads[0].1,
+        false,
+    );
     for (name, head) in &heads {
         let mut w = World::with_head(head.clone());
         c.bench_function(&format!("cycle (tracking a nodding head), {name}"), |b| {

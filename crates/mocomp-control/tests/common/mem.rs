@@ -82,6 +82,11 @@ impl World {
 
     /// [`Self::new`] with `head` as the loop's head model.
     pub fn with_head(head: HeadModel) -> Self {
+        Self::with_config(head, |_| {})
+    }
+
+    /// [`Self::with_head`], the loop's configuration changed by `change` first.
+    pub fn with_config(head: HeadModel, change: impl FnOnce(&mut LoopConfig)) -> Self {
         let arm = Arm::new(Model::Ur3e);
         let flange_from_coil = flange_from_coil();
         let q0 = coil_on_head_joints(&arm);
@@ -92,6 +97,7 @@ impl World {
             PERIOD,
         );
         cfg.head = head;
+        change(&mut cfg);
         let mut w = Self {
             comp: Compensator::new(cfg, arm, PERIOD),
             robot: MemRobot::at(q0, arm.fk(&q0), PERIOD),
