@@ -11,9 +11,11 @@
 //! `1 / (1 − forgetting)` steps.
 //!
 //! What it learns is never trusted blindly: both predictions are scored against the measurements
-//! that later arrive for the times they predicted, and [`Learned::weight`] gives the learned one
-//! the share its running error earns against the filter's (inverse mean squared error). At an
-//! onset that the history did not foresee its error rises and the filter takes over.
+//! that later arrive for the times they predicted, and [`Learned::predict`] gives the learned one
+//! the share its running error earns against the filter's (inverse mean squared error), from
+//! `MIN_TRAINED` examples on. At an onset that the history did not foresee its error rises and
+//! the filter takes over. Each example counts by its shape, not its size, so seconds of a still
+//! head weigh as much as a fast turn.
 //!
 //! The history is the measurements resampled onto a fixed grid (linear in position, spherical
 //! in orientation), so an irregular tracker rate does not disturb the lags; a gap longer than
