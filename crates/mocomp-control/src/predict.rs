@@ -745,6 +745,18 @@ mod tests {
         (sum / n as f64).sqrt() * 1e3
     }
 
+    /// [`rms_58ms`] with the default predictor, and with the filter alone.
+    fn learned_and_filter(pose: &dyn Fn(f64) -> Isometry3<f64>, from: f64, to: f64) -> (f64, f64) {
+        let alone = PredictorConfig {
+            learned: false,
+            ..Default::default()
+        };
+        (
+            rms_58ms(PredictorConfig::default(), pose, from, to),
+            rms_58ms(alone, pose, from, to),
+        )
+    }
+
     #[test]
     fn the_learned_prediction_follows_nods_closer_than_the_filter_alone() {
         let nods = |t: f64| {
@@ -754,12 +766,7 @@ mod tests {
                 Vector3::new(0.0, 0.08 * (2.8 * t).sin(), 0.15 * (4.0 * t).sin()),
             )
         };
-        let alone = PredictorConfig {
-            learned: false,
-            ..Default::default()
-        };
-        let filter = rms_58ms(alone, &nods, 5.0, 30.0);
-        let learned = rms_58ms(PredictorConfig::default(), &nods, 5.0, 30.0);
+        let (learned, filter) = learned_and_filter(&nods, 5.0, 30.0);
         assert!(
             learned < 0.75 * filter,
             "learned {learned} mm, filter {filter} mm"
@@ -777,12 +784,7 @@ mod tests {
                 Vector3::new(0.0, 0.0, 0.6 * s * s * (3.0 - 2.0 * s)),
             )
         };
-        let alone = PredictorConfig {
-            learned: false,
-            ..Default::default()
-        };
-        let filter = rms_58ms(alone, &turn, 1.5, 6.0);
-        let learned = rms_58ms(PredictorConfig::default(), &turn, 1.5, 6.0);
+        let (learned, filter) = learned_and_filter(&turn, 1.5, 6.0);
         assert!(
             learned < 1.1 * filter,
             "learned {learned} mm, filter {filter} mm"

@@ -134,13 +134,19 @@ fn off_its_goal_the_coil_comes_back_by_a_path_never_straight() {
     assert!(step < 1e-3, "{step}");
 }
 
-#[test]
-fn a_hold_with_a_head_that_comes_in_gives_way_and_without_one_stands() {
+/// A loop holding for the operator with its coil on the goal, the coil's clearance there, the
+/// decision and a record to target with.
+fn held_on_goal() -> (Compensator, f64, Decision, CycleRecord) {
     let (mut c, _) = fixture();
     c.cmd.q = at_goal(&c, 0.0);
     let clearance = c.coil_distance(&c.head_from_coil_at(&c.cmd.q, &head_rest()));
-    let decision = Decision::hold(Reason::Operator);
-    let mut rec = CycleRecord::new(1.0, c.mode, c.cmd.q);
+    let rec = CycleRecord::new(1.0, c.mode, c.cmd.q);
+    (c, clearance, Decision::hold(Reason::Operator), rec)
+}
+
+#[test]
+fn a_hold_with_a_head_that_comes_in_gives_way_and_without_one_stands() {
+    let (mut c, clearance, decision, mut rec) = held_on_goal();
     let mut event = None;
     // The filter requires more than the coil has: it backs off along its axis.
     let near = HeadEstimate {
@@ -169,11 +175,7 @@ fn a_hold_with_a_head_that_comes_in_gives_way_and_without_one_stands() {
 
 #[test]
 fn a_coil_that_gave_way_holds_once_the_head_keeps_within_the_filters_noise() {
-    let (mut c, _) = fixture();
-    c.cmd.q = at_goal(&c, 0.0);
-    let clearance = c.coil_distance(&c.head_from_coil_at(&c.cmd.q, &head_rest()));
-    let decision = Decision::hold(Reason::Operator);
-    let mut rec = CycleRecord::new(1.0, c.mode, c.cmd.q);
+    let (mut c, clearance, decision, mut rec) = held_on_goal();
     let mut event = None;
     let at = |required: f64| HeadEstimate {
         base_from_head: Some(head_rest()),
