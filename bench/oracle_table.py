@@ -14,8 +14,8 @@ one binary shows both in one run. Nothing here is a test.
 import argparse
 import json
 import os
+import re
 import subprocess
-import tomllib
 
 RUNS = [
     ("default", []),
@@ -26,10 +26,11 @@ RUNS = [
 ]
 
 
-# What issue 33 changed, as settings: the same binary runs both.
+# What issue 33 changed, as the lines of the printed configuration that say it.
 BEFORE = {
-    "predictor": {"learned": False},
-    "loop": {"max_joint_accel_rad_s2": 25.0, "speed_fraction": 0.5},
+    "learned": "false",
+    "max_joint_accel_rad_s2": "25.0",
+    "speed_fraction": "0.5",
 }
 
 
@@ -37,47 +38,23 @@ def f(x):
     return "–" if x is None else f"{x:.3f}"
 
 
-def toml_value(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    raise ValueError(f"cannot write {v!r} as TOML")
-
-
-def toml_text(table, path=()):
-    """The table as TOML: its own keys under its header, then its subtables."""
-    own = [f"{k} = {toml_value(v)}" for k, v in table.items() if not isinstance(v, dict)]
-    out = ([f"[{'.'.join(path)}]"] if path and own else []) + own
-    for k, v in table.items():
-        if isinstance(v, dict):
-            out += toml_text(v, path + (k,))
-    return out
-
-
-def merged(base, extra):
-    out = dict(base)
-    for k, v in extra.items():
-        out[k] = merged(out.get(k, {}), v) if isinstance(v, dict) else v
-    return out
-
-
-def with_before(opts, out_dir):
-    """The row's options with its configuration file (if any) and BEFORE merged into one."""
-    base, rest = {}, list(opts)
-    if "--config" in rest:
-        i = rest.index("--config")
-        with open(rest[i + 1], "rb") as fh:
-            base = tomllib.load(fh)
-        del rest[i:i + 2]
+def with_before(binary, opts, out_dir):
+    """The row's options on its effective configuration (`demo --print-config`, the binary's
+    own writing of it) with BEFORE's keys set."""
+    text = subprocess.run([binary, "demo", "--print-config"] + opts,
+                          capture_output=True, text=True, check=True).stdout
+    for key, value in BEFORE.items():
+        text, n = re.subn(rf"^{key} = \S+", f"{key} = {value}", text, flags=re.M)
+        if n != 1:
+            raise SystemExit(f"{key}: {n} lines in the printed configuration, expected one")
     os.makedirs(out_dir, exist_ok=True)
     path = os.path.join(out_dir, "before.toml")
     with open(path, "w") as fh:
-        fh.write("\n".join(toml_text(merged(base, BEFORE))) + "\n")
+        fh.write(text)
+    rest = list(opts)
+    if "--config" in rest:
+        i = rest.index("--config")
+        del rest[i:i + 2]
     return ["--config", path] + rest
 
 
@@ -95,7 +72,7 @@ def main():
         settings = [("before", "before"), ("after", "now")] if a.before else [("now", "now")]
         for tag, label in settings:
             out_dir = os.path.join(a.out, f"{name}-{tag}")
-            run_opts = with_before(opts, out_dir) if tag == "before" else opts
+            run_opts = with_before(a.bin, opts, out_dir) if tag == "before" else opts
             out = subprocess.run(
                 [a.bin, "demo", "--controllers", "paper,mocomp,oracle", "--json", "--quiet",
                  "--out", out_dir] + run_opts,

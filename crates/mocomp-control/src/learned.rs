@@ -222,8 +222,8 @@ pub struct Learned {
 /// and in orientation.
 type Features = ([Vector3<f64>; LAGS], [Vector3<f64>; LAGS]);
 
-/// What [`Learned::predict`] returns: the learned pose at a time, the filter's pose there it
-/// should be blended with, and each channel's learned share.
+/// What [`Learned::predict`] returns: the learned pose at a time, and the share each channel
+/// has earned in a blend with the filter's.
 #[derive(Debug, Clone, Copy)]
 pub struct LearnedPrediction {
     /// The learned position.
@@ -254,14 +254,6 @@ impl Learned {
             features: [([Vector3::zeros(); LAGS], [Vector3::zeros(); LAGS]); STEPS + 1],
             features_at: 0,
         }
-    }
-
-    /// Forgets the history and everything learned, in place.
-    pub fn reset(&mut self) {
-        self.len = 0;
-        self.last = None;
-        self.pos = Regression::new(self.pos.floor);
-        self.rot = Regression::new(self.rot.floor);
     }
 
     /// The grid point `back` steps before the newest.

@@ -682,15 +682,20 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_process_noise_adapts_up_for_a_nodding_head_and_down_for_a_still_one() {
-        let mut x = 0x9e37_79b9_u64;
-        let mut noise = move || {
+    /// Seeded uniform noise of unit standard deviation (xorshift).
+    fn unit_noise(mut x: u64) -> impl FnMut() -> f64 {
+        move || {
             x ^= x << 13;
             x ^= x >> 7;
             x ^= x << 17;
-            (x as f64 / u64::MAX as f64 - 0.5) * 3.46e-4
-        };
+            (x as f64 / u64::MAX as f64 - 0.5) * 3.46
+        }
+    }
+
+    #[test]
+    fn the_process_noise_adapts_up_for_a_nodding_head_and_down_for_a_still_one() {
+        let mut unit = unit_noise(0x9e37_79b9);
+        let mut noise = move || unit() * 1e-4;
         let run = |amplitude: f64, noise: &mut dyn FnMut() -> f64| {
             let mut f = PosePredictor::new(PredictorConfig::default());
             for k in 0..1200 {
@@ -719,13 +724,7 @@ mod tests {
         from: f64,
         to: f64,
     ) -> f64 {
-        let mut x = 0x2545_f491_4f6c_dd1d_u64;
-        let mut unit = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x as f64 / u64::MAX as f64 - 0.5) * 3.46
-        };
+        let mut unit = unit_noise(0x2545_f491_4f6c_dd1d);
         let coil = mocomp_geom::nalgebra::Point3::new(0.0, 0.0, 0.113);
         let mut f = PosePredictor::new(cfg);
         let (mut sum, mut n) = (0.0, 0);
