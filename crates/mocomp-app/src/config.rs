@@ -646,7 +646,7 @@ impl Default for ServoSection {
     fn default() -> Self {
         Self {
             lookahead_s: 0.03,
-            gain: 1500.0,
+            gain: 2000.0,
         }
     }
 }

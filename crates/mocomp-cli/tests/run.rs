@@ -183,7 +183,7 @@ fn unknown_keys_and_out_of_range_values_are_refused_by_name() {
             "timestamps = \"gps\"",
             "tracker.timestamps",
         ),
-        ("gain = 1500.0", "gain = 5000.0", "servo.gain"),
+        ("gain = 2000.0", "gain = 5000.0", "servo.gain"),
         ("model = \"ur3e\"", "model = \"ur4\"", "robot.model"),
         (
             "radii_m = [0.075, 0.095, 0.11]",

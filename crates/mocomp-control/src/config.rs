@@ -448,7 +448,7 @@ impl LoopConfig {
             servo: ServoParams {
                 time_s: period_s,
                 lookahead_s: 0.03,
-                gain: 1500.0,
+                gain: 2000.0,
             },
             predictor: PredictorConfig::default(),
             head: HeadModel::adult(),

@@ -416,6 +416,7 @@ impl Compensator {
             });
         let (desired, speed_fraction) =
             self.target(now, decision, goal_q, &head, &mut rec, &mut event);
+        self.cmd.target_speed = self.target_speed(goal_q, &desired, &head);
         // Limit and filter, then check.
         let bh = head.base_from_head.as_ref();
         let (saved, q_next) =

@@ -56,6 +56,9 @@ pub(super) struct HeadEstimate {
     pub(super) base_from_head: Option<Isometry3<f64>>,
     /// The clearance the coil must keep from it, m.
     pub(super) required: f64,
+    /// The head one controller period before `base_from_head`, by the same prediction (the
+    /// oracle: the truth): the target's own speed along this cycle's prediction.
+    pub(super) base_from_head_before: Option<Isometry3<f64>>,
 }
 
 impl HeadState {
@@ -220,6 +223,7 @@ impl Compensator {
         let head_known =
             tracker.is_none() || tracker.is_some_and(|r| reaction(&r) == Reaction::Retreat);
         let mut base_from_head = None;
+        let mut base_from_head_before = None;
         let mut required = p.coil_min_distance_m;
         if head_known {
             let predictor = &self.head.predictor;
@@ -242,6 +246,12 @@ impl Compensator {
             };
             if p.predict || self.head.oracle.is_some() {
                 rec.head_at_target = head.map(|h| (target_t, h));
+                let before = target_t - self.period;
+                base_from_head_before = match &self.head.oracle {
+                    Some(oracle) => oracle.tracker_from_head(before),
+                    None => predictor.predict(before),
+                }
+                .map(|h| self.cfg.base_from_tracker * h);
             }
             if let Some(tracker_from_head) = head {
                 base_from_head = Some(self.cfg.base_from_tracker * tracker_from_head);
@@ -270,6 +280,7 @@ impl Compensator {
         HeadEstimate {
             base_from_head,
             required,
+            base_from_head_before,
         }
     }
 

@@ -197,6 +197,29 @@ impl Compensator {
         Ok(Some((c.joints, m)))
     }
 
+    /// The target's speed along this cycle's prediction, rad/s: the goal's joints one controller
+    /// period earlier on the same predicted path, solved beside this cycle's. Only while the
+    /// command follows the goal itself (`desired` is its joints, tracking or retreating from
+    /// the head); a path, a hold and a give-way have speeds of their own.
+    pub(super) fn target_speed(
+        &self,
+        goal_q: Option<GoalJoints>,
+        desired: &[f64; 6],
+        head: &HeadEstimate,
+    ) -> Option<[f64; 6]> {
+        let (q, _) = goal_q?;
+        if q != *desired || !matches!(self.mode, Mode::Tracking | Mode::Retreating(_)) {
+            return None;
+        }
+        let before = self.standoff_target(head.base_from_head_before.as_ref()?);
+        let margin = self.cfg.params.joint_margin_rad;
+        let c = self
+            .arm
+            .ik_closest(&before, &q, &Selection::tracking(margin))
+            .ok()?;
+        Some(std::array::from_fn(|j| (q[j] - c.joints[j]) / self.period))
+    }
+
     /// This cycle's target joints and speed fraction for the supervisor's `decision`, with the
     /// goal's joints (`goal_q`) and the head; the mode changes it makes add their event.
     pub(super) fn target(

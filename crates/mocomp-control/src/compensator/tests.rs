@@ -90,6 +90,7 @@ fn track(c: &mut Compensator, now: f64) -> ([f64; 6], Option<Event>) {
     let head = HeadEstimate {
         base_from_head: Some(head_rest()),
         required: c.cfg.params.coil_min_distance_m,
+        base_from_head_before: None,
     };
     let goal_q = c
         .goal_joints(Reaction::Track, head.base_from_head.as_ref())
@@ -152,6 +153,7 @@ fn a_hold_with_a_head_that_comes_in_gives_way_and_without_one_stands() {
     let near = HeadEstimate {
         base_from_head: Some(head_rest()),
         required: clearance + 0.002,
+        base_from_head_before: None,
     };
     let (q, _) = c.target(1.0, decision, None, &near, &mut rec, &mut event);
     assert!(matches!(
@@ -167,6 +169,7 @@ fn a_hold_with_a_head_that_comes_in_gives_way_and_without_one_stands() {
     let unknown = HeadEstimate {
         base_from_head: None,
         required: 0.0,
+        base_from_head_before: None,
     };
     let mut event = None;
     let (q, _) = c.target(1.0, decision, None, &unknown, &mut rec, &mut event);
@@ -180,6 +183,7 @@ fn a_coil_that_gave_way_holds_once_the_head_keeps_within_the_filters_noise() {
     let at = |required: f64| HeadEstimate {
         base_from_head: Some(head_rest()),
         required,
+        base_from_head_before: None,
     };
     // The head comes in: the coil gives way.
     c.target(
@@ -257,4 +261,80 @@ fn a_goal_out_of_reach_is_its_own_hold() {
         c.goal_joints(Reaction::Track, Some(&near)),
         Ok(Some(_))
     ));
+}
+
+/// The head sliding 50 mm/s along the base's x and turning 0.3 rad/s about its z from rest,
+/// its whole path moved `shift` m along y (a new sample's correction).
+fn sliding_head(t: f64, shift: f64) -> Isometry3<f64> {
+    use mocomp_geom::nalgebra::{Translation3, UnitQuaternion, Vector3};
+    let rest = head_rest();
+    let turned = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3 * t) * rest.rotation;
+    Isometry3::from_parts(
+        Translation3::from(rest.translation.vector + Vector3::new(0.05 * t, shift, 0.0)),
+        turned,
+    )
+}
+
+/// The goal's joints for the head at `base_from_head`.
+fn goal_at(c: &Compensator, base_from_head: &Isometry3<f64>) -> [f64; 6] {
+    c.goal_joints(Reaction::Track, Some(base_from_head))
+        .unwrap()
+        .unwrap()
+        .0
+}
+
+#[test]
+fn the_targets_speed_is_along_the_prediction_and_a_moved_path_is_no_speed() {
+    let (mut c, _) = fixture();
+    c.cmd.q = at_goal(&c, 0.0);
+    c.mode = Mode::Tracking;
+    let t = 0.1;
+    let estimate = |shift: f64| HeadEstimate {
+        base_from_head: Some(sliding_head(t, shift)),
+        required: 0.0,
+        base_from_head_before: Some(sliding_head(t - PERIOD, shift)),
+    };
+    let speed_of = |c: &Compensator, shift: f64| {
+        let q = goal_at(c, &sliding_head(t, shift));
+        c.target_speed(Some((q, 1.0)), &q, &estimate(shift))
+            .unwrap()
+    };
+    // The goal's own joint speed, centred over a millisecond.
+    let h = 5e-4;
+    let (ahead, behind) = (
+        goal_at(&c, &sliding_head(t + h, 0.0)),
+        goal_at(&c, &sliding_head(t - h, 0.0)),
+    );
+    let truth: [f64; 6] = std::array::from_fn(|j| (ahead[j] - behind[j]) / (2.0 * h));
+    let norm = |v: &[f64; 6]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let speed = speed_of(&c, 0.0);
+    let off: [f64; 6] = std::array::from_fn(|j| speed[j] - truth[j]);
+    assert!(norm(&truth) > 0.1, "{truth:?}");
+    assert!(
+        norm(&off) < 0.01 * norm(&truth),
+        "{speed:?} against {truth:?}"
+    );
+    // A sample that moves the whole path by 2 mm leaves the speed as it was; the target's
+    // last two values would say the joints flew.
+    let moved = speed_of(&c, 0.002);
+    let change: [f64; 6] = std::array::from_fn(|j| moved[j] - speed[j]);
+    assert!(
+        norm(&change) < 0.01 * norm(&truth),
+        "{moved:?} against {speed:?}"
+    );
+    let (last, now) = (
+        goal_at(&c, &sliding_head(t - PERIOD, 0.0)),
+        goal_at(&c, &sliding_head(t, 0.002)),
+    );
+    let jumped: [f64; 6] = std::array::from_fn(|j| (now[j] - last[j]) / PERIOD - speed[j]);
+    assert!(norm(&jumped) > 5.0 * norm(&truth), "{jumped:?}");
+    // Only the goal itself has it: not a command elsewhere, not a hold.
+    let q = goal_at(&c, &sliding_head(t, 0.0));
+    let elsewhere = c.cmd.q;
+    assert_eq!(
+        c.target_speed(Some((q, 1.0)), &elsewhere, &estimate(0.0)),
+        None
+    );
+    c.mode = Mode::Holding(Reason::Operator);
+    assert_eq!(c.target_speed(Some((q, 1.0)), &q, &estimate(0.0)), None);
 }
