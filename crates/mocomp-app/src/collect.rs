@@ -261,7 +261,17 @@ pub fn collect(
     let arm = setup.arm;
     let q0 = setup.initial_joints()?;
     setup.needs_igtl_tracker("calibrate collect")?;
-    let mut world = World::connect(setup, q0, notice, None)?;
+    // The program's watchdog stops the arm when no command comes for 50 ms, and this thread
+    // feeds it while the arm moves: on a busy machine it runs as the loop does (`[realtime]`),
+    // or a normal thread waiting that long stops the collection (seen beside a busy process).
+    let mut world = World::connect(setup, q0, notice, Some(&setup.file.realtime))?;
+    if let Some(w) = world
+        .realtime
+        .as_ref()
+        .and_then(mocomp_rt::RtReport::warning)
+    {
+        writeln!(notice, "warning: {w}").what(|| "writing the notice")?;
+    }
     let client = world.client(setup, &c.device);
     let mut source = client.pose_source();
 
@@ -336,6 +346,7 @@ pub fn collect(
                     format!("calibrate collect could not stop the robot either ({stop})")
                 }
             };
+            leave_realtime();
             return Err(AppError::failed(what, e));
         }
     };
@@ -343,6 +354,7 @@ pub fn collect(
     // The arm is back and still: a failed close changes nothing.
     world.robot.close().ok();
     drop(client);
+    leave_realtime();
     if pairs.len() < 3 {
         refuse!(
             "only {} of {} poses measured (marker not seen at pose(s) {missed:?}): check that \
@@ -409,4 +421,11 @@ pub fn collect(
         pairs_csv,
         against_truth,
     })
+}
+
+/// Back to normal scheduling once the robot needs no feeding: the solve that follows is CPU
+/// work that must not hold a core at real-time priority.
+fn leave_realtime() {
+    mocomp_rt::set_normal().ok();
+    mocomp_rt::unpin().ok();
 }
