@@ -197,6 +197,12 @@ impl Cell {
 
     /// [`Self::finish`], with `n` protective stops the test caused itself.
     fn finish_with_protective_stops(self, n: usize) -> Value {
+        self.finish_logged(n).0
+    }
+
+    /// [`Self::finish_with_protective_stops`], and how the coil kept to its goal while tracking
+    /// (read from the run's log before its folder goes).
+    fn finish_logged(self, n: usize) -> (Value, OnGoal) {
         let (code, _) = self.session.post_auth("/api/stop", &json!({}));
         assert_eq!(code, 200);
         let (ok, out) = self.session.finish();
@@ -248,7 +254,87 @@ impl Cell {
             assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
             assert_eq!(r["counts"]["/mocomp/cycle"], v["cycles"], "{}", r["counts"]);
         }
-        v
+        let on_goal = OnGoal::read(&self.dir.path("run.csv"));
+        (v, on_goal)
+    }
+}
+
+/// Below this deviation (mm) a coil that resumed straight on its goal has caught up with it.
+const CAUGHT_UP_MM: f64 = 1.0;
+
+/// How the coil kept to its goal while tracking, from the run's log. A hold stands the arm while
+/// the head moves on, and a coil that resumes within `servo_deviation_m` of its goal goes
+/// straight to tracking and closes the rest within the command's limits (by design: no path for
+/// a few millimetres): that catch-up is tracking, but not on the goal, and how far the head
+/// went during the hold depends on where in its motion the hold fell, so it is judged apart.
+#[derive(Debug)]
+struct OnGoal {
+    /// The largest deviation (mm) while tracking, outside catch-ups.
+    max_mm: f64,
+    /// Each straight resume: when (s into the run), its deviation then (mm), and how long it
+    /// took to come within [`CAUGHT_UP_MM`] (`None`: held again before it did; infinite: the run
+    /// ended tracking and it never did).
+    catch_ups: Vec<(f64, f64, Option<f64>)>,
+}
+
+impl OnGoal {
+    fn read(csv_path: &str) -> Self {
+        let mut log = csv::Reader::from_path(csv_path).unwrap();
+        let header = log.headers().unwrap().clone();
+        let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+        let (t_col, mode_col, event_col, dev_col) =
+            (col("t_s"), col("mode"), col("event"), col("deviation_mm"));
+        let mut on_goal = OnGoal {
+            max_mm: 0.0,
+            catch_ups: Vec::new(),
+        };
+        let mut catching_up: Option<usize> = None;
+        for row in log.records() {
+            let row = row.unwrap();
+            let t: f64 = row[t_col].parse().unwrap();
+            let dev: f64 = row[dev_col].parse().unwrap();
+            let tracking = &row[mode_col] == "tracking";
+            if tracking && &row[event_col] == "Resume" {
+                on_goal.catch_ups.push((t, dev, None));
+                catching_up = Some(on_goal.catch_ups.len() - 1);
+            }
+            if !tracking {
+                catching_up = None;
+                continue;
+            }
+            if let Some(i) = catching_up {
+                if dev < CAUGHT_UP_MM {
+                    on_goal.catch_ups[i].2 = Some(t - on_goal.catch_ups[i].0);
+                    catching_up = None;
+                }
+                continue;
+            }
+            if dev > on_goal.max_mm {
+                on_goal.max_mm = dev;
+            }
+        }
+        // Tracking to the end and never caught up: as long as it could be.
+        if let Some(i) = catching_up {
+            on_goal.catch_ups[i].2 = Some(f64::INFINITY);
+        }
+        on_goal
+    }
+
+    /// The coil never left its goal by `max_mm` or more while tracking on it, and every catch-up
+    /// that was not interrupted closed within `within_s`.
+    fn check(&self, max_mm: f64, within_s: f64, v: &Value) {
+        eprintln!("on the goal: {self:?}");
+        assert!(
+            self.max_mm < max_mm,
+            "deviation max {} mm while tracking on the goal: {v}",
+            self.max_mm
+        );
+        assert!(
+            self.catch_ups
+                .iter()
+                .all(|(_, _, took)| took.is_none_or(|s| s < within_s)),
+            "a catch-up took longer than {within_s} s: {self:?}"
+        );
     }
 }
 
@@ -409,13 +495,21 @@ fn short_rtde_stalls_are_ridden_out_or_resumed_from_by_a_path_without_the_operat
         std::thread::sleep(Duration::from_millis(300));
     }
     // 40 ms: the loop stops the arm itself (RobotStale), the program still runs (below its
-    // 50 ms watchdog), and it comes back by itself by a path.
-    c.rtde.stall(Duration::from_millis(40));
-    c.tracking("after a 40 ms stall");
-    let v = c.finish();
+    // 50 ms watchdog), and it comes back by itself: by a path, or, where the head has not gone
+    // far from the held coil, straight on its goal, catching up within the command's limits.
+    for _ in 0..3 {
+        c.rtde.stall(Duration::from_millis(40));
+        c.tracking("after a 40 ms stall");
+    }
+    let (v, on_goal) = c.finish_logged(0);
     let ev = events(&v);
-    assert!(!ev.iter().any(|e| e == "Rearmed"), "{ev:?}");
     eprintln!("{ev:?}");
+    assert!(!ev.iter().any(|e| e == "Rearmed"), "{ev:?}");
+    assert!(
+        ev.iter().filter(|e| *e == "Hold(RobotStale)").count() >= 3,
+        "{ev:?}"
+    );
+    on_goal.check(5.0, 1.0, &v);
 }
 
 /// The controller's dashboard, reached directly (as the teach pendant acts on the controller,
@@ -581,7 +675,7 @@ fn tracker_stalls_resets_and_corruption_hold_or_coast_and_come_back_by_themselve
         assert!(igtl.faults_spent());
         c.tracking(&format!("after {n} corrupted tracker bytes"));
     }
-    let v = c.finish();
+    let (v, on_goal) = c.finish_logged(0);
     let ev = events(&v);
     eprintln!("{ev:?}");
     // The tracker's faults never latch the robot side (a stale robot state of its own, on a
@@ -598,8 +692,7 @@ fn tracker_stalls_resets_and_corruption_hold_or_coast_and_come_back_by_themselve
     );
     // No corrupted pose reached the loop as a head that jumped.
     assert!(!ev.iter().any(|e| e.starts_with("Outlier")), "{ev:?}");
-    let max = v["deviation_max_mm"].as_f64().unwrap();
-    assert!(max < 5.0, "deviation max {max} mm while tracking: {v}");
+    on_goal.check(5.0, 1.0, &v);
 }
 
 #[test]
@@ -638,7 +731,7 @@ fn a_step_in_the_trackers_clock_holds_the_arm_until_the_client_rebases_then_come
         "{v}"
     );
     c.tracking("after the tracker's clock stepped");
-    let v = c.finish();
+    let (v, on_goal) = c.finish_logged(0);
     let ev = events(&v);
     eprintln!("{ev:?}; tracker link {}", v["tracker"]);
     assert_eq!(v["tracker"]["clock_steps"], 1, "{v}");
@@ -653,8 +746,7 @@ fn a_step_in_the_trackers_clock_holds_the_arm_until_the_client_rebases_then_come
         .filter(|e| e.starts_with("Hold(TrackerStale"))
         .count();
     assert!(stale >= 1, "{ev:?}");
-    let max = v["deviation_max_mm"].as_f64().unwrap();
-    assert!(max < 5.0, "deviation max {max} mm while tracking: {v}");
+    on_goal.check(5.0, 1.0, &v);
 }
 
 #[test]
