@@ -261,17 +261,7 @@ pub fn collect(
     let arm = setup.arm;
     let q0 = setup.initial_joints()?;
     setup.needs_igtl_tracker("calibrate collect")?;
-    // The program's watchdog stops the arm when no command comes for 50 ms, and this thread
-    // feeds it while the arm moves: on a busy machine it runs as the loop does (`[realtime]`),
-    // or a normal thread waiting that long stops the collection (seen beside a busy process).
-    let mut world = World::connect(setup, q0, notice, Some(&setup.file.realtime))?;
-    if let Some(w) = world
-        .realtime
-        .as_ref()
-        .and_then(mocomp_rt::RtReport::warning)
-    {
-        writeln!(notice, "warning: {w}").what(|| "writing the notice")?;
-    }
+    let mut world = World::connect_feeding_watchdog(setup, q0, notice)?;
     let client = world.client(setup, &c.device);
     let mut source = client.pose_source();
 

@@ -249,16 +249,7 @@ pub fn teach(setup: &Setup, samples: usize, notice: &mut dyn Write) -> Result<Ta
     }
     let q0 = setup.initial_joints()?;
     setup.needs_igtl_tracker("teach-goal")?;
-    // The program's watchdog needs feeding while the samples come: on a busy machine this
-    // thread runs as the loop does (`[realtime]`), as `calibrate collect`'s does.
-    let mut world = World::connect(setup, q0, notice, Some(&setup.file.realtime))?;
-    if let Some(w) = world
-        .realtime
-        .as_ref()
-        .and_then(mocomp_rt::RtReport::warning)
-    {
-        writeln!(notice, "warning: {w}").what(|| "writing the notice")?;
-    }
+    let mut world = World::connect_feeding_watchdog(setup, q0, notice)?;
     let taught = teach_on(setup, &mut world, samples);
     // Nothing moved: a failed close changes nothing.
     world.robot.close().ok();

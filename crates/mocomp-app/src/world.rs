@@ -51,6 +51,26 @@ impl std::fmt::Debug for World {
 }
 
 impl World {
+    /// [`Self::connect`] at the loop's real-time settings (`[realtime]`), for a command that
+    /// feeds the control program's 50 ms watchdog outside the loop (calibration, teaching): a
+    /// normal thread that waits longer on a busy machine stops the arm mid-way. A refusal is a
+    /// warning in `out`, not an error.
+    pub fn connect_feeding_watchdog(
+        setup: &Setup,
+        initial_q: [f64; 6],
+        out: &mut dyn Write,
+    ) -> Result<Self, AppError> {
+        let world = Self::connect(setup, initial_q, out, Some(&setup.file.realtime))?;
+        if let Some(w) = world
+            .realtime
+            .as_ref()
+            .and_then(mocomp_rt::RtReport::warning)
+        {
+            writeln!(out, "warning: {w}").what(|| "writing the notice")?;
+        }
+        Ok(world)
+    }
+
     /// Starts what is simulated and connects the robot. `initial_q`: the simulated robot's joints
     /// at start.
     ///
