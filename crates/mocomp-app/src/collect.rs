@@ -336,7 +336,7 @@ pub fn collect(
                     format!("calibrate collect could not stop the robot either ({stop})")
                 }
             };
-            leave_realtime();
+            mocomp_rt::leave_realtime().ok();
             return Err(AppError::failed(what, e));
         }
     };
@@ -344,7 +344,8 @@ pub fn collect(
     // The arm is back and still: a failed close changes nothing.
     world.robot.close().ok();
     drop(client);
-    leave_realtime();
+    // The solve that follows is CPU work that must not hold a core at real-time priority.
+    mocomp_rt::leave_realtime().ok();
     if pairs.len() < 3 {
         refuse!(
             "only {} of {} poses measured (marker not seen at pose(s) {missed:?}): check that \
@@ -411,11 +412,4 @@ pub fn collect(
         pairs_csv,
         against_truth,
     })
-}
-
-/// Back to normal scheduling once the robot needs no feeding: the solve that follows is CPU
-/// work that must not hold a core at real-time priority.
-fn leave_realtime() {
-    mocomp_rt::set_normal().ok();
-    mocomp_rt::unpin().ok();
 }

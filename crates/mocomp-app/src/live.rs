@@ -324,8 +324,7 @@ fn start_logger(
         .spawn(move || {
             // Whatever the thread that starts it runs at, the logger must not compete with the
             // real-time loop, nor sit on its core.
-            mocomp_rt::set_normal().ok();
-            mocomp_rt::unpin().ok();
+            mocomp_rt::leave_realtime().ok();
             let mut observer = observer;
             let s = logger(rx, period, csv, &clock, observer.as_mut(), &mut side);
             side.log.finish();

@@ -110,8 +110,7 @@ impl SessionStart {
                     std::thread::Builder::new()
                         .name("mocomp-pulses".into())
                         .spawn(move || {
-                            mocomp_rt::set_normal().ok();
-                            mocomp_rt::unpin().ok();
+                            mocomp_rt::leave_realtime().ok();
                             crate::live_session::forward_pulses(&rx, &pulses_tx, &stop);
                         })
                         .what(|| "starting the pulse listener")?,

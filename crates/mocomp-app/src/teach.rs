@@ -253,8 +253,7 @@ pub fn teach(setup: &Setup, samples: usize, notice: &mut dyn Write) -> Result<Ta
     let taught = teach_on(setup, &mut world, samples);
     // Nothing moved: a failed close changes nothing.
     world.robot.close().ok();
-    mocomp_rt::set_normal().ok();
-    mocomp_rt::unpin().ok();
+    mocomp_rt::leave_realtime().ok();
     taught
 }
 

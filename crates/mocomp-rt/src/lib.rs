@@ -335,6 +335,15 @@ pub fn unpin() -> Result<(), RtError> {
     sched_setaffinity(Pid::from_raw(0), &set).map_err(|source| RtError::Pin { cpu: 0, source })
 }
 
+/// Back to normal time-sharing on every CPU: [`set_normal`] and [`unpin`], both tried (for a
+/// thread that leaves real time: a logger a pinned loop spawned, a command done feeding the
+/// robot). The first error, if any.
+pub fn leave_realtime() -> Result<(), RtError> {
+    let normal = set_normal();
+    let unpinned = unpin();
+    normal.and(unpinned)
+}
+
 /// Keeps every CPU out of deep idle states while it lives (the kernel's PM QoS request through
 /// `/dev/cpu_dma_latency`, withdrawn when the file is closed).
 #[derive(Debug)]
@@ -683,6 +692,30 @@ mod tests {
                     assert_eq!(current_policy().unwrap(), Policy::Normal);
                 }
             }
+        })
+        .join()
+        .unwrap();
+    }
+
+    /// A thread leaving real time is back under normal scheduling on every CPU, whether its
+    /// FIFO priority was granted or not.
+    #[test]
+    fn leaving_real_time_unpins_and_returns_to_normal_scheduling() {
+        use nix::sched::sched_getaffinity;
+        use nix::unistd::Pid;
+        std::thread::spawn(|| {
+            pin_to_cpu(0).unwrap();
+            set_fifo(42).ok();
+            let cpus = |set: nix::sched::CpuSet| {
+                (0..nix::sched::CpuSet::count())
+                    .filter(|&c| set.is_set(c).unwrap_or(false))
+                    .count()
+            };
+            assert_eq!(cpus(sched_getaffinity(Pid::from_raw(0)).unwrap()), 1);
+            leave_realtime().unwrap();
+            assert_eq!(current_policy().unwrap(), Policy::Normal);
+            let n = std::thread::available_parallelism().map_or(1, usize::from);
+            assert_eq!(cpus(sched_getaffinity(Pid::from_raw(0)).unwrap()), n);
         })
         .join()
         .unwrap();
