@@ -287,7 +287,7 @@ struct Channel {
     accel: Vector3<f64>,
     cov: Cov3,
     /// The process-noise scale of the uncertainty's filter (1 = as configured).
-    scale: f64,
+    sigma_scale: f64,
     /// Running mean of the normalised innovation squared (1 when σ is right).
     nis: f64,
     /// The covariance of one filter at `scale`: the uncertainty the safety filter keeps the
@@ -350,7 +350,7 @@ impl Channel {
             rate: Vector3::zeros(),
             accel: Vector3::zeros(),
             cov: mode.cov,
-            scale: 1.0,
+            sigma_scale: 1.0,
             nis: 1.0,
             sigma_cov: mode.cov,
             modes: [mode; MODES],
@@ -412,7 +412,7 @@ impl Channel {
     /// normalised innovation squared of the combined prediction, so its σ matches the errors
     /// the prediction makes (on noisy nods within 10 % at 30–100 ms).
     fn calibrate(&mut self, dt: f64, y: &Vector3<f64>, (r, q): (f64, f64), c: &PredictorConfig) {
-        self.sigma_cov.propagate(dt, q * self.scale, c.model);
+        self.sigma_cov.propagate(dt, q * self.sigma_scale, c.model);
         let (_, s) = self.sigma_cov.update(r);
         if c.adaptive {
             // Normalised innovation squared per axis: 1 on average when σ is right. Its running
@@ -421,7 +421,7 @@ impl Channel {
             let nis = (y.norm_squared() / (3.0 * s)).min(25.0);
             self.nis += 0.05 * (nis - self.nis);
             let lo = 1.0 / c.adapt_range;
-            self.scale = (self.scale * self.nis.powf(0.05)).clamp(lo, c.adapt_range);
+            self.sigma_scale = (self.sigma_scale * self.nis.powf(0.05)).clamp(lo, c.adapt_range);
         }
     }
 
@@ -487,6 +487,17 @@ impl Channel {
         active.iter().for_each(|&j| self.mu[j] /= norm);
     }
 
+    /// The modes' process-noise scale, their probabilities' geometric mean (1 = as configured).
+    fn typical_scale(&self, range: f64) -> f64 {
+        self.mu
+            .iter()
+            .enumerate()
+            .filter(|(_, mu)| **mu > 0.0)
+            .map(|(j, mu)| mu * mode_scale(j, range).ln())
+            .sum::<f64>()
+            .exp()
+    }
+
     /// The rate and acceleration to extrapolate with (shrunk by their own uncertainty).
     fn shrunk(&self, c: &PredictorConfig) -> (Vector3<f64>, Vector3<f64>) {
         let shrink = |v: &Vector3<f64>, var: f64| {
@@ -510,7 +521,7 @@ impl Channel {
 
     /// 1σ per axis of the value extrapolated by `h`.
     fn sigma(&self, h: f64, q: f64, model: MotionModel) -> f64 {
-        self.sigma_cov.propagated(h, q * self.scale, model)[0][0]
+        self.sigma_cov.propagated(h, q * self.sigma_scale, model)[0][0]
             .max(0.0)
             .sqrt()
     }
@@ -593,7 +604,8 @@ impl PosePredictor {
     /// The process-noise scales the modes' probabilities arrive at (their geometric mean;
     /// position, rotation; 1 = as configured).
     pub fn noise_scale(&self) -> (f64, f64) {
-        (self.pos.scale, self.rot.scale)
+        let range = self.config.adapt_range;
+        (self.pos.typical_scale(range), self.rot.typical_scale(range))
     }
 
     fn densities(&self) -> (f64, f64) {
