@@ -58,12 +58,13 @@ const ERROR_RATE: f64 = 0.02;
 const DOMAIN: f64 = 1.0;
 /// The regression's prior: a large covariance, a weak prior towards zero coefficients.
 const P0: f64 = 1e3;
-/// Examples trained on before the learned prediction may be used (2 s at 60 Hz): a model that
+/// Examples trained on before the learned prediction may be used (1.5 s at 60 Hz): a model that
 /// has seen half a second of a motion's start has not seen it reverse yet, and its record is
 /// too short to say so (on the nods' ramp-in it put the coil 2.8 mm off at the first reversal).
 /// With the history's scale held within what was trained on, 1.25–2 s measured alike on the
-/// nods; 2 s kept random motion's worst moment where it was (0.63 mm; 0.84 at 1.25 s).
-const MIN_TRAINED: u32 = 120;
+/// nods' RMS; 1.5 s kept their worst moment, in the ramp-in, at 1.28 mm (1.68 at 2 s, where
+/// the filter alone carries the first reversals), random motion's at 0.81 (0.63 at 2 s).
+const MIN_TRAINED: u32 = 90;
 
 /// One grid point: the resampled measurement, and what the filter predicted from it.
 #[derive(Debug, Clone, Copy)]

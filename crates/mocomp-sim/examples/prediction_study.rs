@@ -1,8 +1,9 @@
 //! The prediction study of issues 16 and 33: how far the predicted head puts the coil from where
-//! the head really puts it, for the filter before issue 16 (constant velocity), the filter of
-//! issue 16 (constant acceleration, adaptive noise) and the default since issue 33 (that filter
-//! blended with the prediction learned from the head's own motion), at horizons of 30–80 ms, on
-//! the patient studies' fast nods, the demo's random motion and a replayed trace.
+//! the head really puts it, for the filter before issue 16 (constant velocity), today's filter
+//! alone (constant acceleration, an interacting-multiple-model filter over three noise levels) and
+//! the default (that filter blended with the prediction learned from the head's own motion), at
+//! horizons of 30–80 ms, on the patient studies' fast nods, the demo's random motion and a
+//! replayed trace.
 //!
 //! The tracker is modelled as in the demo: 60 Hz, 0.1 mm and 1 mrad of Gaussian noise per axis
 //! (seeded). The error is measured at the coil's centre, 113 mm from the head marker on its z
@@ -103,14 +104,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 PredictorConfig::constant_velocity(),
             ),
             (
-                "issue 16: ca, adaptive".into(),
+                "ca, IMM, the filter alone".into(),
                 PredictorConfig {
                     learned: false,
                     ..PredictorConfig::default()
                 },
             ),
             (
-                "issue 33: ca and learned (default)".into(),
+                "ca, IMM and learned (default)".into(),
                 PredictorConfig::default(),
             ),
         ],
