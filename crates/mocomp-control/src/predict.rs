@@ -891,6 +891,23 @@ mod tests {
         }
     }
 
+    /// The demo's fast nods about the marker: sway, turn and nod (peaks 80 mm/s, 34°/s).
+    fn nods(t: f64) -> Isometry3<f64> {
+        let x = 0.02 * (4.0 * t).sin();
+        Isometry3::new(
+            Vector3::new(x, 0.5 * x, 0.0),
+            Vector3::new(0.0, 0.08 * (2.8 * t).sin(), 0.15 * (4.0 * t).sin()),
+        )
+    }
+
+    /// One sample of the tracker's noise: 0.1 mm and 1 mrad per axis.
+    fn tracker_noise(unit: &mut impl FnMut() -> f64) -> Isometry3<f64> {
+        Isometry3::new(
+            Vector3::new(unit(), unit(), unit()) * 1e-4,
+            Vector3::new(unit(), unit(), unit()) * 1e-3,
+        )
+    }
+
     #[test]
     fn the_process_noise_adapts_up_for_a_nodding_head_and_down_for_a_still_one() {
         let mut unit = unit_noise(0x9e37_79b9);
@@ -941,10 +958,7 @@ mod tests {
                 if t <= f.time_s() && f.is_initialised() {
                     continue;
                 }
-                let noise = Isometry3::new(
-                    Vector3::new(unit(), unit(), unit()) * 1e-4,
-                    Vector3::new(unit(), unit(), unit()) * 1e-3,
-                );
+                let noise = tracker_noise(&mut unit);
                 f.update(t, &(pose(t) * noise));
                 last = t;
             }
@@ -969,13 +983,7 @@ mod tests {
         // The safety filter keeps the coil 2σ further off: a σ too small brings it closer
         // than the prediction deserves, one too large (the modes' mixture) backs it off for
         // nothing. At the horizons the loop predicts over, within a fifth either way.
-        let pose_at = |t: f64| {
-            let x = 0.02 * (4.0 * t).sin();
-            Isometry3::new(
-                Vector3::new(x, 0.5 * x, 0.8),
-                Vector3::new(0.0, 0.08 * (2.8 * t).sin(), 0.15 * (4.0 * t).sin()),
-            )
-        };
+        let pose_at = |t: f64| Isometry3::translation(0.0, 0.0, 0.8) * nods(t);
         let mut unit = unit_noise(0x1234_5678);
         for h in [0.03, 0.06, 0.1] {
             let mut f = PosePredictor::new(PredictorConfig {
@@ -985,10 +993,7 @@ mod tests {
             let (mut err, mut sigma) = ([0.0; 2], [0.0; 2]);
             for k in 0..1800 {
                 let t = k as f64 / 60.0;
-                let noise = Isometry3::new(
-                    Vector3::new(unit(), unit(), unit()) * 1e-4,
-                    Vector3::new(unit(), unit(), unit()) * 1e-3,
-                );
+                let noise = tracker_noise(&mut unit);
                 f.update(t, &(pose_at(t) * noise));
                 if k > 300 {
                     let (p, truth) = (f.predict(t + h).unwrap(), pose_at(t + h));
@@ -1025,10 +1030,7 @@ mod tests {
         let (mut sum, mut n) = (0.0, 0);
         for k in 0..(to * 60.0) as usize {
             let t = k as f64 / 60.0;
-            let noise = Isometry3::new(
-                Vector3::new(unit(), unit(), unit()) * 1e-4,
-                Vector3::new(unit(), unit(), unit()) * 1e-3,
-            );
+            let noise = tracker_noise(&mut unit);
             f.update(t, &(noise * pose(t)));
             if t >= from {
                 let e = (f.predict(t + 0.058).unwrap() * coil - pose(t + 0.058) * coil).norm();
@@ -1053,13 +1055,6 @@ mod tests {
 
     #[test]
     fn the_learned_prediction_follows_nods_closer_than_the_filter_alone() {
-        let nods = |t: f64| {
-            let x = 0.02 * (4.0 * t).sin();
-            Isometry3::new(
-                Vector3::new(x, 0.5 * x, 0.0),
-                Vector3::new(0.0, 0.08 * (2.8 * t).sin(), 0.15 * (4.0 * t).sin()),
-            )
-        };
         let (learned, filter) = learned_and_filter(&nods, 5.0, 30.0);
         assert!(
             learned < 0.75 * filter,
