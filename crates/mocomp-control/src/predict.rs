@@ -290,7 +290,7 @@ struct Channel {
     sigma_scale: f64,
     /// Running mean of the normalised innovation squared (1 when σ is right).
     nis: f64,
-    /// The covariance of one filter at `scale`: the uncertainty the safety filter keeps the
+    /// The covariance of one filter at `sigma_scale`: the uncertainty the safety filter keeps the
     /// coil away by. The modes' own mixture follows every sample's verdict (its 200 ms σ on
     /// nods swung between 9 and 24 mrad from one fifth of a second to the next): a standoff
     /// that swings moves the coil for nothing, and over a coasted dropout it grew past 5 mm.
