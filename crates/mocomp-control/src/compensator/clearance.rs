@@ -18,11 +18,13 @@ pub(super) enum Site {
     Collision,
     /// The commanded coil's clearance, recorded.
     Recorded,
+    /// The servo setpoint's, when it leads the command.
+    Setpoint,
 }
 
 /// One memory per [`Site`].
 #[derive(Debug, Clone, Default)]
-pub(super) struct Memories(RefCell<[ClearanceMemory; 4]>);
+pub(super) struct Memories(RefCell<[ClearanceMemory; 5]>);
 
 impl Memories {
     /// Runs `f` with `site`'s memory; with a fresh one should the memories be in use already

@@ -429,7 +429,8 @@ impl Compensator {
         rec
     }
 
-    /// Sends the command and records it, with the commanded coil's clearance from the head.
+    /// Sends the command (its servo setpoint, [`Self::setpoint`]) and records it, with the
+    /// commanded coil's clearance from the head.
     fn command<R: Robot + ?Sized>(
         &mut self,
         now: f64,
@@ -439,23 +440,75 @@ impl Compensator {
         rec: &mut CycleRecord,
     ) {
         if let Some(bh) = base_from_head {
-            let head_from_coil = self.head_from_coil_at(&q, bh);
-            rec.clearance_m = self.clearance.at(clearance::Site::Recorded, |memory| {
-                self.cfg.coil.distance_below_remembering(
-                    &self.cfg.head,
-                    &head_from_coil,
-                    CLEARANCE_EXACT_BELOW_M,
-                    memory,
-                )
-            });
+            rec.clearance_m = self.commanded_clearance(&q, bh, clearance::Site::Recorded);
         }
         self.cmd.q = q;
         rec.q_command = q;
-        if let Ok(seq) = robot.servo(&q, &self.cfg.servo) {
+        let before = (self.cmd.lead, self.cmd.catch_up);
+        let mut setpoint = self.setpoint(self.mode == Mode::Tracking);
+        if let Some(bh) = base_from_head
+            && setpoint != q
+        {
+            // The arm lags the setpoint by the servo's lag, which the lead only partly makes
+            // up: it stays behind the command, which keeps the filter's clearance. The setpoint
+            // itself may not enter the head (nor press deeper than contact allows): no lead then.
+            let floor = rec.required_m.min(self.cfg.params.coil_min_distance_m);
+            // Asked only when the lead's move could reach the floor: the coil's points move by
+            // at most its centre's move plus its corner's radius times its turn.
+            let (a, b) = (
+                self.head_from_coil_at(&q, bh),
+                self.head_from_coil_at(&setpoint, bh),
+            );
+            let corner = self.cfg.coil.radius.hypot(self.cfg.coil.thickness);
+            let moved = (b.translation.vector - a.translation.vector).norm()
+                + corner * a.rotation.angle_to(&b.rotation);
+            let known = rec.clearance_m.min(CLEARANCE_EXACT_BELOW_M);
+            if known - moved < floor
+                && self.commanded_clearance(&setpoint, bh, clearance::Site::Setpoint) < floor
+            {
+                (self.cmd.lead, self.cmd.catch_up) = before;
+                setpoint = self.setpoint(false);
+            }
+        }
+        rec.q_setpoint = setpoint;
+        if let Ok(seq) = robot.servo(&setpoint, &self.cfg.servo) {
             self.cmd.delay.note(seq, now);
             self.cmd.servo_sent = true;
         }
         rec.command_delay_s = self.cmd.delay.estimate();
+    }
+
+    /// The servo setpoint for the command in `self.cmd`, leading it while `following` the goal
+    /// ([`command::CommandState::setpoint`]).
+    fn setpoint(&mut self, following: bool) -> [f64; 6] {
+        let servo = (self.cfg.servo.lookahead_s, self.cfg.servo.gain);
+        let p = &self.cfg.params;
+        self.cmd.setpoint(
+            &self.arm,
+            servo,
+            self.period,
+            (p.catch_up_lead, p.speed_fraction),
+            following,
+        )
+    }
+
+    /// The coil's clearance from the head at `base_from_head` with the arm at `q`, m (exact
+    /// below [`CLEARANCE_EXACT_BELOW_M`]), asked from `site`.
+    fn commanded_clearance(
+        &self,
+        q: &[f64; 6],
+        base_from_head: &Isometry3<f64>,
+        site: clearance::Site,
+    ) -> f64 {
+        let head_from_coil = self.head_from_coil_at(q, base_from_head);
+        self.clearance.at(site, |memory| {
+            self.cfg.coil.distance_below_remembering(
+                &self.cfg.head,
+                &head_from_coil,
+                CLEARANCE_EXACT_BELOW_M,
+                memory,
+            )
+        })
     }
 }
 

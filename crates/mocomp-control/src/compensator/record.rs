@@ -19,8 +19,11 @@ pub struct CycleRecord {
     pub horizon_s: f64,
     /// Estimated command delay (send → acknowledged in the robot's state), s.
     pub command_delay_s: f64,
-    /// Joints commanded.
+    /// Joints commanded: the loop's command, within its limits and the safety filter's
+    /// clearance.
     pub q_command: [f64; 6],
+    /// The servo setpoint sent for it: the command plus its lead (`[loop] catch_up_lead`).
+    pub q_setpoint: [f64; 6],
     /// Joints measured.
     pub q_actual: [f64; 6],
     /// Joint speeds measured, rad/s.
@@ -81,6 +84,7 @@ impl CycleRecord {
             horizon_s: 0.0,
             command_delay_s: f64::NAN,
             q_command,
+            q_setpoint: q_command,
             q_actual: [f64::NAN; 6],
             qd_actual: [f64::NAN; 6],
             head_from_coil_goal: Isometry3::identity(),

@@ -338,3 +338,46 @@ fn the_targets_speed_is_along_the_prediction_and_a_moved_path_is_no_speed() {
     c.mode = Mode::Holding(Reason::Operator);
     assert_eq!(c.target_speed(Some((q, 1.0)), &q, &estimate(0.0)), None);
 }
+
+/// The command `standoff` m back from the goal, and the setpoint the loop sends for it while
+/// the command catches up towards the head at 0.5 rad/s (its largest joint) from standing.
+fn lead_into_the_head(standoff: f64) -> (Compensator, [f64; 6], [f64; 6], Isometry3<f64>) {
+    let (mut c, mut robot) = fixture();
+    let bh = head_rest();
+    // Where the coil touches the scalp, along its axis from the goal.
+    let touch = -c.commanded_clearance(&at_goal(&c, 0.0), &bh, clearance::Site::Recorded);
+    let q = at_goal(&c, touch + standoff);
+    let inwards: [f64; 6] = {
+        let deeper = at_goal(&c, touch + standoff - 0.01);
+        std::array::from_fn(|j| deeper[j] - q[j])
+    };
+    let top = inwards.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
+    c.mode = Mode::Tracking;
+    c.cmd.have = true;
+    c.cmd.dt = PERIOD;
+    c.cmd.v = std::array::from_fn(|j| 0.5 * inwards[j] / top);
+    c.cmd.target_speed = Some([0.0; 6]);
+    c.cmd.catch_up = Some([0.0; 6]);
+    let mut rec = CycleRecord::new(0.0, c.mode, q);
+    rec.required_m = 0.0;
+    c.command(0.0, &mut robot, q, Some(&bh), &mut rec);
+    (c, q, rec.q_setpoint, bh)
+}
+
+#[test]
+fn the_setpoints_lead_never_takes_it_into_the_head() {
+    // Well clear of the head, the catch-up's lead takes the setpoint nearer it than the command.
+    let (c, q, set, bh) = lead_into_the_head(0.02);
+    assert_ne!(set, q);
+    let site = clearance::Site::Recorded;
+    let (at_q, at_set) = (
+        c.commanded_clearance(&q, &bh, site),
+        c.commanded_clearance(&set, &bh, site),
+    );
+    assert!(at_set < at_q - 1e-4, "{at_set} vs {at_q}");
+    // Just off the scalp, the same lead would enter it: none.
+    let (c, q, set, bh) = lead_into_the_head(0.0002);
+    assert!(c.commanded_clearance(&q, &bh, clearance::Site::Recorded) > 0.0);
+    assert_eq!(set, q);
+    assert!(c.cmd.lead.iter().all(|l| *l == 0.0), "{:?}", c.cmd.lead);
+}
