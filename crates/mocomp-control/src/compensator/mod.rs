@@ -444,38 +444,51 @@ impl Compensator {
         }
         self.cmd.q = q;
         rec.q_command = q;
-        let before = (self.cmd.lead, self.cmd.catch_up);
-        let mut setpoint = self.setpoint(self.mode == Mode::Tracking);
-        if let Some(bh) = base_from_head
-            && setpoint != q
-        {
-            // The arm lags the setpoint by the servo's lag, which the lead only partly makes
-            // up: it stays behind the command, which keeps the filter's clearance. The setpoint
-            // itself may not enter the head (nor press deeper than contact allows): no lead then.
-            let floor = rec.required_m.min(self.cfg.params.coil_min_distance_m);
-            // Asked only when the lead's move could reach the floor: the coil's points move by
-            // at most its centre's move plus its corner's radius times its turn.
-            let (a, b) = (
-                self.head_from_coil_at(&q, bh),
-                self.head_from_coil_at(&setpoint, bh),
-            );
-            let corner = self.cfg.coil.radius.hypot(self.cfg.coil.thickness);
-            let moved = (b.translation.vector - a.translation.vector).norm()
-                + corner * a.rotation.angle_to(&b.rotation);
-            let known = rec.clearance_m.min(CLEARANCE_EXACT_BELOW_M);
-            if known - moved < floor
-                && self.commanded_clearance(&setpoint, bh, clearance::Site::Setpoint) < floor
-            {
-                (self.cmd.lead, self.cmd.catch_up) = before;
-                setpoint = self.setpoint(false);
-            }
-        }
+        let setpoint = self.setpoint_off_the_scalp(&q, base_from_head, rec);
         rec.q_setpoint = setpoint;
         if let Ok(seq) = robot.servo(&setpoint, &self.cfg.servo) {
             self.cmd.delay.note(seq, now);
             self.cmd.servo_sent = true;
         }
         rec.command_delay_s = self.cmd.delay.estimate();
+    }
+
+    /// The servo setpoint for the command `q` (already in `self.cmd`), leading it while
+    /// tracking, but without the lead where it would take the setpoint into the head at
+    /// `base_from_head` (below the filter's floor, `rec.required_m` or the least distance).
+    ///
+    /// The arm lags the setpoint by the servo's lag, which the lead only partly makes up: it
+    /// stays behind the command, which keeps the filter's clearance. The setpoint itself may
+    /// not enter the head (nor press deeper than contact allows).
+    fn setpoint_off_the_scalp(
+        &mut self,
+        q: &[f64; 6],
+        base_from_head: Option<&Isometry3<f64>>,
+        rec: &CycleRecord,
+    ) -> [f64; 6] {
+        let before = (self.cmd.lead, self.cmd.catch_up);
+        let setpoint = self.setpoint(self.mode == Mode::Tracking);
+        let Some(bh) = base_from_head.filter(|_| setpoint != *q) else {
+            return setpoint;
+        };
+        let floor = rec.required_m.min(self.cfg.params.coil_min_distance_m);
+        // Asked only when the lead's move could reach the floor: the coil's points move by at
+        // most its centre's move plus its corner's radius times its turn.
+        let (a, b) = (
+            self.head_from_coil_at(q, bh),
+            self.head_from_coil_at(&setpoint, bh),
+        );
+        let corner = self.cfg.coil.radius.hypot(self.cfg.coil.thickness);
+        let moved = (b.translation.vector - a.translation.vector).norm()
+            + corner * a.rotation.angle_to(&b.rotation);
+        let known = rec.clearance_m.min(CLEARANCE_EXACT_BELOW_M);
+        if known - moved < floor
+            && self.commanded_clearance(&setpoint, bh, clearance::Site::Setpoint) < floor
+        {
+            (self.cmd.lead, self.cmd.catch_up) = before;
+            return self.setpoint(false);
+        }
+        setpoint
     }
 
     /// The servo setpoint for the command in `self.cmd`, leading it while `following` the goal
