@@ -14,8 +14,10 @@ const ACK_RING: usize = 64;
 /// sample's 0.1 mm and 1 mrad carried over the horizon move the goal a milliradian or two, which
 /// the command closes within a few cycles. Leading it would make the arm follow that noise (the
 /// still head of the closed-loop test: 0.17 → 0.22 mm RMS on a UR3e); a catch-up `c` is led by
-/// its share `c² / (c² + this²)`.
-const CATCH_UP_NOISE_RAD_S: f64 = 0.1;
+/// its share `c² / (c² + this²)`. With the lead's steps halved ([`SETPOINT_STEP_SHARE`]) a led
+/// noise catch-up is spread over more cycles and lags: at 0.1 rad/s the still head was 0.20 mm,
+/// at 0.2 0.17 (0.3: the nods lose, 0.71 → 0.74 mm).
+const CATCH_UP_NOISE_RAD_S: f64 = 0.2;
 
 /// The share of the command's speed ceiling a setpoint's step may take where the lead makes
 /// it (rather than the command's own motion). The controller judges a setpoint against the one
