@@ -463,8 +463,15 @@ pub fn serve_simulator(
             let st = sim.stats();
             writeln!(
                 out,
-                "{} cycles, {} inputs, {} outputs ({} skipped), {} bad packages, {} overruns",
-                st.ticks, st.inputs, st.outputs, st.outputs_skipped, st.bad_packages, st.overruns
+                "{} cycles, {} inputs, {} outputs ({} skipped), {} bad packages, {} overruns, \
+                 {} watchdog cycles deferred (input waiting unread)",
+                st.ticks,
+                st.inputs,
+                st.outputs,
+                st.outputs_skipped,
+                st.bad_packages,
+                st.overruns,
+                st.watchdog_deferred
             )?;
             return Ok(());
         }

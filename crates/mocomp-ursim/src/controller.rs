@@ -614,6 +614,41 @@ mod tests {
         );
     }
 
+    /// The simulator's own reader late with the client's packages waiting: the watchdog says it
+    /// is due and is deferred, never for a client that is silent.
+    #[test]
+    fn input_waiting_unread_defers_the_watchdog_and_silence_still_stops_it() {
+        let mut c = running(Model::Ur3e); // 20 Hz: 50 ms
+        let q = c.q();
+        servo_inputs(&mut c, q, 1);
+        c.step();
+        let mut due_after = None;
+        for k in 1..=40 {
+            if c.watchdog_due() {
+                due_after.get_or_insert(k);
+                c.note_unread_input();
+                assert!(!c.watchdog_due());
+            }
+            c.step();
+            assert_eq!(c.runtime_state(), RuntimeState::Playing, "cycle {k}");
+        }
+        // Due exactly when a silent client is stopped: 25 cycles on (52 ms after the input came,
+        // a cycle before the first of them).
+        assert_eq!(due_after, Some(25));
+        // The reader took the packages; the client then falls silent: stopped 50 ms on.
+        servo_inputs(&mut c, q, 2);
+        c.step();
+        let mut stopped_after = None;
+        for k in 1..=40 {
+            c.step();
+            if c.runtime_state() == RuntimeState::Stopped {
+                stopped_after = Some(k);
+                break;
+            }
+        }
+        assert_eq!(stopped_after, Some(25));
+    }
+
     #[test]
     fn movej_is_a_synchronised_trapezoid() {
         let mut c = running(Model::Ur5);

@@ -145,6 +145,10 @@ pub struct SimStats {
     /// Real-time wake-ups that came a period or more late (the cycles missed were made up, up
     /// to 25 ms of them).
     pub overruns: u64,
+    /// Cycles at which the RTDE watchdog would have stopped the program while the client's
+    /// packages waited unread on the simulator's socket (its own reader late, not the client
+    /// silent), so it did not.
+    pub watchdog_deferred: u64,
 }
 
 struct OutSetup {
@@ -159,6 +163,9 @@ struct Conn {
     out: Option<OutSetup>,
     started: bool,
     tx: SyncSender<Vec<u8>>,
+    /// The connection's socket, to see whether its packages wait unread
+    /// ([`input_waiting`]).
+    socket: Option<TcpStream>,
 }
 
 #[derive(Default)]
@@ -168,6 +175,7 @@ struct Counters {
     skipped: AtomicU64,
     bad: AtomicU64,
     overruns: AtomicU64,
+    watchdog_deferred: AtomicU64,
 }
 
 struct Shared {
@@ -373,6 +381,7 @@ impl Sim {
             outputs_skipped: c.skipped.load(Ordering::Relaxed),
             bad_packages: c.bad.load(Ordering::Relaxed),
             overruns: c.overruns.load(Ordering::Relaxed),
+            watchdog_deferred: c.watchdog_deferred.load(Ordering::Relaxed),
         }
     }
 
@@ -393,9 +402,17 @@ impl Drop for Sim {
 
 fn tick(shared: &Shared) {
     let mut ctrl = lock(&shared.ctrl);
+    let mut conns = lock(&shared.conns);
+    // Asked only when the watchdog is about to fire: a syscall per connection.
+    if ctrl.watchdog_due() && conns.iter().any(input_waiting) {
+        ctrl.note_unread_input();
+        shared
+            .counters
+            .watchdog_deferred
+            .fetch_add(1, Ordering::Relaxed);
+    }
     ctrl.step();
     let t = ctrl.ticks();
-    let mut conns = lock(&shared.conns);
     let mut values = Vec::new();
     for c in conns.iter_mut() {
         let Some(o) = c.out.as_ref().filter(|_| c.started) else {
@@ -473,6 +490,27 @@ fn accept_loop(l: TcpListener, shared: Arc<Shared>, serve: fn(TcpStream, Arc<Sha
 }
 
 /// Reads what is available; `None` when the connection ended or the simulator stops.
+/// Whether bytes the client sent wait unread on `c`'s socket. The simulator's reader is a
+/// thread the host may leave unscheduled for tens of milliseconds on a busy machine while the
+/// cycle's thread runs on another CPU; a real controller reads its inputs every cycle.
+fn input_waiting(c: &Conn) -> bool {
+    use nix::sys::socket::{MsgFlags, recv};
+    use std::os::fd::AsRawFd;
+    let Some(s) = c.socket.as_ref() else {
+        return false;
+    };
+    let mut byte = [0u8; 1];
+    // Peeked, not taken, and without blocking: the reader takes the bytes when it runs.
+    matches!(
+        recv(
+            s.as_raw_fd(),
+            &mut byte,
+            MsgFlags::MSG_PEEK | MsgFlags::MSG_DONTWAIT
+        ),
+        Ok(n) if n > 0
+    )
+}
+
 fn read_some(s: &mut TcpStream, buf: &mut [u8], shared: &Shared) -> Option<usize> {
     loop {
         if shared.stop.load(Ordering::Relaxed) {
@@ -548,6 +586,7 @@ fn serve_rtde(mut s: TcpStream, shared: Arc<Shared>) {
         out: None,
         started: false,
         tx: tx.clone(),
+        socket: s.try_clone().ok(),
     });
     let mut sess = RtdeSession {
         id,
@@ -818,4 +857,51 @@ fn serve_script(s: TcpStream, shared: Arc<Shared>) {
         }
         true
     });
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+
+    use super::*;
+    use std::io::Write;
+    use std::net::TcpListener;
+    use std::time::Instant;
+
+    #[test]
+    fn input_waiting_sees_bytes_the_reader_has_not_taken_and_takes_none() {
+        let l = TcpListener::bind("127.0.0.1:0").unwrap();
+        let mut client = TcpStream::connect(l.local_addr().unwrap()).unwrap();
+        let (mut server, _) = l.accept().unwrap();
+        let (tx, _rx) = sync_channel(1);
+        let conn = Conn {
+            id: 0,
+            version: 2,
+            out: None,
+            started: false,
+            tx,
+            socket: server.try_clone().ok(),
+        };
+        assert!(!input_waiting(&conn));
+        client.write_all(b"abc").unwrap();
+        let t = Instant::now();
+        while !input_waiting(&conn) {
+            assert!(t.elapsed() < Duration::from_secs(5), "never seen");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // Peeked only: the reader still gets every byte.
+        assert!(input_waiting(&conn));
+        let mut got = [0u8; 3];
+        server.read_exact(&mut got).unwrap();
+        assert_eq!(&got, b"abc");
+        assert!(!input_waiting(&conn));
+        // A closed peer is no input.
+        drop(client);
+        assert!(!input_waiting(&conn));
+        let without = Conn {
+            socket: None,
+            ..conn
+        };
+        assert!(!input_waiting(&without));
+    }
 }

@@ -142,6 +142,24 @@ impl Controller {
         self.runtime = RuntimeState::Playing;
     }
 
+    /// Whether the RTDE watchdog stops the program at the next cycle unless its register is
+    /// updated before it.
+    pub fn watchdog_due(&self) -> bool {
+        let Some(w) = self.watchdog else { return false };
+        let last = self.regs.in_int_updated_s[w.register].max(w.since_s);
+        let next = (self.tick + 1) as f64 * self.period;
+        next - last > 1.0 / w.hz + 1e-9
+    }
+
+    /// The client's packages are waiting unread on the controller's own socket: the client was
+    /// not silent, the simulator's reader was late (a real controller reads its inputs every
+    /// cycle). The watchdog's silence starts again from now.
+    pub fn note_unread_input(&mut self) {
+        if let Some(w) = self.watchdog.as_mut() {
+            w.since_s = w.since_s.max(self.time_s);
+        }
+    }
+
     pub(super) fn check_watchdog(&mut self) {
         let Some(w) = self.watchdog else { return };
         let last = self.regs.in_int_updated_s[w.register].max(w.since_s);
