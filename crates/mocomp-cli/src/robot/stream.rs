@@ -68,7 +68,13 @@ impl StreamCmd {
         let r = stream(self.model, self.host, o, &mut std::io::stderr())?;
         crate::print::report(out, &r, self.json)?;
         if let Some((t, f)) = &r.fault {
-            bail!("the stream ended in a fault at {t:.3} s: {f}");
+            // Whose silence it was: a gap here past the watchdog is this client's (its host),
+            // none is the controller's side.
+            bail!(
+                "the stream ended in a fault at {t:.3} s: {f} (longest gap between this \
+                 client's commands: {:.1} ms)",
+                r.period_max_ms
+            );
         }
         Ok(())
     }
