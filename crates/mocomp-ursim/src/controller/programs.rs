@@ -145,10 +145,16 @@ impl Controller {
     /// Whether the RTDE watchdog stops the program at the next cycle unless its register is
     /// updated before it.
     pub fn watchdog_due(&self) -> bool {
-        let Some(w) = self.watchdog else { return false };
-        let last = self.regs.in_int_updated_s[w.register].max(w.since_s);
         let next = (self.tick + 1) as f64 * self.period;
-        next - last > 1.0 / w.hz + 1e-9
+        self.watchdog_silence_at(next).is_some()
+    }
+
+    /// How long the watched register has gone without an update at controller time `t`, s,
+    /// when that is past the watchdog's limit (with the watchdog).
+    fn watchdog_silence_at(&self, t: f64) -> Option<(f64, Watchdog)> {
+        let w = self.watchdog?;
+        let silence = t - self.regs.in_int_updated_s[w.register].max(w.since_s);
+        (silence > 1.0 / w.hz + 1e-9).then_some((silence, w))
     }
 
     /// The client's packages are waiting unread on the controller's own socket: the client was
@@ -161,13 +167,11 @@ impl Controller {
     }
 
     pub(super) fn check_watchdog(&mut self) {
-        let Some(w) = self.watchdog else { return };
-        let last = self.regs.in_int_updated_s[w.register].max(w.since_s);
-        if self.time_s - last > 1.0 / w.hz + 1e-9 {
+        if let Some((silence, w)) = self.watchdog_silence_at(self.time_s) {
             self.stop_program(format!(
                 "RTDE watchdog: input_int_register_{} not updated for {:.0} ms (limit {:.0} ms)",
                 w.register,
-                (self.time_s - last) * 1e3,
+                silence * 1e3,
                 1e3 / w.hz
             ));
         }
