@@ -305,6 +305,7 @@ pub fn run(
         .camera
         .as_ref()
         .map(crate::camera::CameraServer::report);
+    report.simulator = crate::world::simulator_figures(world.sim.as_deref());
     Ok(report)
 }
 

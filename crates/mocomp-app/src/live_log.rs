@@ -392,6 +392,9 @@ pub struct RunReport {
     pub camera: Option<crate::camera::CameraReport>,
     /// The tracker's OpenIGTLink connection (`None`: the head's poses came over ROS 2).
     pub tracker: Option<TrackerFigures>,
+    /// What the built-in simulated controller saw: its events (a protective stop's cause among
+    /// them) and the loop's closest setpoint to a jump (`None`: a real robot).
+    pub simulator: Option<crate::world::SimulatorFigures>,
 }
 
 /// What the tracker's OpenIGTLink connection went through.
@@ -534,6 +537,18 @@ impl RunReport {
         for (t, e) in &r.event_log {
             writeln!(out, "    {t:9.3} s  {e}")?;
         }
+        if let Some(sim) = &r.simulator {
+            writeln!(
+                out,
+                "  simulated robot   fastest setpoint {:.0} % of a jump's speed (at {:.3} s); {} events",
+                100.0 * sim.setpoint_peak_share,
+                sim.setpoint_peak_s,
+                sim.events.len()
+            )?;
+            for (t, e) in &sim.events {
+                writeln!(out, "    {t:9.3} s  {e}")?;
+            }
+        }
         writeln!(out, "  final mode        {}", r.final_mode)?;
         writeln!(out, "  robot stop        {}", r.stop)?;
         if let Some(e) = &r.log_error {
@@ -628,6 +643,7 @@ impl RunReport {
             record: None,
             camera: None,
             tracker: None,
+            simulator: None,
         }
     }
 

@@ -38,7 +38,7 @@ pub struct World {
     tracker: Option<Arc<TrackerServer>>,
     /// The depth camera (sources "camera" and "k4a").
     pub(crate) camera: Option<CameraServer>,
-    sim: Option<Arc<Sim>>,
+    pub(crate) sim: Option<Arc<Sim>>,
 }
 
 impl std::fmt::Debug for World {
@@ -219,6 +219,31 @@ impl World {
     pub fn simulated_robot(&self) -> bool {
         self.sim.is_some()
     }
+}
+
+/// What the built-in simulated controller saw of the run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SimulatorFigures {
+    /// Its own events, oldest first (the newest 256), each at its controller time (s): why it
+    /// stopped the program or the arm, which the robot's state alone does not say.
+    pub events: Vec<(f64, String)>,
+    /// The largest servo setpoint speed it took, as a share of the speed it stops the arm for
+    /// (C204A3): the loop's margin from a protective stop.
+    pub setpoint_peak_share: f64,
+    /// When that came, controller time (s).
+    pub setpoint_peak_s: f64,
+}
+
+/// [`SimulatorFigures`] of `sim` (`None`: a real robot, whose log is on its teach pendant).
+pub(crate) fn simulator_figures(sim: Option<&Sim>) -> Option<SimulatorFigures> {
+    sim.map(|sim| {
+        let (events, (share, at)) = sim.with(|c| (c.events().0, c.setpoint_peak()));
+        SimulatorFigures {
+            events: events.into_iter().map(|e| (e.time_s, e.text)).collect(),
+            setpoint_peak_share: share,
+            setpoint_peak_s: at,
+        }
+    })
 }
 
 /// The simulated world's stimulator (`[session.simulated_stimulator]`): its trigger wired
@@ -461,17 +486,20 @@ pub fn serve_simulator(
         out.flush()?;
         if seconds.is_some_and(|s| start.elapsed().as_secs_f64() >= s) {
             let st = sim.stats();
+            let (peak, at) = sim.with(|c| c.setpoint_peak());
             writeln!(
                 out,
                 "{} cycles, {} inputs, {} outputs ({} skipped), {} bad packages, {} overruns, \
-                 {} watchdog cycles deferred (input waiting unread)",
+                 {} watchdog cycles deferred (input waiting unread); fastest servo setpoint \
+                 {:.0} % of a jump's speed (at {at:.3} s)",
                 st.ticks,
                 st.inputs,
                 st.outputs,
                 st.outputs_skipped,
                 st.bad_packages,
                 st.overruns,
-                st.watchdog_deferred
+                st.watchdog_deferred,
+                100.0 * peak
             )?;
             return Ok(());
         }

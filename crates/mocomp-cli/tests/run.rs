@@ -27,8 +27,21 @@ fn the_example_config_compensates_on_the_simulated_robot() {
     // `scripts/stress.sh` measures how often that happens.
     let events = v["event_log"].as_array().unwrap();
     assert!(events.iter().any(|e| e[1] == "Reached"), "{events:?}");
-    // Late cycles, however late, never make a step the controller refuses.
+    // Late cycles, however late, never make a step the controller refuses; the simulated
+    // controller says how near its setpoints came (a nodding head, tracked and approached at
+    // well under the joints' maxima) and what it did.
     assert_eq!(v["protective_stops"], 0, "{v}");
+    let sim = &v["simulator"];
+    let peak = sim["setpoint_peak_share"].as_f64().unwrap();
+    assert!(peak > 0.05 && peak < 0.8, "{sim}");
+    let sim_events = sim["events"].as_array().unwrap();
+    assert!(
+        sim_events[0][1]
+            .as_str()
+            .unwrap()
+            .starts_with("mocomp control program started"),
+        "{sim}"
+    );
     assert!(v["realtime"].as_str().unwrap().contains("SCHED"), "{v}");
     // The stop as it happened: stopj sent and the arm still within the wait.
     assert_eq!(v["stop"]["outcome"], "standstill", "{v}");

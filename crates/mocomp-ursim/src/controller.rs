@@ -173,6 +173,8 @@ pub struct Controller {
     events: VecDeque<SimEvent>,
     events_total: u64,
     protective_stops: u64,
+    /// The largest servo setpoint speed taken, as a share of its C204A3 limit, and when (s).
+    setpoint_peak: (f64, f64),
     /// The wrench on the tool (N and N·m, base frame) as the world around the controller
     /// applies it (a contact; zero in free space).
     tcp_force: [f64; 6],
@@ -215,6 +217,7 @@ impl Controller {
             events: VecDeque::new(),
             events_total: 0,
             protective_stops: 0,
+            setpoint_peak: (0.0, 0.0),
             tcp_force: [0.0; 6],
             ft_offset: [0.0; 6],
             io: Io::default(),
@@ -306,6 +309,14 @@ impl Controller {
     /// Protective stops so far.
     pub fn protective_stops(&self) -> u64 {
         self.protective_stops
+    }
+
+    /// The largest servo setpoint speed taken so far, as a share of the speed that makes it a
+    /// jump (C204A3: `setpoint_speed_factor` × the joint's maximum; 1 or more stopped the arm),
+    /// and the controller time it came, s: how close a client's setpoints came to a protective
+    /// stop.
+    pub fn setpoint_peak(&self) -> (f64, f64) {
+        self.setpoint_peak
     }
 
     /// The newest events (at most 256 kept) and how many there were in all.
@@ -569,9 +580,17 @@ mod tests {
     fn a_servo_jump_is_a_protective_stop() {
         let mut c = running(Model::Ur3e);
         let mut q = c.q();
-        q[2] += 0.1; // 0.1 rad in 2 ms = 50 rad/s
+        // Half the jump's speed (1.2 × π rad/s on the elbow) is taken, and its share kept.
+        q[2] += 0.5 * 1.2 * std::f64::consts::PI * 0.002;
         servo_inputs(&mut c, q, 1);
         c.step();
+        assert_eq!(c.safety_mode(), SafetyMode::Normal);
+        let (share, at) = c.setpoint_peak();
+        assert!((share - 0.5).abs() < 1e-9 && at > 0.0, "{share} at {at}");
+        q[2] += 0.1; // 0.1 rad in 2 ms = 50 rad/s
+        servo_inputs(&mut c, q, 2);
+        c.step();
+        assert!(c.setpoint_peak().0 > 10.0, "{:?}", c.setpoint_peak());
         assert_eq!(c.safety_mode(), SafetyMode::ProtectiveStop);
         assert_eq!(c.runtime_state(), RuntimeState::Stopped);
         assert_eq!(c.protective_stops(), 1);

@@ -133,6 +133,9 @@ impl Controller {
             for j in 0..6 {
                 let limit = self.spec.max_speed[j] * self.config.setpoint_speed_factor;
                 let v = (target[j] - prev[j]).abs() / dt;
+                if v / limit > self.setpoint_peak.0 {
+                    self.setpoint_peak = (v / limit, self.time_s);
+                }
                 if !v.is_finite() || v > limit {
                     self.protective_stop(format!(
                         "C204A3 invalid setpoint: joint {} servo target moves {:.4} rad in \
