@@ -3,6 +3,7 @@
 //! how long a command takes to reach the controller ([`DelayEstimator`]). Pure: the robot's
 //! state comes in as a value, nothing is sent from here.
 
+use super::held::HeldSetpoints;
 use crate::config::LoopParams;
 use mocomp_kin::Arm;
 use mocomp_ur::RobotState;
@@ -62,6 +63,9 @@ pub(super) struct CommandState {
     /// The command's speed relative to the target's at the last setpoint (its catch-up), rad/s;
     /// `None` after a start, when there is none to take the change from.
     pub(super) catch_up: Option<[f64; 6]>,
+    /// The setpoints the controller may hold when the next lands: each setpoint stays within
+    /// the joint's maximum speed of all of them ([`HeldSetpoints`]).
+    pub(super) held: HeldSetpoints,
 }
 
 /// The command state before this cycle's limits ran: a correction (the safety filter, a
@@ -90,6 +94,7 @@ impl CommandState {
             target_speed: None,
             lead: [0.0; 6],
             catch_up: None,
+            held: HeldSetpoints::new(),
         }
     }
 
@@ -124,6 +129,7 @@ impl CommandState {
                 self.v = [0.0; 6];
             } else {
                 self.lead = [0.0; 6];
+                self.held.clear();
                 // Start (or come back after a stop) from where the arm is and how it moves, so
                 // the first command continues its motion instead of jerking it to a halt.
                 self.q = state.actual_q;
@@ -233,8 +239,29 @@ impl CommandState {
                 q[j] = self.q[j] + v[j] * dt;
             }
         }
+        // The setpoint this makes (with the lead as it is) within reach of every setpoint the
+        // controller may hold.
+        for j in 0..6 {
+            let (lo, hi) = self.held_range(arm, j, period);
+            let within = q[j].max(lo - self.lead[j]).min(hi - self.lead[j]);
+            if within != q[j] {
+                q[j] = within;
+                v[j] = (q[j] - self.q[j]) / dt;
+            }
+        }
         self.v = v;
         q
+    }
+
+    /// The range joint `j`'s next setpoint must stay in ([`HeldSetpoints::range`]), at the
+    /// joint's maximum speed.
+    fn held_range(&self, arm: &Arm, j: usize, period: f64) -> (f64, f64) {
+        let now = if self.last_controller_s.is_finite() {
+            self.last_controller_s
+        } else {
+            0.0
+        };
+        self.held.range(j, now, period, arm.spec().max_speed[j])
     }
 
     /// The servo setpoint for this cycle's command `self.q` (already limited): the command plus
@@ -287,7 +314,9 @@ impl CommandState {
             let lo = (self.lead[j] - (vset + self.v[j]) * dt).min(self.lead[j]);
             let hi = (self.lead[j] + (vset - self.v[j]) * dt).max(self.lead[j]);
             // max/min, not clamp: a non-finite bound must not panic the loop.
-            self.lead[j] = want.max(-bound).min(bound).max(lo).min(hi);
+            let lead = want.max(-bound).min(bound).max(lo).min(hi);
+            let (lo, hi) = self.held_range(arm, j, period);
+            self.lead[j] = (self.q[j] + lead).max(lo).min(hi) - self.q[j];
             self.q[j] + self.lead[j]
         })
     }
@@ -588,6 +617,78 @@ mod tests {
         let set = c.setpoint(&arm, SERVO, CB3, (0.3, 1.0), false);
         assert!(c.lead.iter().all(|l| *l == 0.0), "{:?}", c.lead);
         assert_eq!(set, c.q);
+    }
+
+    /// The loop commands a goal far away (at its speed ceiling, on every joint) to a controller
+    /// that takes, at each period, the newest setpoint arrived, each arriving 0 to `max_late`
+    /// periods late (seeded, in order, as over TCP), and that acknowledges what it took in its
+    /// next state. Returns the fastest any taken setpoint moved from the one taken before, as a
+    /// share of the joint's maximum speed, when the loop bounds its setpoints by what the
+    /// controller may hold (`bounded`) or only by its own previous one.
+    fn fastest_taken_setpoint(bounded: bool, max_late: u64, seed: u64) -> f64 {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let arm = Arm::new(Model::Ur3e);
+        let p = LoopParams {
+            max_tcp_speed_m_s: 100.0,
+            ..LoopParams::default()
+        };
+        let q0 = [0.0, -1.3, 1.2, -1.87, -1.57, 0.0];
+        let far: [f64; 6] = std::array::from_fn(|j| q0[j] + 3.0);
+        let mut c = CommandState::new(PERIOD);
+        // (arrives at tick, seq, setpoint), in sending order.
+        let mut wire: std::collections::VecDeque<(u64, i32, [f64; 6])> = Default::default();
+        let (mut taken, mut taken_at, mut acked) = (q0, 0u64, 0i32);
+        let mut fastest: f64 = 0.0;
+        let mut last_arrival = 0;
+        for tick in 0..3000u64 {
+            // The controller's period: the newest arrived, judged against the one it had.
+            while wire.front().is_some_and(|w| w.0 <= tick) {
+                let Some((_, seq, set)) = wire.pop_front() else {
+                    break;
+                };
+                if wire.front().is_some_and(|w| w.0 <= tick) {
+                    continue; // a newer one arrived in the same period
+                }
+                let dt = (tick - taken_at) as f64 * PERIOD;
+                for j in 0..6 {
+                    let share = (set[j] - taken[j]).abs() / dt / arm.spec().max_speed[j];
+                    fastest = fastest.max(share);
+                }
+                (taken, taken_at, acked) = (set, tick, seq);
+            }
+            // The loop answers this period's state.
+            let mut state = state_at(tick as f64 * PERIOD, taken);
+            state.acked_seq = acked;
+            c.step_time(&state, PERIOD, p.robot_stale_s);
+            if bounded {
+                c.held.acknowledge(acked, state.controller_s);
+            }
+            c.q = c.limit(&arm, &p, PERIOD, &far, 0.75);
+            let set = c.setpoint(&arm, SERVO, PERIOD, (0.3, 0.75), false);
+            let seq = tick as i32 + 1;
+            c.held.note_sent(seq, set);
+            last_arrival = (tick + 1 + rng.random_range(0..=max_late)).max(last_arrival);
+            wire.push_back((last_arrival, seq, set));
+        }
+        fastest
+    }
+
+    #[test]
+    fn setpoints_that_land_late_or_bunched_never_make_a_jump() {
+        // On time every period, the ceiling (0.75 of the maximum) is what the controller sees.
+        let on_time = fastest_taken_setpoint(true, 0, 1);
+        assert!((on_time - 0.75).abs() < 1e-6, "{on_time}");
+        for seed in 0..8 {
+            for max_late in [1, 2, 3, 5] {
+                let f = fastest_taken_setpoint(true, max_late, seed);
+                assert!(f <= 1.0 + 1e-9, "seed {seed}, late ≤ {max_late}: {f}");
+            }
+        }
+        // Bounded only by its own previous setpoint, a late one taken alone and the next a
+        // period after it is two of the loop's steps in one period: 1.5 × the maximum.
+        let unbounded = fastest_taken_setpoint(false, 1, 0);
+        assert!(unbounded > 1.4, "{unbounded}");
     }
 
     #[test]

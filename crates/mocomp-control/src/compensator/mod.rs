@@ -27,6 +27,7 @@
 mod check;
 mod clearance;
 mod command;
+mod held;
 mod plan;
 mod record;
 mod robot;
@@ -448,6 +449,7 @@ impl Compensator {
         rec.q_setpoint = setpoint;
         if let Ok(seq) = robot.servo(&setpoint, &self.cfg.servo) {
             self.cmd.delay.note(seq, now);
+            self.cmd.held.note_sent(seq, setpoint);
             self.cmd.servo_sent = true;
         }
         rec.command_delay_s = self.cmd.delay.estimate();

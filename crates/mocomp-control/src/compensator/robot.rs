@@ -44,6 +44,7 @@ impl Compensator {
             rec.q_actual = s.actual_q;
             rec.qd_actual = s.actual_qd;
             self.cmd.delay.measure(s.acked_seq, s.received_s);
+            self.cmd.held.acknowledge(s.acked_seq, s.controller_s);
         }
         let fired = robot_rules(state.as_ref(), now, &self.cfg.params);
         if let Some(r) = fired
