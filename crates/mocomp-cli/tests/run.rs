@@ -28,12 +28,13 @@ fn the_example_config_compensates_on_the_simulated_robot() {
     let events = v["event_log"].as_array().unwrap();
     assert!(events.iter().any(|e| e[1] == "Reached"), "{events:?}");
     // Late cycles, however late, never make a step the controller refuses; the simulated
-    // controller says how near its setpoints came (a nodding head, tracked and approached at
-    // well under the joints' maxima) and what it did.
+    // controller says how near its setpoints came and what it did. However they landed, no
+    // setpoint implied more than the joint's maximum speed: 1/1.2 of the speed the simulated
+    // controller stops the arm for.
     assert_eq!(v["protective_stops"], 0, "{v}");
     let sim = &v["simulator"];
     let peak = sim["setpoint_peak_share"].as_f64().unwrap();
-    assert!(peak > 0.05 && peak < 0.8, "{sim}");
+    assert!(peak > 0.05 && peak <= 1.0 / 1.2 + 1e-6, "{sim}");
     let sim_events = sim["events"].as_array().unwrap();
     assert!(
         sim_events[0][1]

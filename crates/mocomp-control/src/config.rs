@@ -46,7 +46,7 @@ pub struct LoopParams {
     /// relative to the goal's, per joint; servoj's law as modelled, `q̈ = gain·(q_set − q −
     /// lookahead·q̇)`), and the setpoint leads the command by this fraction of it. The full
     /// lag follows each sample's jump and rings (the demo's irregular trace: excess over the
-    /// oracle 0.55 → 0.91 mm RMS); 0.3 closes the jumps sooner without it (0.55 → 0.51, the
+    /// oracle 0.55 → 0.91 mm RMS); 0.3 closes the jumps sooner without it (0.55 → 0.48, the
     /// fast nods 0.23 → 0.22). 0: the setpoint is the command. [0.3]
     pub catch_up_lead: f64,
     /// Beyond this deviation of the flange from its goal (m) the loop plans a path instead of

@@ -87,8 +87,8 @@ fn a_late_cycle_steps_no_further_than_one_on_time_and_the_loop_makes_up_the_time
     // Two identical worlds; one cycle on time in the first, the same cycle 15 periods late (30
     // ms, the gap that made the controller stop in issue 29) in the second.
     // The loop's commands are compared: the setpoint sent leads a command's catch-up by the
-    // servo's lag behind it, bounded on its own (the setpoint's step by half the command's
-    // speed ceiling, or the command's own step; unit-tested in `compensator::command`).
+    // servo's lag behind it, bounded on its own (the setpoint's step by the command's speed
+    // ceiling, or the command's own step; unit-tested in `compensator::command`).
     let (mut a, mut b) = (World::new(), World::new());
     let on_time = |w: &mut World| {
         let now = w.tracker.now;

@@ -15,21 +15,8 @@ const ACK_RING: usize = 64;
 /// sample's 0.1 mm and 1 mrad carried over the horizon move the goal a milliradian or two, which
 /// the command closes within a few cycles. Leading it would make the arm follow that noise (the
 /// still head of the closed-loop test: 0.17 → 0.22 mm RMS on a UR3e); a catch-up `c` is led by
-/// its share `c² / (c² + this²)`. With the lead's steps halved ([`SETPOINT_STEP_SHARE`]) a led
-/// noise catch-up is spread over more cycles and lags: at 0.1 rad/s the still head was 0.20 mm,
-/// at 0.2 0.17 (0.3: the nods lose, 0.71 → 0.74 mm).
-const CATCH_UP_NOISE_RAD_S: f64 = 0.2;
-
-/// The share of the command's speed ceiling a setpoint's step may take where the lead makes
-/// it (rather than the command's own motion). The controller judges a setpoint against the one
-/// it took before (URControl's C204A3, at about 1.2 × the joint's maximum speed in our
-/// simulator), and a setpoint that comes a period late is taken in the same period as the next
-/// one: the two steps land as one. At the ceiling (0.75 of the maximum) each, that one step
-/// implies 1.5 × the maximum and stops the arm; a lead that steps at the ceiling whenever a
-/// sample arrives made that a matter of network jitter (a fault-injection run on a busy machine
-/// stopped that way: 0.0093 rad in one 2 ms period on a UR3e's shoulder). At half the ceiling
-/// two steps are the ceiling, and three stay within the controller's limit.
-const SETPOINT_STEP_SHARE: f64 = 0.5;
+/// its share `c² / (c² + this²)`.
+const CATCH_UP_NOISE_RAD_S: f64 = 0.1;
 
 /// The setpoint the loop commands and how it moves.
 #[derive(Debug, Clone)]
@@ -275,10 +262,11 @@ impl CommandState {
     /// in the prediction) it does not, and servoj (`q̈ = gain·(q_set − q − lookahead·q̇)`)
     /// follows it `lookahead·c + ċ/gain` behind. The lead is bounded by the servo's lag at the
     /// command's top speed, and changes so that it never makes the setpoint's own step longer
-    /// than the command's, or than [`SETPOINT_STEP_SHARE`] of the command's ceiling
-    /// (`speed_fraction` of the joint's maximum) when that is longer. The first setpoint after a
-    /// start has none (no catch-up yet to take its change from); a cycle with no controller time
-    /// passed changes nothing.
+    /// than the command's, or than the command's ceiling (`speed_fraction` of the joint's
+    /// maximum) when that is longer; and the setpoint stays within reach of every setpoint the
+    /// controller may hold ([`HeldSetpoints`]: steps that land together are no jump). The first
+    /// setpoint after a start has none (no catch-up yet to take its change from); a cycle with
+    /// no controller time passed changes nothing.
     pub(super) fn setpoint(
         &mut self,
         arm: &Arm,
@@ -308,11 +296,10 @@ impl CommandState {
             };
             let vmax = arm.spec().max_speed[j] * speed_fraction;
             let bound = lookahead * vmax;
-            // The setpoint's step is v·dt plus the lead's change: within ±vset·dt, or no longer
+            // The setpoint's step is v·dt plus the lead's change: within ±vmax·dt, or no longer
             // than the command's own step where that is longer.
-            let vset = vmax * SETPOINT_STEP_SHARE;
-            let lo = (self.lead[j] - (vset + self.v[j]) * dt).min(self.lead[j]);
-            let hi = (self.lead[j] + (vset - self.v[j]) * dt).max(self.lead[j]);
+            let lo = (self.lead[j] - (vmax + self.v[j]) * dt).min(self.lead[j]);
+            let hi = (self.lead[j] + (vmax - self.v[j]) * dt).max(self.lead[j]);
             // max/min, not clamp: a non-finite bound must not panic the loop.
             let lead = want.max(-bound).min(bound).max(lo).min(hi);
             let (lo, hi) = self.held_range(arm, j, period);
@@ -544,7 +531,7 @@ mod tests {
     /// Two setpoints the controller takes in one period (the first came a period late) are
     /// judged as one step: the lead's steps must leave room for that.
     #[test]
-    fn the_setpoints_step_is_the_commands_or_half_its_ceiling_and_its_lead_is_bounded() {
+    fn the_setpoints_step_is_the_commands_or_its_ceiling_and_its_lead_is_bounded() {
         use rand::{RngExt, SeedableRng};
         let arm = Arm::new(Model::Ur3e);
         let p = LoopParams::default();
@@ -575,7 +562,7 @@ mod tests {
                 let step = (set[j] - last[j]).abs();
                 let own = (c.q[j] - before[j]).abs();
                 assert!(
-                    step <= own.max(0.5 * vmax * CB3) + 1e-12,
+                    step <= own.max(vmax * CB3) + 1e-12,
                     "cycle {k} joint {j}: step {step}, the command's {own}"
                 );
                 assert!(
