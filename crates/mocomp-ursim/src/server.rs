@@ -489,7 +489,6 @@ fn accept_loop(l: TcpListener, shared: Arc<Shared>, serve: fn(TcpStream, Arc<Sha
     }
 }
 
-/// Reads what is available; `None` when the connection ended or the simulator stops.
 /// Whether bytes the client sent wait unread on `c`'s socket. The simulator's reader is a
 /// thread the host may leave unscheduled for tens of milliseconds on a busy machine while the
 /// cycle's thread runs on another CPU; a real controller reads its inputs every cycle.
@@ -511,6 +510,7 @@ fn input_waiting(c: &Conn) -> bool {
     )
 }
 
+/// Reads what is available; `None` when the connection ended or the simulator stops.
 fn read_some(s: &mut TcpStream, buf: &mut [u8], shared: &Shared) -> Option<usize> {
     loop {
         if shared.stop.load(Ordering::Relaxed) {

@@ -4,6 +4,7 @@
 //! state comes in as a value, nothing is sent from here.
 
 use super::held::HeldSetpoints;
+use super::in_flight::InFlight;
 use crate::config::LoopParams;
 use mocomp_kin::Arm;
 use mocomp_ur::RobotState;
@@ -310,14 +311,13 @@ impl CommandState {
 }
 
 /// The command delay (send → acknowledged in the robot's state), averaged: commands sent are
-/// remembered by sequence number in a fixed ring (no allocation), and each acknowledgement
-/// found in a state moves the estimate.
+/// remembered by sequence number ([`InFlight`]), and each acknowledgement found in a state
+/// moves the estimate.
 #[derive(Debug, Clone)]
 pub(super) struct DelayEstimator {
     estimate: f64,
-    sent: [(i32, f64); ACK_RING],
-    head: usize,
-    len: usize,
+    /// Each command in flight, with the loop time it was sent.
+    sent: InFlight<f64, ACK_RING>,
 }
 
 impl DelayEstimator {
@@ -325,9 +325,7 @@ impl DelayEstimator {
     pub(super) fn new(period_s: f64) -> Self {
         Self {
             estimate: period_s,
-            sent: [(0, 0.0); ACK_RING],
-            head: 0,
-            len: 0,
+            sent: InFlight::new(0.0),
         }
     }
 
@@ -338,28 +336,14 @@ impl DelayEstimator {
 
     /// Command `seq` was sent at loop time `t`.
     pub(super) fn note(&mut self, seq: i32, t: f64) {
-        let i = (self.head + self.len) % ACK_RING;
-        self.sent[i] = (seq, t);
-        if self.len < ACK_RING {
-            self.len += 1;
-        } else {
-            self.head = (self.head + 1) % ACK_RING;
-        }
+        self.sent.push(seq, t);
     }
 
     /// A state received at `received_s` acknowledges commands up to `acked`.
     pub(super) fn measure(&mut self, acked: i32, received_s: f64) {
-        while self.len > 0 {
-            let (seq, sent) = self.sent[self.head];
-            if acked.wrapping_sub(seq) < 0 {
-                break;
-            }
-            if acked == seq {
-                let d = (received_s - sent).max(0.0);
-                self.estimate += 0.05 * (d - self.estimate);
-            }
-            self.head = (self.head + 1) % ACK_RING;
-            self.len -= 1;
+        if let Some(sent) = self.sent.acknowledge(acked) {
+            let d = (received_s - sent).max(0.0);
+            self.estimate += 0.05 * (d - self.estimate);
         }
     }
 }
@@ -528,8 +512,8 @@ mod tests {
         assert!(lead[159].1.abs() < 1e-6, "lead {}", lead[159].1);
     }
 
-    /// Two setpoints the controller takes in one period (the first came a period late) are
-    /// judged as one step: the lead's steps must leave room for that.
+    /// Whatever the lead wants, the setpoint's own step is no longer than the command's, or
+    /// than the command's ceiling; and the lead never exceeds the servo's lag at that ceiling.
     #[test]
     fn the_setpoints_step_is_the_commands_or_its_ceiling_and_its_lead_is_bounded() {
         use rand::{RngExt, SeedableRng};

@@ -10,6 +10,8 @@
 //! order within the joint's maximum speed, however the network or the controller's reader
 //! bunches them. Pure: fixed storage, no allocation.
 
+use super::in_flight::InFlight;
+
 /// Setpoints sent and not yet acknowledged that are remembered. More in flight than this (a
 /// controller that stopped acknowledging) forgets the oldest, which only loosens the bound.
 const IN_FLIGHT: usize = 16;
@@ -20,12 +22,8 @@ pub(super) struct HeldSetpoints {
     /// The newest acknowledged setpoint and the controller time of the first state that showed
     /// it taken, s.
     acked: Option<([f64; 6], f64)>,
-    /// The newest acknowledged sequence number.
-    acked_seq: Option<i32>,
-    /// Sent, not yet acknowledged: sequence number and setpoint, oldest at `head`.
-    sent: [(i32, [f64; 6]); IN_FLIGHT],
-    head: usize,
-    len: usize,
+    /// Sent, not yet acknowledged.
+    sent: InFlight<[f64; 6], IN_FLIGHT>,
 }
 
 impl HeldSetpoints {
@@ -33,10 +31,7 @@ impl HeldSetpoints {
     pub(super) fn new() -> Self {
         Self {
             acked: None,
-            acked_seq: None,
-            sent: [(0, [0.0; 6]); IN_FLIGHT],
-            head: 0,
-            len: 0,
+            sent: InFlight::new([0.0; 6]),
         }
     }
 
@@ -47,37 +42,22 @@ impl HeldSetpoints {
 
     /// Setpoint `q` was sent as command `seq`.
     pub(super) fn note_sent(&mut self, seq: i32, q: [f64; 6]) {
-        if self.len == IN_FLIGHT {
-            self.head = (self.head + 1) % IN_FLIGHT;
-            self.len -= 1;
-        }
-        self.sent[(self.head + self.len) % IN_FLIGHT] = (seq, q);
-        self.len += 1;
+        self.sent.push(seq, q);
     }
 
-    /// A state at controller time `controller_s` shows command `acked` taken.
+    /// A state at controller time `controller_s` shows command `acked` taken (a state that
+    /// shows it again changes nothing: it left the ring the first time).
     pub(super) fn acknowledge(&mut self, acked: i32, controller_s: f64) {
-        if self.acked_seq == Some(acked) {
-            return;
-        }
-        while self.len > 0 {
-            let (seq, q) = self.sent[self.head];
-            if acked.wrapping_sub(seq) < 0 {
-                break;
-            }
-            if seq == acked {
-                self.acked = Some((q, controller_s));
-                self.acked_seq = Some(acked);
-            }
-            self.head = (self.head + 1) % IN_FLIGHT;
-            self.len -= 1;
+        if let Some(q) = self.sent.acknowledge(acked) {
+            self.acked = Some((q, controller_s));
         }
     }
 
     /// The range joint `j`'s next setpoint must stay in, answering a state at controller time
     /// `now_s`, to imply no more than `max_speed` (rad/s) against any setpoint the controller
     /// may hold when it lands (no sooner than a `period` from now). Unbounded until one is
-    /// acknowledged; the middle of the setpoints when they are spread wider than any one setpoint can meet.
+    /// acknowledged; the middle of the setpoints when they are spread wider than any one
+    /// setpoint can meet.
     pub(super) fn range(&self, j: usize, now_s: f64, period: f64, max_speed: f64) -> (f64, f64) {
         let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
         // A controller that has acknowledged none of them says nothing of what it holds.
@@ -89,11 +69,8 @@ impl HeldSetpoints {
             hi = hi.min(q + reach);
         };
         within(acked[j], max_speed * (now_s - taken_s + period).max(period));
-        for k in 0..self.len {
-            within(
-                self.sent[(self.head + k) % IN_FLIGHT].1[j],
-                max_speed * period,
-            );
+        for q in self.sent.values() {
+            within(q[j], max_speed * period);
         }
         if lo > hi {
             let mid = 0.5 * (lo + hi);
@@ -164,7 +141,7 @@ mod tests {
             seq = seq.wrapping_add(1);
             h.note_sent(seq, [k as f64 * 1e-3; 6]);
         }
-        assert_eq!(h.len, IN_FLIGHT);
+        assert_eq!(h.sent.len(), IN_FLIGHT);
         // The newest IN_FLIGHT are kept (4e-3 … 19e-3 rad; with the oldest the least would be
         // 0), spread wider than 1 rad/s · 2 ms can meet: the middle of 0.019 - 0.002 and
         // 0.004 + 0.002, 0.0 rad being acknowledged long enough ago to reach both.
@@ -173,7 +150,7 @@ mod tests {
         assert!((lo - 0.0115).abs() < 1e-12, "{lo}");
         // Acknowledging past the wrap takes the acknowledged one off and all before it.
         h.acknowledge(seq.wrapping_sub(1), 1.0);
-        assert_eq!(h.len, 1);
+        assert_eq!(h.sent.len(), 1);
         assert_eq!(h.acked.map(|a| a.0[0]), Some(18.0 * 1e-3));
     }
 }

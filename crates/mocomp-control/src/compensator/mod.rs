@@ -28,6 +28,7 @@ mod check;
 mod clearance;
 mod command;
 mod held;
+mod in_flight;
 mod plan;
 mod record;
 mod robot;
