@@ -41,8 +41,9 @@ pub struct LoopParams {
     /// the joint's maximum speed of every one the controller may hold). The patient studies'
     /// fast nods need about 20 on a UR3 following at 3 mm; an onset needs more (issue 33: 25
     /// left the irregular trace's execution share at 0.57 mm; its excess over the oracle, mean
-    /// of seeds 1–4: 0.481 mm RMS at 40, 0.454 at 50, 0.442 at 60, 0.444 at 80, 0.452 at 120;
-    /// the fast nods' 0.252 at 40, 0.246 at 60).
+    /// of seeds 1–4, with the lead below: 0.508 mm RMS at 40, 0.476 at 50, 0.460 at 60, 0.444
+    /// at 80, where the closed-loop test's still head on a UR3e goes from 0.174 to 0.189 mm;
+    /// the fast nods' 0.250 at 40, 0.244 at 60).
     pub max_joint_accel_rad_s2: f64,
     /// TCP (coil) speed limit, m/s. [0.25]
     pub max_tcp_speed_m_s: f64,
@@ -53,8 +54,12 @@ pub struct LoopParams {
     /// relative to the goal's, per joint; servoj's law as modelled, `q̈ = gain·(q_set − q −
     /// lookahead·q̇)`), and the setpoint leads the command by this fraction of it. The full
     /// lag follows each sample's jump and rings (the demo's irregular trace: excess over the
-    /// oracle 0.55 → 0.91 mm RMS); 0.3 closes the jumps sooner without it (0.55 → 0.48, the
-    /// fast nods 0.23 → 0.22). 0: the setpoint is the command. [0.3]
+    /// oracle 0.55 → 0.91 mm RMS); 0.3 closed the jumps sooner without it at a budget of 40
+    /// (0.55 → 0.48, the fast nods 0.23 → 0.22). The kick at a catch-up's start and end grows
+    /// with the command's acceleration budget: at 60, 0.3 took the closed-loop test's still
+    /// head on a UR3e from 0.172 to 0.250 mm RMS (0.186 at 0.2, 0.174 at 0.15), where the
+    /// irregular trace's excess (seeds 1–4) is 0.442 at 0.3, 0.450 at 0.2, 0.460 at 0.15 and
+    /// 0.472 at 0.1. 0: the setpoint is the command. [0.15]
     pub catch_up_lead: f64,
     /// Beyond this deviation of the flange from its goal (m) the loop plans a path instead of
     /// servoing straight. [0.02]
@@ -192,7 +197,7 @@ impl Default for LoopParams {
             speed_fraction: 0.75,
             max_joint_accel_rad_s2: 60.0,
             max_tcp_speed_m_s: 0.25,
-            catch_up_lead: 0.3,
+            catch_up_lead: 0.15,
             servo_deviation_m: 0.02,
             plan_rotation_rad: 0.7,
             shell_distance_m: 0.05,
