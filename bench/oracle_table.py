@@ -7,7 +7,8 @@ the oracle and the split of the error into the prediction's and the execution's 
 Runs `mocomp demo --controllers paper,mocomp,oracle --json` with each row's options and prints
 one Markdown table. The experiment is deterministic: the same binary gives the same table.
 With `--before`, each row also runs with the settings issue 33 started from (no learned
-prediction, 25 rad/s², half of each joint's speed, servoj gain 1500 and no setpoint lead), merged into the row's
+prediction, 25 rad/s², half of each joint's speed, servoj gain 1500, no setpoint lead and the
+filter's angular acceleration bound at 50 rad/s²), merged into the row's
 configuration, so one binary shows both in one run. Code changes are not undone: the before rows
 follow the goal's speed along the prediction (since 150bb87), as the after rows do. Nothing here is a test.
 """
@@ -34,6 +35,7 @@ BEFORE = {
     "speed_fraction": "0.5",
     "gain": "1500.0",
     "catch_up_lead": "0.0",
+    "max_angular_accel_rad_s2": "50.0",
 }
 
 
