@@ -21,10 +21,11 @@
 //! as soon as each step is measured, which caps the learned share while its recent errors exceed
 //! the filter's (the slow record learns of the onset a horizon late, and over fifty steps; on
 //! the recorded irregular head the learned model kept 90 % of the share for a fifth of a second
-//! after an onset, predicting the stillness it was trained on). Each example counts by its shape, not its size, so seconds of a still
-//! head weigh as much as a fast turn. And a model is not trusted beyond what it was trained on:
-//! a history larger than any it has learned from (the first turn after a minute at rest, the
-//! nods growing in) is left to the filter, whose measured record says nothing about it.
+//! after an onset, predicting the stillness it was trained on). Each example counts by its
+//! shape, not its size, so seconds of a still head weigh as much as a fast turn. And a model is
+//! not trusted beyond what it was trained on: a history larger than any it has learned from
+//! (the first turn after a minute at rest, the nods growing in) is left to the filter, whose
+//! measured record says nothing about it.
 //!
 //! The history is the measurements resampled onto a fixed grid (linear in position, spherical
 //! in orientation), so an irregular tracker rate does not disturb the lags; a gap longer than
@@ -98,6 +99,20 @@ impl GridPoint {
             filter_q: [q; STEPS],
         }
     }
+
+    /// The head's move from here to `later` (position, world-frame rotation vector): what the
+    /// learned models predict.
+    fn moved_to(&self, later: &GridPoint) -> (Vector3<f64>, Vector3<f64>) {
+        (later.p - self.p, (later.q * self.q.inverse()).scaled_axis())
+    }
+
+    /// The filter's miss at `later`, `m + 1` steps on, by its prediction from here.
+    fn filter_miss(&self, later: &GridPoint, m: usize) -> (Vector3<f64>, Vector3<f64>) {
+        (
+            later.p - self.filter_p[m],
+            (later.q * self.filter_q[m].inverse()).scaled_axis(),
+        )
+    }
 }
 
 /// One channel's regression: coefficients per horizon, their shared covariance, and the running
@@ -113,10 +128,8 @@ struct Regression<const N: usize> {
     seen: f64,
     mse_learned: [f64; STEPS],
     mse_filter: [f64; STEPS],
-    /// The running squared errors one step ahead, scored as soon as the step is measured
-    /// (learned, filter): the slow record above learns of an onset a horizon late and then
-    /// over fifty steps, while the learned model, trained on the stillness before it, goes on
-    /// predicting stillness.
+    /// The running squared errors one step ahead (learned, filter), scored as soon as the step
+    /// is measured ([`FRESH_RATE`]).
     fresh: (f64, f64),
 }
 
@@ -450,19 +463,13 @@ impl Learned {
     fn score_step(&mut self) {
         // The previous point's features: laid one step ago, with `LAGS` points before it.
         let f = self.features[(self.features_at + STEPS) % (STEPS + 1)];
-        let (now, before) = (*self.at(0), *self.at(1));
-        let dq = (now.q * before.q.inverse()).scaled_axis();
-        self.pos.record_step(
-            (now.p - before.p - self.pos.displacement(0, &f.p)).norm_squared() / 3.0,
-            (now.p - before.filter_p[0]).norm_squared() / 3.0,
-        );
-        self.rot.record_step(
-            (dq - self.rot.displacement(0, &f.q)).norm_squared() / 3.0,
-            (now.q * before.filter_q[0].inverse())
-                .scaled_axis()
-                .norm_squared()
-                / 3.0,
-        );
+        let (now, before) = (self.at(0), self.at(1));
+        let (dp, dq) = before.moved_to(now);
+        let (ep, eq) = before.filter_miss(now, 0);
+        let lp = (dp - self.pos.displacement(0, &f.p)).norm_squared() / 3.0;
+        let lq = (dq - self.rot.displacement(0, &f.q)).norm_squared() / 3.0;
+        self.pos.record_step(lp, ep.norm_squared() / 3.0);
+        self.rot.record_step(lq, eq.norm_squared() / 3.0);
     }
 
     /// Learns from the oldest complete example: its features, and what happened in the
@@ -472,12 +479,10 @@ impl Learned {
         let f = self.features[(self.features_at + 1) % (STEPS + 1)];
         let origin = *self.at(STEPS);
         let ahead = |m: usize| self.at(STEPS - m - 1);
-        let tp: [Vector3<f64>; STEPS] = std::array::from_fn(|m| ahead(m).p - origin.p);
-        let tq: [Vector3<f64>; STEPS] =
-            std::array::from_fn(|m| (ahead(m).q * origin.q.inverse()).scaled_axis());
-        let ep: [Vector3<f64>; STEPS] = std::array::from_fn(|m| ahead(m).p - origin.filter_p[m]);
-        let eq: [Vector3<f64>; STEPS] =
-            std::array::from_fn(|m| (ahead(m).q * origin.filter_q[m].inverse()).scaled_axis());
+        let moved: [_; STEPS] = std::array::from_fn(|m| origin.moved_to(ahead(m)));
+        let missed: [_; STEPS] = std::array::from_fn(|m| origin.filter_miss(ahead(m), m));
+        let (tp, tq) = (moved.map(|d| d.0), moved.map(|d| d.1));
+        let (ep, eq) = (missed.map(|d| d.0), missed.map(|d| d.1));
         self.pos.train(&f.p, &tp, &ep, self.forgetting);
         self.rot.train(&f.q, &tq, &eq, self.forgetting);
         // The example laid `STEPS` points ago had `LONG_LAGS` points before it.
