@@ -99,32 +99,29 @@ pub enum NavError {
         /// Its index.
         index: usize,
     },
-    /// Too few swept points lie near the scalp.
+    /// The registration's normal matrix is singular: the data fix no pose.
     #[error(
-        "{near} swept points lie within {:.0} mm of the scalp ({far} farther): the surface \
-         registration needs {need}; sweep the pointer over the scalp, touching it",
-        .within_m * 1e3
+        "the landmarks and the sweep leave the head's pose unfixed: touch three landmarks apart"
     )]
-    TooFewSurfacePoints {
-        /// Points near the scalp.
-        near: usize,
-        /// Points left out as too far.
-        far: usize,
-        /// The fewest it needs.
-        need: usize,
-        /// How near counts, m.
-        within_m: f64,
-    },
-    /// The swept points leave a motion of the head free (all on one side, or on a patch that
-    /// slides along itself).
+    Unconstrained,
+    /// A landmark lies on a scan's cut: the scan does not hold it.
     #[error(
-        "the swept points leave {free} free (all on one side of the head?): sweep the forehead, \
-         both sides and the crown"
+        "landmark {name:?} lies where the scan cuts the head: the scan does not hold it (use \
+         landmarks the scan holds)"
     )]
-    SurfaceUnconstrained {
-        /// The motion they do not fix.
-        free: String,
+    LandmarkOnCut {
+        /// Its name.
+        name: String,
     },
+    /// A landmark to touch that the image does not have.
+    #[error("landmark {name:?} is not among the image's landmarks ([head.landmarks])")]
+    NoImageLandmark {
+        /// Its name.
+        name: String,
+    },
+    /// The noise model is out of range.
+    #[error("the registration's noise model: {0}")]
+    Noise(String),
     /// A landmark the scalp is measured from lies far off it.
     #[error(
         "landmark {name:?} lies {:.1} mm {} the scalp (at most {:.0} mm): are the landmarks in \
