@@ -5,6 +5,10 @@
 //!   outliers), pure and steppable, and [`tracker::TrackerServer`], which runs it in real time
 //!   and serves the markers over OpenIGTLink as a PLUS server would.
 //!
+//! - [`skin`]: the patient's skin against the head model (a smooth random field along its
+//!   normal), and [`operator`]: a simulated operator with a tracked pointer, pivoting it, touching
+//!   landmarks and sweeping the scalp as asked, for rehearsing a registration.
+//!
 //! The paper's two-robot experiment that runs on it is `mocomp_app::experiment`.
 //!
 //! **Limits.** Simulates the world, never the controller under test: it does not use
@@ -13,6 +17,8 @@
 
 pub mod contact;
 pub mod motion;
+pub mod operator;
+pub mod skin;
 pub mod trace;
 pub mod tracker;
 
