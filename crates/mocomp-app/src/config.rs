@@ -93,6 +93,8 @@ pub struct Config {
     pub goal: GoalSection,
     /// The head's collision model.
     pub head: HeadSection,
+    /// `mocomp register`: patient-to-image registration.
+    pub registration: crate::registration_config::RegistrationSection,
     /// The coil's collision model.
     pub coil: CoilSection,
     /// servoj settings.
@@ -388,6 +390,13 @@ pub struct SimTrackerSection {
     /// connects there, or to `tracker.igtl` when that is given (the same server seen through a
     /// relay or another host's address).
     pub serve: String,
+    /// `mocomp register --simulate`: where the image truly lies on the head marker,
+    /// head_from_image (default: `[head] head_from_image`, the registered one when `[head]
+    /// registration` is set, as the simulated world takes it for the head).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub head_from_image: Option<Pose>,
+    /// `mocomp register --simulate`: the operator with the pointer, and the patient's skin.
+    pub operator: mocomp_sim::operator::OperatorConfig,
 }
 
 impl Default for SimTrackerSection {
@@ -401,6 +410,8 @@ impl Default for SimTrackerSection {
             motion: HeadMotion::Random(mocomp_sim::motion::RandomMotion::default()),
             model: TrackerModel::default(),
             serve: "127.0.0.1:0".into(),
+            head_from_image: None,
+            operator: mocomp_sim::operator::OperatorConfig::default(),
         }
     }
 }
@@ -546,7 +557,8 @@ pub const SIM_HEAD_FROM_COIL: [f64; 6] = [0.0, 0.0, 0.113, std::f64::consts::PI,
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct HeadSection {
-    /// head_from_ellipsoid (without a mesh).
+    /// Where the ellipsoid lies in the image's frame (without a mesh; the image's frame is the
+    /// head marker's until `head_from_image` says otherwise).
     pub head_from_ellipsoid: Pose,
     /// Semi-axes, m (without a mesh).
     pub radii_m: [f64; 3],
@@ -564,8 +576,8 @@ pub struct HeadSection {
     pub threshold: Option<f64>,
     /// The most triangles a scalp segmented from a NIfTI may have.
     pub max_triangles: usize,
-    /// head_from_image: the mesh file's frame (an MRI's RAS) in the head marker's frame, until
-    /// registration measures it.
+    /// head_from_image: the image's frame (a mesh file's, an MRI's RAS; the ellipsoid's and the
+    /// landmarks') in the head marker's frame, until registration measures it.
     pub head_from_image: Pose,
     /// Landmarks in the image (RAS, **millimetres**), by name: `nasion`, `inion`, `lpa`, `rpa`
     /// (the 10-20 system is measured from these four; registration pairs any it shares with
@@ -944,6 +956,10 @@ impl Config {
         s.model
             .validate()
             .map_err(|e| cfg(&e, "tracker.simulated.model."))?;
+        s.operator.validate().map_err(|e| {
+            AppError::Config(format!("tracker.simulated.operator.{}: {}", e.key, e.why))
+        })?;
+        self.registration.validate()?;
         Check::non_negative("duration_s", self.duration_s)?;
         Check::range("head.max_tre_mm", self.head.max_tre_mm, 0.0, 50.0, false)?;
         Check::range("ros2.publish_hz", self.ros2.publish_hz, 0.0, 1000.0, false)?;
@@ -1122,8 +1138,9 @@ impl Config {
                 mesh.display()
             )));
         }
+        // The ellipsoid is given in the image's frame too, so that a registration moves it.
         HeadModel::ellipsoid(
-            self.head.head_from_ellipsoid.iso(),
+            self.head.head_from_image.iso() * self.head.head_from_ellipsoid.iso(),
             Vector3::from(self.head.radii_m),
         )
         .map_err(|e| AppError::Config(format!("head.radii_m: {e}")))

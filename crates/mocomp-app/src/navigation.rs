@@ -75,21 +75,9 @@ pub fn find_landmark(
         .map(|(_, v)| point_from_mm(*v))
 }
 
-/// The head model of `setup`, which must be a scan's scalp: an ellipsoid has no image frame.
-pub(crate) fn scan_head(setup: &Setup) -> Result<mocomp_control::HeadModel, AppError> {
-    if setup.file.head.mesh.is_none() {
-        return Err(AppError::Config(
-            "head.mesh: navigation on the image needs the patient's scalp from the scan (the \
-             ellipsoid has no image frame)"
-                .into(),
-        ));
-    }
-    setup.file.head_model()
-}
-
 /// The positions of `system` on the scalp of `setup`, image frame.
 pub fn eeg_positions(setup: &Setup, system: System) -> Result<Vec<EegPosition>, AppError> {
-    let head = scan_head(setup)?;
+    let head = setup.file.head_model()?;
     let image_from_head = setup.file.head.head_from_image.iso().inverse();
     let scalp = Reframed::new(head.shape(), image_from_head);
     let landmarks = cranial_landmarks(setup)?;
@@ -133,7 +121,7 @@ pub fn place_target(
     handle: &Handle,
     note: &str,
 ) -> Result<Placed, AppError> {
-    let head = scan_head(setup)?;
+    let head = setup.file.head_model()?;
     let head_from_image = setup.file.head.head_from_image.iso();
     let scalp = Reframed::new(head.shape(), head_from_image.inverse());
     let (image_point, source) = resolve(setup, spec)?;

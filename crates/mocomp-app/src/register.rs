@@ -1,7 +1,8 @@
 //! Patient-to-image registration live (`mocomp register`): the calibrated pointer's tip in the
 //! head marker's frame from the two OpenIGTLink streams (pointer and head marker), fed to the
-//! capture ([`mocomp_nav::capture`]) that tells the operator's touches and sweep apart, then the
-//! registration ([`mocomp_nav::register`]) against the configuration's scalp and landmarks; and
+//! registration procedure ([`mocomp_nav::procedure`]: the landmarks touched, checked against each
+//! other, the scalp swept until the error bound at the targets is enough) against the
+//! configuration's scalp and landmarks; the outcome written only when it passed its checks; and
 //! the check that the marker has not moved on the head since (`mocomp register check`).
 
 use crate::AppError;
@@ -11,11 +12,13 @@ use crate::pointer::Pointer;
 use crate::registration_file::{Record, RegistrationFile};
 use mocomp_geom::iso_from_matrix_mm;
 use mocomp_geom::nalgebra::{Isometry3, Point3};
-use mocomp_head::Reframed;
+use mocomp_head::{Reframed, ScanCut};
 use mocomp_igtl::message::F32_RIGID_TOLERANCE;
-use mocomp_nav::{Capture, CaptureOptions, Captured, IcpOptions, Landmark, Registration, Step};
+use mocomp_nav::{
+    CaptureOptions, Captured, Landmark, LandmarkCapture, Outcome, Procedure, Prompt, Scalp,
+};
 use std::ops::ControlFlow;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// A pointer pose pairs with the head marker's when their timestamps are this close, s (PLUS
 /// stamps both of one frame alike).
@@ -24,11 +27,6 @@ const PAIR_WITHIN_S: f64 = 0.02;
 /// The least distance between a landmark's touch now and at registration that counts as the
 /// marker having moved on the head, m.
 pub const MOVED_BEYOND_M: f64 = 3e-3;
-
-/// Two touches of one landmark, each off by the localisation error (FLE, RMS in 3-D), lie
-/// within this many FLEs of each other 95 % of the time: their difference has √2 the error,
-/// and a 3-D distance's 95th percentile is √(7.81/3) of its RMS.
-const RETOUCH_95: f64 = 2.28;
 
 /// Where the streams are.
 #[derive(Debug, Clone)]
@@ -41,12 +39,13 @@ pub struct Streams {
     pub timeout: Duration,
 }
 
-/// Feeds `each` the pointer's tip in the head marker's frame (m; NaN when either marker is not
-/// seen validly or the two are not of one frame) until it says break.
+/// Feeds `each` the time (the pointer's timestamp, else its arrival, s) and the pointer's tip in
+/// the head marker's frame (m; NaN when either marker is not seen validly or the two are not of
+/// one frame) until it says break.
 pub fn tips_in_head(
     streams: &Streams,
     pointer: &Pointer,
-    each: &mut dyn FnMut(Point3<f64>) -> ControlFlow<()>,
+    each: &mut dyn FnMut(f64, Point3<f64>) -> ControlFlow<()>,
 ) -> Result<(), AppError> {
     let o = ListenOptions {
         addr: streams.addr.clone(),
@@ -56,6 +55,7 @@ pub fn tips_in_head(
         stt_tdata: false,
     };
     let tip = pointer.tip();
+    let start = Instant::now();
     let mut head: Option<(Option<f64>, Option<Isometry3<f64>>)> = None;
     let pose = |h: &crate::listen::Heard| {
         h.valid
@@ -79,7 +79,8 @@ pub fn tips_in_head(
                 }
                 _ => lost,
             };
-            Ok(each(at))
+            let t = h.t.unwrap_or_else(|| start.elapsed().as_secs_f64());
+            Ok(each(t, at))
         },
     )?;
     Ok(())
@@ -95,99 +96,225 @@ fn paired(pointer: Option<f64>, head: Option<f64>) -> bool {
     }
 }
 
+/// The configuration's scalp in the image's frame, and where the scan cut it (image frame).
+pub struct ImageScalp {
+    head: mocomp_control::HeadModel,
+    image_from_head: Isometry3<f64>,
+    cuts: Vec<ScanCut>,
+}
+
+impl std::fmt::Debug for ImageScalp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ImageScalp")
+            .field("cuts", &self.cuts.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl ImageScalp {
+    /// `setup`'s head model seen in the image's frame.
+    pub fn of(setup: &Setup) -> Result<Self, AppError> {
+        let head = setup.file.head_model()?;
+        let image_from_head = setup.file.head.head_from_image.iso().inverse();
+        let cuts = head
+            .scan_cuts()
+            .iter()
+            .map(|c| c.transformed(&image_from_head))
+            .collect();
+        Ok(Self {
+            head,
+            image_from_head,
+            cuts,
+        })
+    }
+
+    /// The shape in the image's frame.
+    pub fn shape(&self) -> Reframed<'_> {
+        Reframed::new(self.head.shape(), self.image_from_head)
+    }
+
+    /// The head model (head marker frame) and its frame in the image's.
+    pub fn head(&self) -> (&mocomp_control::HeadModel, Isometry3<f64>) {
+        (&self.head, self.image_from_head)
+    }
+
+    /// The scan's cuts, image frame.
+    pub fn cuts(&self) -> &[ScanCut] {
+        &self.cuts
+    }
+}
+
 /// What a registration produced.
 #[derive(Debug, Clone)]
 pub struct Registered {
-    /// The registration.
-    pub registration: Registration,
-    /// Its file, written.
-    pub file: RegistrationFile,
-    /// Swept points left out as too far from the scalp.
-    pub too_far: usize,
+    /// The procedure's outcome: the registration, why it may not be used, the bounds at the
+    /// targets.
+    pub outcome: Outcome,
+    /// Its file, when it may be used.
+    pub file: Option<RegistrationFile>,
 }
 
-/// Registers live: the operator touches `names` in turn and sweeps `sweep_points` over the
-/// scalp; `say` is told each step, `follow` the capture whenever it moved on. The registration
-/// is checked against the configuration's scalp and `[head.landmarks]`.
+impl Registered {
+    /// Whether it passed every check.
+    pub fn usable(&self) -> bool {
+        self.file.is_some()
+    }
+}
+
+/// What `register` is asked for beyond the configuration.
+#[derive(Debug, Clone)]
+pub struct Asked {
+    /// The landmarks to touch, in order.
+    pub landmarks: Vec<String>,
+    /// Sweep points at most.
+    pub sweep_points: usize,
+}
+
+/// What the registration tells as it goes.
+pub trait Follow {
+    /// A line for the operator.
+    fn say(&mut self, line: &str);
+    /// The procedure moved on (its state).
+    fn moved(&mut self, p: &Procedure<'_>);
+}
+
+/// What the operator is to do, said once when it changes.
+pub fn prompt_line(p: &Prompt) -> Option<String> {
+    match p {
+        Prompt::Touch(n) => Some(format!("touch the {n} with the pointer and hold still")),
+        Prompt::TakeAway(n) => Some(format!("take the pointer off the {n}")),
+        Prompt::Sweep { taken: 0, of, .. } => Some(format!(
+            "sweep the pointer over the scalp, touching it (up to {of} points; it ends when the \
+             error at the targets is small enough)"
+        )),
+        Prompt::Sweep { .. } | Prompt::Done => None,
+    }
+}
+
+/// The image's landmarks (`[head.landmarks]`), every one the configuration names.
+pub fn image_landmarks_all(setup: &Setup) -> Vec<Landmark> {
+    setup
+        .file
+        .head
+        .landmarks
+        .keys()
+        .filter_map(|k| {
+            crate::navigation::find_landmark(&setup.file.head.landmarks, k)
+                .map(|p| Landmark::new(k, p))
+        })
+        .collect()
+}
+
+/// Registers live: the procedure fed the tips the streams give, `follow` told of each step,
+/// `ask` of each prompt (a simulated operator listens), until it is done.
 pub fn register_live(
     setup: &Setup,
     streams: &Streams,
     pointer: &Pointer,
-    names: &[&str],
-    sweep_points: usize,
-    say: &mut dyn FnMut(&str),
-    follow: &mut dyn FnMut(&Capture),
+    asked: &Asked,
+    follow: &mut dyn Follow,
+    ask: &mut dyn FnMut(&Prompt),
 ) -> Result<Registered, AppError> {
-    let image = image_landmarks(setup, names)?;
-    let options = CaptureOptions {
-        sweep_points,
-        ..CaptureOptions::default()
-    };
-    let mut capture = Capture::new(names, options);
-    let mut last_step = None;
-    let mut last_swept = 0;
-    follow(&capture);
-    tips_in_head(streams, pointer, &mut |tip| {
-        let got = capture.feed(&tip);
-        if let Some(Captured::Landmark(l, spread)) = &got {
-            say(&format!(
-                "{}: touched (the burst within {:.2} mm)",
+    let scalp = ImageScalp::of(setup)?;
+    let shape = scalp.shape();
+    let image = image_landmarks(setup, &asked.landmarks)?;
+    let targets = crate::registration_gate::targets(setup, None)?;
+    let settings = setup.file.registration.settings(
+        &asked.landmarks,
+        asked.sweep_points,
+        targets,
+        setup.file.head.max_tre_mm,
+    );
+    let mut procedure = Procedure::new(
+        Scalp {
+            shape: &shape,
+            cuts: scalp.cuts(),
+        },
+        &image,
+        settings,
+    )
+    .map_err(|e| AppError::Config(format!("head.landmarks: {e}")))?;
+    for l in procedure.image_landmarks() {
+        if l.offset_m.abs() > 1e-3 {
+            follow.say(&format!(
+                "the image's {} lies {:.1} mm {} the scalp: taken on the scalp",
                 l.name,
-                spread * 1e3
+                l.offset_m.abs() * 1e3,
+                if l.offset_m > 0.0 {
+                    "outside"
+                } else {
+                    "inside"
+                }
             ));
         }
-        let step = capture.step();
-        if last_step.as_ref() != Some(&step) {
-            match &step {
-                Step::Touch(n) => say(&format!("touch the {n} with the pointer and hold still")),
-                Step::TakeAway(n) => say(&format!("take the pointer off the {n}")),
-                Step::Sweep(0, n) => say(&format!("sweep the pointer over the scalp ({n} points)")),
-                Step::Sweep(..) | Step::Done => {}
+    }
+    let mut last = None;
+    let mut announce =
+        |p: &Procedure<'_>, follow: &mut dyn Follow, ask: &mut dyn FnMut(&Prompt)| {
+            let prompt = p.prompt();
+            if last.as_ref() != Some(&prompt) {
+                let step_changed = !matches!(
+                    (&last, &prompt),
+                    (Some(Prompt::Sweep { .. }), Prompt::Sweep { taken, .. }) if *taken > 0
+                );
+                if step_changed && let Some(line) = prompt_line(&prompt) {
+                    follow.say(&line);
+                }
+                ask(&prompt);
+                follow.moved(p);
+                last = Some(prompt);
             }
-            last_step = Some(step.clone());
-            follow(&capture);
-        } else if got.is_some() || capture.sweep().len() != last_swept {
-            follow(&capture);
+        };
+    announce(&procedure, follow, ask);
+    tips_in_head(streams, pointer, &mut |t, tip| {
+        for n in procedure.feed(t, &tip) {
+            follow.say(&n.to_string());
         }
-        last_swept = capture.sweep().len();
-        if step == Step::Done {
+        announce(&procedure, follow, ask);
+        if procedure.done() {
             ControlFlow::Break(())
         } else {
             ControlFlow::Continue(())
         }
     })?;
-    compute(setup, &image, capture.landmarks(), capture.sweep())
+    Ok(conclude(setup, procedure.finish()))
 }
 
-/// The registration of the `touched` landmarks and `swept` points against the configuration's
-/// scalp and its `image` landmarks.
-pub fn compute(
-    setup: &Setup,
-    image: &[Landmark],
-    touched: &[Landmark],
-    swept: &[Point3<f64>],
-) -> Result<Registered, AppError> {
-    let head = crate::navigation::scan_head(setup)?;
-    let scalp = Reframed::new(
-        head.shape(),
-        setup.file.head.head_from_image.iso().inverse(),
-    );
-    let registration = mocomp_nav::register(&scalp, image, touched, swept, &IcpOptions::default())
-        .map_err(|e| AppError::Refused(format!("registration: {e}")))?;
-    let too_far = registration.surface.as_ref().map_or(0, |s| s.too_far);
-    let file = RegistrationFile {
-        registration: Record::new(&registration, image, touched, &crate::targets::now()),
-        overrides: Vec::new(),
+/// The outcome, with its file when it may be used.
+pub fn conclude(setup: &Setup, outcome: Outcome) -> Registered {
+    let file = match (&outcome.registration, outcome.refusals.is_empty()) {
+        (Ok(r), true) => Some(RegistrationFile {
+            registration: Record::new(
+                r,
+                setup.file.registration.noise_record(),
+                &crate::targets::now(),
+            ),
+            overrides: Vec::new(),
+        }),
+        _ => None,
     };
-    Ok(Registered {
-        registration,
-        file,
-        too_far,
-    })
+    Registered { outcome, file }
+}
+
+/// Why a registration may not be used, as one error naming every reason (none: it may).
+pub fn refused(r: &Registered) -> Option<AppError> {
+    match &r.outcome.registration {
+        Err(e) => Some(AppError::Refused(format!("registration: {e}"))),
+        Ok(_) if r.outcome.refusals.is_empty() => None,
+        Ok(_) => Some(AppError::Refused(format!(
+            "registration refused, not written: {}",
+            r.outcome
+                .refusals
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("; ")
+        ))),
+    }
 }
 
 /// `[head.landmarks]` named `names` (image frame, m).
-pub fn image_landmarks(setup: &Setup, names: &[&str]) -> Result<Vec<Landmark>, AppError> {
+pub fn image_landmarks(setup: &Setup, names: &[String]) -> Result<Vec<Landmark>, AppError> {
     let marks = &setup.file.head.landmarks;
     names
         .iter()
@@ -212,8 +339,8 @@ pub struct Checked {
     /// How far the touch lies from where it was touched at registration (head marker frame),
     /// m.
     pub moved_m: f64,
-    /// Beyond this it has moved: [`MOVED_BEYOND_M`], or more where the registration's own
-    /// touches were less certain, m.
+    /// Beyond this it has moved: [`MOVED_BEYOND_M`], or more where two touches of one landmark
+    /// differ by more 5 % of the time, m.
     pub limit_m: f64,
     /// Whether it moved.
     pub moved: bool,
@@ -245,25 +372,27 @@ pub fn check_live(
                 .join(", ")
         )));
     };
-    say(&format!("touch the {name} with the pointer and hold still"));
-    let mut capture = Capture::new(
-        &[name],
-        CaptureOptions {
-            sweep_points: 0,
-            ..CaptureOptions::default()
-        },
-    );
+    say(&format!(
+        "touch the {name} with the pointer, hold still, then take it away"
+    ));
+    let mut capture = LandmarkCapture::new(name, CaptureOptions::default());
     let mut now = None;
-    tips_in_head(streams, pointer, &mut |tip| {
-        if let Some(Captured::Landmark(l, _)) = capture.feed(&tip) {
-            now = Some(l.point);
+    tips_in_head(streams, pointer, &mut |t, tip| {
+        if let Some(Captured::Touched(touch)) = capture.feed(t, &tip, &|_| None) {
+            now = Some(touch.landmark.point);
             return ControlFlow::Break(());
         }
         ControlFlow::Continue(())
     })?;
     let now = now.ok_or_else(|| AppError::Refused(format!("{name}: no touch")))?;
     let moved_m = (now - was).norm();
-    let limit_m = MOVED_BEYOND_M.max(RETOUCH_95 * record.fle_mm / 1000.0);
+    // Two touches of one landmark differ along the skin by √2 of a touch's error per axis; 95 %
+    // of a 2-D Gaussian's lengths lie within √χ²₂(0.95) of its σ.
+    let retouch_95 = mocomp_nav::bound::chi2_quantile(2, 0.95).sqrt()
+        * std::f64::consts::SQRT_2
+        * record.noise.touch_sigma_mm
+        / 1000.0;
+    let limit_m = MOVED_BEYOND_M.max(retouch_95);
     Ok(Checked {
         name: name.to_string(),
         moved_m,

@@ -1,22 +1,32 @@
-//! The registration on disk (`mocomp register` writes it, `[head] registration` reads it):
-//! `head_from_image` for the loop, what it is worth (FRE per landmark, the surface fit's RMS,
-//! the landmarks' localisation error, so the target error can be estimated anywhere later), the
-//! landmarks as touched in the head marker's frame (so `mocomp register check` can tell whether
-//! the marker moved on the head), and every time an operator let compensation start beyond the
-//! error threshold, and why. Millimetres at the file, metres inside.
+//! The registration on disk (`mocomp register` writes it, only when the registration passed its
+//! checks; `[head] registration` reads it): `head_from_image` for the loop, what it is worth
+//! (the pose's covariance, from which the error bound at any target is worked out later; the
+//! noise it was weighed by; each landmark's error and its distance from the skin; the swept
+//! points' fit), the landmarks as touched in the head marker's frame (so `mocomp register check`
+//! can tell whether the marker moved on the head), and every time an operator let compensation
+//! start beyond the error limit, and why. Millimetres and milliradians at the file, metres and
+//! radians inside.
 //!
 //! ```toml
 //! [registration]
 //! head_from_image = [0.01, -0.2, 0.05, 0.1, 0.2, 0.3]   # m; rotation vector, rad
-//! fre_mm = 0.91
-//! fle_mm = 1.58
-//! surface_rms_mm = 0.43
-//! surface_points = 90
+//! fre_mm = 1.21
+//! surface_rms_mm = 0.63
+//! surface_points = 288
+//! surface_off_skin = 12
+//! surface_on_cut = 0
 //! registered_at = "Fri, 04 Dec 2026 10:00:00 GMT"
+//! # the pose's covariance, a left perturbation in the image's frame about its origin:
+//! # rotation (mrad) then translation (mm), 6 × 6 row by row
+//! covariance_mrad_mm = [0.02, 0.0, ...]
+//! [registration.noise]
+//! touch_sigma_mm = 1.0
+//! ...
 //! [registration.landmarks.nasion]
-//! image_mm = [1.5, 85.1, -34.8]
-//! touched_mm = [12.0, 40.2, -80.3]     # head marker frame
+//! image_mm = [1.5, 85.1, -34.8]      # on the scalp
+//! touched_mm = [12.0, 40.2, -80.3]   # head marker frame
 //! error_mm = 0.6
+//! skin_mm = 0.2
 //! [[override]]
 //! at = "Fri, 04 Dec 2026 10:05:00 GMT"
 //! target = "dlpfc"
@@ -26,11 +36,14 @@
 //! ```
 
 use crate::{AppError, Context};
-use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
-use mocomp_nav::{Landmark, Registration};
+use mocomp_geom::nalgebra::{Isometry3, Matrix6, Point3, Vector3};
+use mocomp_nav::Registration;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
+
+/// Millimetres in a metre (and milliradians in a radian).
+const MILLI: f64 = 1000.0;
 
 /// The file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -38,7 +51,7 @@ use std::path::Path;
 pub struct RegistrationFile {
     /// The registration.
     pub registration: Record,
-    /// Compensation started beyond the error threshold, each time.
+    /// Compensation started beyond the error limit, each time.
     #[serde(default, rename = "override", skip_serializing_if = "Vec::is_empty")]
     pub overrides: Vec<Override>,
 }
@@ -49,33 +62,62 @@ pub struct RegistrationFile {
 pub struct Record {
     /// The image's frame in the head marker's: what `[head] head_from_image` takes (m, rad).
     pub head_from_image: [f64; 6],
-    /// The landmarks' fiducial registration error, RMS, mm.
+    /// The landmarks' FRE: the RMS of their errors below, mm.
     pub fre_mm: f64,
-    /// The landmarks' localisation error it implies, mm.
-    pub fle_mm: f64,
-    /// The swept points' RMS distance from the scalp after refinement, mm (0: none swept).
+    /// The swept points' RMS distance from the scalp, mm (0: none swept).
     pub surface_rms_mm: f64,
     /// Swept points used.
     pub surface_points: usize,
+    /// Swept points left out as off the skin.
+    pub surface_off_skin: usize,
+    /// Swept points left out as on the scan's cut.
+    pub surface_on_cut: usize,
     /// When.
     pub registered_at: String,
+    /// The covariance of a left perturbation of `image_from_marker` in the image's frame about
+    /// its origin: rotation (mrad) then translation (mm), 6 × 6 row by row.
+    pub covariance_mrad_mm: Vec<f64>,
+    /// The noise it was weighed by.
+    pub noise: NoiseRecord,
     /// Each landmark used.
     pub landmarks: BTreeMap<String, LandmarkRecord>,
+}
+
+/// The noise model as written (`[registration]`'s keys).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseRecord {
+    /// Touch, per axis along the skin, mm.
+    pub touch_sigma_mm: f64,
+    /// The image's landmark, per axis along the scalp, mm.
+    pub image_landmark_sigma_mm: f64,
+    /// The tracked tip, per axis, mm.
+    pub tracker_sigma_mm: f64,
+    /// The skin's give, at most, mm.
+    pub skin_compression_mm: f64,
+    /// The model against the skin, mm.
+    pub model_sigma_mm: f64,
+    /// Alike over, mm.
+    pub model_correlation_mm: f64,
+    /// In common, mm.
+    pub model_offset_mm: f64,
 }
 
 /// One landmark as used.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LandmarkRecord {
-    /// In the image, RAS, mm.
+    /// In the image, on the scalp, RAS, mm.
     pub image_mm: [f64; 3],
     /// As touched, head marker frame, mm.
     pub touched_mm: [f64; 3],
-    /// Its distance after registration, mm.
+    /// Its distance from the image's after registration, mm.
     pub error_mm: f64,
+    /// The touch's distance from the scalp after registration, mm.
+    pub skin_mm: f64,
 }
 
-/// An operator's override of the error threshold.
+/// An operator's override of the error limit.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Override {
@@ -83,49 +125,60 @@ pub struct Override {
     pub at: String,
     /// The target compensation started on.
     pub target: String,
-    /// The estimated error there, mm.
+    /// The error bound there, mm.
     pub tre_mm: f64,
-    /// The threshold, mm.
+    /// The limit, mm.
     pub limit_mm: f64,
     /// Why, in the operator's words.
     pub reason: String,
 }
 
 fn mm(p: &Point3<f64>) -> [f64; 3] {
-    (p.coords * 1000.0).into()
+    (p.coords * MILLI).into()
 }
 
 impl Record {
-    /// The record of `r`, from the `image` and `touched` landmarks it used, made `at` (a date).
-    pub fn new(r: &Registration, image: &[Landmark], touched: &[Landmark], at: &str) -> Self {
+    /// The record of `r`, weighed by `noise` (as configured), made `at` (a date).
+    pub fn new(r: &Registration, noise: NoiseRecord, at: &str) -> Self {
         let head_from_image = r.image_from_marker.inverse();
         let (t, v) = (
             head_from_image.translation.vector,
             head_from_image.rotation.scaled_axis(),
         );
-        let errors = r.landmark_errors(touched, image);
-        let landmarks = errors
+        let landmarks = r
+            .landmarks
             .iter()
-            .filter_map(|(name, e)| {
-                let i = image.iter().find(|l| &l.name == name)?;
-                let t = touched.iter().find(|l| l.name.eq_ignore_ascii_case(name))?;
-                Some((
-                    name.to_lowercase(),
+            .map(|l| {
+                (
+                    l.name.to_lowercase(),
                     LandmarkRecord {
-                        image_mm: mm(&i.point),
-                        touched_mm: mm(&t.point),
-                        error_mm: e * 1000.0,
+                        image_mm: mm(&l.image),
+                        touched_mm: mm(&l.touched),
+                        error_mm: l.error_m * MILLI,
+                        skin_mm: l.skin_m * MILLI,
                     },
-                ))
+                )
             })
             .collect();
+        // rad² → mrad², m² → mm², rad·m → mrad·mm: one factor of a thousand squared.
+        let cov = r.covariance * (MILLI * MILLI);
+        let surface = r.surface.unwrap_or(mocomp_nav::registration::SurfaceFit {
+            used: 0,
+            off_skin: 0,
+            on_cut: 0,
+            rms_m: 0.0,
+            expected_rms_m: 0.0,
+        });
         Self {
             head_from_image: [t.x, t.y, t.z, v.x, v.y, v.z],
-            fre_mm: r.landmarks.fre_m * 1000.0,
-            fle_mm: r.fle_m * 1000.0,
-            surface_rms_mm: r.surface.as_ref().map_or(0.0, |s| s.rms_m * 1000.0),
-            surface_points: r.surface.as_ref().map_or(0, |s| s.kept),
+            fre_mm: r.fre_m * MILLI,
+            surface_rms_mm: surface.rms_m * MILLI,
+            surface_points: surface.used,
+            surface_off_skin: surface.off_skin,
+            surface_on_cut: surface.on_cut,
             registered_at: at.to_string(),
+            covariance_mrad_mm: cov.transpose().iter().copied().collect(),
+            noise,
             landmarks,
         }
     }
@@ -139,17 +192,16 @@ impl Record {
         )
     }
 
-    /// The estimated target registration error at `target` (image frame), m: Fitzpatrick's
-    /// from the landmarks and their localisation error, with the surface fit's RMS in
-    /// quadrature ([`mocomp_nav::Registration::tre_at`]).
+    /// The pose's covariance, SI (rad, m).
+    pub fn covariance(&self) -> Matrix6<f64> {
+        Matrix6::from_row_slice(&self.covariance_mrad_mm) / (MILLI * MILLI)
+    }
+
+    /// The radius that holds the registration's error at `target` (image frame) with
+    /// probability [`mocomp_nav::CONFIDENCE`], m.
     pub fn tre_at(&self, target: &Point3<f64>) -> f64 {
-        let image: Vec<Point3<f64>> = self
-            .landmarks
-            .values()
-            .map(|l| Point3::from(l.image_mm) / 1000.0)
-            .collect();
-        mocomp_nav::predicted_tre(&image, self.fle_mm / 1000.0, target)
-            .hypot(self.surface_rms_mm / 1000.0)
+        let c = mocomp_nav::registration::error_covariance_at(&self.covariance(), target);
+        mocomp_nav::bound::norm_quantile(&c, mocomp_nav::CONFIDENCE)
     }
 
     /// A landmark as touched (head marker frame, m), by name without regard to case.
@@ -157,7 +209,7 @@ impl Record {
         self.landmarks
             .iter()
             .find(|(k, _)| k.eq_ignore_ascii_case(name))
-            .map(|(_, l)| Point3::from(l.touched_mm) / 1000.0)
+            .map(|(_, l)| Point3::from(l.touched_mm) / MILLI)
     }
 }
 
@@ -165,8 +217,18 @@ impl Record {
 pub fn load(path: &Path) -> Result<RegistrationFile, AppError> {
     let text = std::fs::read_to_string(path)
         .what(|| format!("reading the registration {}", path.display()))?;
-    let file: RegistrationFile =
-        toml::from_str(&text).map_err(|e| AppError::Config(format!("{}: {e}", path.display())))?;
+    let file: RegistrationFile = toml::from_str(&text).map_err(|e| {
+        let old = e.to_string().contains("covariance_mrad_mm");
+        AppError::Config(format!(
+            "{}: {e}{}",
+            path.display(),
+            if old {
+                " (a registration written before mocomp stated its error bound: register again)"
+            } else {
+                ""
+            }
+        ))
+    })?;
     let r = &file.registration;
     let bad = |what: &str| {
         Err(AppError::Config(format!(
@@ -177,8 +239,21 @@ pub fn load(path: &Path) -> Result<RegistrationFile, AppError> {
     if !r.head_from_image.iter().all(|v| v.is_finite()) {
         return bad("head_from_image");
     }
-    if !(r.fle_mm.is_finite() && r.surface_rms_mm.is_finite()) {
-        return bad("fle_mm or surface_rms_mm");
+    if !(r.fre_mm.is_finite() && r.surface_rms_mm.is_finite()) {
+        return bad("fre_mm or surface_rms_mm");
+    }
+    if r.covariance_mrad_mm.len() != 36 || !r.covariance_mrad_mm.iter().all(|v| v.is_finite()) {
+        return Err(AppError::Config(format!(
+            "{}: registration.covariance_mrad_mm: {} numbers, 36 finite ones expected",
+            path.display(),
+            r.covariance_mrad_mm.len()
+        )));
+    }
+    if r.covariance().cholesky().is_none() {
+        return Err(AppError::Config(format!(
+            "{}: registration.covariance_mrad_mm is not a covariance (not positive definite)",
+            path.display()
+        )));
     }
     if r.landmarks.len() < 3 {
         return Err(AppError::Config(format!(

@@ -6,7 +6,7 @@
 
 use crate::AppError;
 use crate::config::Setup;
-use crate::navigation::{Placed, TargetSpec, mm_from_point, place_target, scan_head};
+use crate::navigation::{Placed, TargetSpec, mm_from_point, place_target};
 use crate::navigator_files::{NamedPose, Navigator, parse_poses, slicer_points};
 use mocomp_control::goal::check_goal;
 use mocomp_head::{HeadShape, Reframed};
@@ -77,7 +77,7 @@ fn pose_target(
     file: &str,
     p: &NamedPose,
 ) -> Result<Target, AppError> {
-    let head = scan_head(setup)?;
+    let head = setup.file.head_model()?;
     let head_from_image = setup.file.head.head_from_image.iso();
     let scalp = Reframed::new(head.shape(), head_from_image.inverse());
     let face = mocomp_geom::nalgebra::Point3::from(p.image_from_coil.translation.vector);

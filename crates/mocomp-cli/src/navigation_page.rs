@@ -3,10 +3,9 @@
 //! and the outcome. Without a console it does nothing.
 
 use mocomp_app::frontend::Controls;
-use mocomp_app::registration_file::Record;
 use mocomp_console::Console;
 use mocomp_console::state::NavigationJson;
-use mocomp_nav::{Capture, Step};
+use mocomp_nav::{Procedure, Prompt};
 use std::time::Duration;
 
 /// The console's navigation panel, or nothing.
@@ -51,52 +50,56 @@ impl<'a> Page<'a> {
         Ok(())
     }
 
-    /// The capture moved on.
-    pub fn capture(&mut self, c: &Capture) {
+    /// The procedure moved on: its step, the landmarks touched, the sweep's count.
+    pub fn procedure(&mut self, p: &Procedure<'_>) {
         if self.console.is_none() {
             return;
         }
-        let step = match c.step() {
-            Step::Touch(n) => format!("touch the {n} with the pointer and hold still"),
-            Step::TakeAway(n) => format!("take the pointer off the {n}"),
-            Step::Sweep(..) => "sweep the pointer over the scalp".to_string(),
-            Step::Done => "computing the registration".to_string(),
+        let step = match p.prompt() {
+            Prompt::Touch(n) => format!("touch the {n} with the pointer and hold still"),
+            Prompt::TakeAway(n) => format!("take the pointer off the {n}"),
+            Prompt::Sweep {
+                region: Some(r), ..
+            } => {
+                format!("sweep the pointer over the scalp: the {r} next")
+            }
+            Prompt::Sweep { region: None, .. } => "sweep the pointer over the scalp".to_string(),
+            Prompt::Done => "computing the registration".to_string(),
         };
         let event = (step != self.shown.step).then(|| step.clone());
         self.shown.state = "running";
         self.shown.step = step;
-        self.shown.landmarks = c
-            .landmarks()
+        self.shown.landmarks = p
+            .touched()
             .iter()
-            .zip(c.landmark_spreads())
-            .map(|(l, s)| (l.name.clone(), s * 1e3))
+            .map(|t| (t.landmark.name.clone(), t.spread_m * 1e3))
             .collect();
-        self.shown.samples = match c.step() {
-            Step::Sweep(n, of) => [n, of],
-            _ => [c.sweep().len(), self.shown.samples[1].max(c.sweep().len())],
+        self.shown.samples = match p.prompt() {
+            Prompt::Sweep { taken, of, .. } => [taken, of],
+            _ => [p.swept().len(), self.shown.samples[1].max(p.swept().len())],
         };
         self.show(event);
     }
 
-    /// The registration is in: its figures.
-    pub fn registered(&mut self, rec: &Record, targets: &[(String, f64)]) {
-        self.shown.state = "done";
-        let mut lines = vec![format!(
-            "registered: FRE {:.2} mm; surface RMS {:.2} mm over {} points",
-            rec.fre_mm, rec.surface_rms_mm, rec.surface_points
-        )];
-        lines.extend(
-            rec.landmarks
-                .iter()
-                .map(|(k, l)| format!("{k}: {:.2} mm", l.error_mm)),
-        );
-        lines.extend(
-            targets
-                .iter()
-                .map(|(n, t)| format!("estimated target error at {n}: {t:.1} mm")),
-        );
-        self.shown.result = lines;
-        self.show(Some("registered".into()));
+    /// A line the operator is told, as an event.
+    pub fn said(&mut self, line: &str) {
+        if self.console.is_some() {
+            self.show(Some(line.to_string()));
+        }
+    }
+
+    /// The registration is in: its report, and whether it may be used.
+    pub fn registered(&mut self, lines: &[String], usable: bool) {
+        self.shown.state = if usable { "done" } else { "failed" };
+        self.shown.result = lines.to_vec();
+        self.show(Some(
+            if usable {
+                "registered"
+            } else {
+                "registration refused"
+            }
+            .into(),
+        ));
     }
 
     /// Pivot samples in, of how many (shown every tenth).

@@ -5,15 +5,18 @@
 
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
-use mocomp_app::register::Streams;
+use mocomp_app::register::{Asked, Follow, Streams};
+use mocomp_app::rehearsal::{POINTER_DEVICE, Rehearsal, ask_for};
+use mocomp_sim::operator::Ask;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
 /// Register the patient's head marker to the image: touch the landmarks with the calibrated
-/// pointer, each held still until taken, then sweep the scalp; writes the registration
-/// (`[head] registration` reads it) with its FRE per landmark, the surface fit's RMS and the
-/// estimated target error at the session's targets.
+/// pointer (each held still, then taken away), then sweep the scalp until the error bound at the
+/// targets is small enough; writes the registration (`[head] registration` reads it) only when
+/// it passes its checks, with each landmark's error, the FRE, the sweep's fit and the error
+/// bound (95 %) at the session's targets; exits 1 naming what to redo otherwise.
 #[derive(Debug, Clone, Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct RegisterCmd {
@@ -32,15 +35,16 @@ enum RegisterSub {
 /// Where the configuration, the pointer and the streams are.
 #[derive(Debug, Clone, Args)]
 struct Common {
-    /// The configuration: `[head] mesh` and `[head.landmarks]` (and, for `check`, `[head]
-    /// registration`).
+    /// The configuration: `[head] mesh` (or the ellipsoid) and `[head.landmarks]`,
+    /// `[registration]` (and, for `check`, `[head] registration`).
     #[arg(long, value_name = "FILE", required = true)]
     config: Option<PathBuf>,
-    /// The pointer's calibration (`mocomp pointer calibrate`).
-    #[arg(long, value_name = "FILE", default_value = "pointer.toml")]
-    pointer: PathBuf,
+    /// The pointer's calibration (`mocomp pointer calibrate`; default pointer.toml; with
+    /// --simulate, the simulated pointer is calibrated first unless this is given).
+    #[arg(long, value_name = "FILE")]
+    pointer: Option<PathBuf>,
     /// The OpenIGTLink server streaming the pointer and the head marker.
-    #[arg(long, value_name = "HOST:PORT", required = true)]
+    #[arg(long, value_name = "HOST:PORT", required_unless_present = "simulate")]
     igtl: Option<String>,
     /// The head marker's device.
     #[arg(long, default_value = "HeadToTracker")]
@@ -48,41 +52,97 @@ struct Common {
     /// Give up when nothing arrives for this many seconds.
     #[arg(long, default_value_t = 30.0)]
     timeout: f64,
+    /// Rehearse in the built-in world: the simulated tracker streams the head marker and a
+    /// pointer that a simulated operator (`[tracker.simulated.operator]`) moves as asked; the
+    /// report adds the error against the simulation's truth.
+    #[arg(long)]
+    simulate: bool,
+    /// The simulated operator's and tracker's seed (with --simulate).
+    #[arg(long, requires = "simulate")]
+    seed: Option<u64>,
+}
+
+/// The streams and the pointer to register with, and the rehearsal serving them if any.
+struct Opened {
+    setup: Setup,
+    streams: Streams,
+    pointer: mocomp_app::pointer::Pointer,
+    rehearsal: Option<Rehearsal>,
 }
 
 impl Common {
-    fn open(&self) -> anyhow::Result<(Setup, Streams, mocomp_app::pointer::Pointer)> {
+    fn open(&self, progress: &mut dyn Write) -> anyhow::Result<Opened> {
         crate::args::positive("--timeout", self.timeout)?;
         let config = self
             .config
             .as_ref()
             .ok_or_else(|| crate::UsageError("--config: needed".into()))?;
-        let addr = self
-            .igtl
-            .clone()
-            .ok_or_else(|| crate::UsageError("--igtl: needed".into()))?;
         let setup = Setup::load(config)?;
-        let pointer = mocomp_app::pointer::load(&self.pointer)?;
+        let timeout = Duration::from_secs_f64(self.timeout);
+        let (addr, head_device, rehearsal) = if self.simulate {
+            let r = Rehearsal::start(&setup, self.seed)?;
+            (r.addr(), setup.file.tracker.device.clone(), Some(r))
+        } else {
+            let addr = self
+                .igtl
+                .clone()
+                .ok_or_else(|| crate::UsageError("--igtl: needed".into()))?;
+            (addr, self.head_device.clone(), None)
+        };
+        let pointer = match (&self.pointer, &rehearsal) {
+            (Some(p), _) => mocomp_app::pointer::load(p)?,
+            (None, Some(r)) => simulated_pointer(r, timeout, progress)?,
+            (None, None) => mocomp_app::pointer::load(std::path::Path::new("pointer.toml"))?,
+        };
         let streams = Streams {
             addr,
-            head_device: self.head_device.clone(),
-            timeout: Duration::from_secs_f64(self.timeout),
+            head_device,
+            timeout,
         };
-        Ok((setup, streams, pointer))
+        Ok(Opened {
+            setup,
+            streams,
+            pointer,
+            rehearsal,
+        })
     }
+}
+
+/// The simulated operator pivots the pointer; it is calibrated as `pointer calibrate` does.
+fn simulated_pointer(
+    r: &Rehearsal,
+    timeout: Duration,
+    progress: &mut dyn Write,
+) -> anyhow::Result<mocomp_app::pointer::Pointer> {
+    r.ask(Ask::Pivot);
+    let (poses, invalid) =
+        mocomp_app::pointer::collect(&r.addr(), POINTER_DEVICE, 300, timeout, &mut |_| {})?;
+    r.ask(Ask::Rest);
+    let p = mocomp_app::pointer::calibrate(POINTER_DEVICE, &poses, invalid)?;
+    let [x, y, z] = p.tip_in_marker_mm;
+    writeln!(
+        progress,
+        "simulated pointer calibrated: tip at ({x:.2}, {y:.2}, {z:.2}) mm, {:.2} mm RMS over {} \
+         poses (truly at {:?} mm)",
+        p.rms_mm,
+        p.kept,
+        mocomp_app::rehearsal::TIP_IN_MARKER_MM
+    )?;
+    Ok(p)
 }
 
 #[derive(Debug, Clone, Args)]
 struct LiveArgs {
     #[command(flatten)]
     common: Common,
-    /// The landmarks to touch, in order (each named in `[head.landmarks]`).
-    #[arg(long, value_delimiter = ',', default_value = "nasion,lpa,rpa")]
-    landmarks: Vec<String>,
-    /// Points to sweep over the scalp (0: the landmarks alone).
-    #[arg(long, default_value_t = 100)]
-    sweep_points: usize,
-    /// Where to write the registration.
+    /// The landmarks to touch, in order (each named in `[head.landmarks]`; default
+    /// `[registration] landmarks`).
+    #[arg(long, value_delimiter = ',')]
+    landmarks: Option<Vec<String>>,
+    /// Sweep points at most (0: the landmarks alone; default `[registration] sweep_points`).
+    #[arg(long)]
+    sweep_points: Option<usize>,
+    /// Where to write the registration (only when it passes its checks).
     #[arg(long, value_name = "FILE", default_value = "registration.toml")]
     out: PathBuf,
     /// Print the result as one JSON object.
@@ -106,7 +166,8 @@ struct CheckArgs {
 }
 
 impl RegisterCmd {
-    /// Runs it. `check` exits 1 when the marker moved.
+    /// Runs it. Exits 1 when the registration is refused (nothing written), and for `check`
+    /// when the marker moved.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         match self.check {
             Some(RegisterSub::Check(c)) => check(c, out),
@@ -115,26 +176,52 @@ impl RegisterCmd {
     }
 }
 
+/// The registration's progress on standard error and in the console.
+struct Shown<'p, 'c> {
+    page: &'p mut crate::navigation_page::Page<'c>,
+}
+
+impl Follow for Shown<'_, '_> {
+    fn say(&mut self, line: &str) {
+        eprintln!("{line}");
+        self.page.said(line);
+    }
+    fn moved(&mut self, p: &mocomp_nav::Procedure<'_>) {
+        self.page.procedure(p);
+    }
+}
+
 fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
-    let (setup, streams, pointer) = a.common.open()?;
-    let names: Vec<&str> = a.landmarks.iter().map(String::as_str).collect();
-    let controls = mocomp_app::frontend::Controls::new();
-    // With --json, standard output is the result alone: the console's line goes to stderr.
+    // With --json, standard output is the result alone: progress goes to stderr.
     let mut stderr = std::io::stderr();
     let progress: &mut dyn Write = if a.json { &mut stderr } else { out };
-    let console = a.dashboard.start(&setup, &controls, progress)?;
+    let o = a.common.open(progress)?;
+    let section = &o.setup.file.registration;
+    let asked = Asked {
+        landmarks: a
+            .landmarks
+            .clone()
+            .unwrap_or_else(|| section.landmarks.clone()),
+        sweep_points: a.sweep_points.unwrap_or(section.sweep_points),
+    };
+    let controls = mocomp_app::frontend::Controls::new();
+    let console = a.dashboard.start(&o.setup, &controls, progress)?;
     let mut page = crate::navigation_page::Page::new(console.as_ref(), "registration");
     if console.is_some() {
         page.wait_for_go(&controls)?;
     }
+    let rehearsal = o.rehearsal.as_ref();
     let result = mocomp_app::register::register_live(
-        &setup,
-        &streams,
-        &pointer,
-        &names,
-        a.sweep_points,
-        &mut |s| eprintln!("{s}"),
-        &mut |c| page.capture(c),
+        &o.setup,
+        &o.streams,
+        &o.pointer,
+        &asked,
+        &mut Shown { page: &mut page },
+        &mut |p| {
+            if let Some(r) = rehearsal {
+                r.ask(ask_for(p));
+            }
+        },
     );
     let r = match result {
         Ok(r) => r,
@@ -143,54 +230,59 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
             return Err(e.into());
         }
     };
-    mocomp_app::registration_file::save(&a.out, &r.file)?;
-    let rec = &r.file.registration;
-    let targets = mocomp_app::registration_gate::target_errors(&setup, rec)?;
-    page.registered(rec, &targets);
+    let truth = match (&o.rehearsal, &r.outcome.registration) {
+        (Some(sim), Ok(reg)) => {
+            let targets = mocomp_app::registration_gate::targets(&o.setup, None)?;
+            Some(mocomp_app::rehearsal::true_errors(
+                &targets,
+                &reg.image_from_marker,
+                &sim.image_from_marker(),
+            ))
+        }
+        _ => None,
+    };
+    let written = match &r.file {
+        Some(file) => {
+            mocomp_app::registration_file::save(&a.out, file)?;
+            Some(a.out.display().to_string())
+        }
+        None => None,
+    };
+    let lines = mocomp_app::register_report::lines(&r, truth.as_deref());
+    page.registered(&lines, r.usable());
     if a.json {
-        let json = serde_json::json!({
-            "head_from_image": rec.head_from_image,
-            "fre_mm": rec.fre_mm,
-            "landmarks": rec.landmarks.iter().map(|(k, l)| (k.clone(), l.error_mm)).collect::<std::collections::BTreeMap<_, _>>(),
-            "surface_rms_mm": rec.surface_rms_mm,
-            "surface_points": rec.surface_points,
-            "surface_too_far": r.too_far,
-            "tre_mm": targets.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
-            "file": a.out.display().to_string(),
-        });
+        let json = mocomp_app::register_report::json(&r, truth.as_deref(), written.as_deref());
         writeln!(out, "{json}")?;
-        return Ok(());
+    } else {
+        for l in &lines {
+            writeln!(out, "{l}")?;
+        }
+        if let Some(w) = &written {
+            writeln!(
+                out,
+                "written to {w}; set [head] registration = \"{w}\" to use it"
+            )?;
+        }
     }
-    writeln!(
-        out,
-        "registered: FRE {:.2} mm ({}); surface RMS {:.2} mm over {} points ({} too far left out)",
-        rec.fre_mm,
-        rec.landmarks
-            .iter()
-            .map(|(k, l)| format!("{k} {:.2}", l.error_mm))
-            .collect::<Vec<_>>()
-            .join(", "),
-        rec.surface_rms_mm,
-        rec.surface_points,
-        r.too_far
-    )?;
-    for (name, tre) in &targets {
-        writeln!(out, "  estimated target error at {name}: {tre:.1} mm")?;
+    match mocomp_app::register::refused(&r) {
+        Some(e) => Err(e.into()),
+        None => Ok(()),
     }
-    writeln!(
-        out,
-        "written to {}; set [head] registration = \"{}\" to use it",
-        a.out.display(),
-        a.out.display()
-    )?;
-    Ok(())
 }
 
 fn check(c: CheckArgs, out: &mut dyn Write) -> anyhow::Result<()> {
-    let (setup, streams, pointer) = c.common.open()?;
-    let r = mocomp_app::register::check_live(&setup, &streams, &pointer, &c.landmark, &mut |s| {
-        eprintln!("{s}")
-    })?;
+    let mut stderr = std::io::stderr();
+    let o = c.common.open(&mut stderr)?;
+    if let Some(r) = &o.rehearsal {
+        r.ask(Ask::Touch(c.landmark.clone()));
+    }
+    let r = mocomp_app::register::check_live(
+        &o.setup,
+        &o.streams,
+        &o.pointer,
+        &c.landmark,
+        &mut |s| eprintln!("{s}"),
+    )?;
     if c.json {
         writeln!(
             out,
