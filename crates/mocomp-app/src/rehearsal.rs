@@ -49,7 +49,7 @@ pub fn true_head_from_image(setup: &Setup) -> Isometry3<f64> {
 pub fn operator(setup: &Setup, seed: Option<u64>) -> Result<Operator, AppError> {
     let scalp = ImageScalp::of(setup)?;
     let (head, image_from_head) = scalp.head();
-    let mut config: OperatorConfig = setup.file.tracker.simulated.operator;
+    let mut config: OperatorConfig = setup.file.tracker.simulated.operator.clone();
     if let Some(s) = seed {
         config.seed = s;
     }

@@ -506,27 +506,30 @@ fn registered_head_from_image(reg: &str) -> Isometry3<f64> {
     pose_toml(&doc["registration"]["head_from_image"])
 }
 
+/// The operator's console on a rehearsal in the built-in world: the registration waits for the
+/// page's Start, then shows each step, the landmarks, the sweep and the outcome with the true
+/// error, in a real browser.
 #[test]
 fn the_registration_is_started_and_followed_in_the_console_in_a_real_browser() {
     let dir = TempDir::new("register-console");
-    let (config, pointer, points) = write_setup(&dir);
-    let mut rng = SplitMix64(555);
-    let touch = [points["nasion"], points["lpa"], points["rpa"]];
-    // The server streams once mocomp connects, which it does only after the page's Start.
-    let (_py, addr) = stream(session(&mut rng, &marker_from_image(), &touch, 150));
+    let config = rehearsal_config(
+        &dir,
+        "console.toml",
+        "\n[registration]\nsweep_points = 80\n",
+    );
+    let pointer = true_pointer(&dir);
     let reg = dir.path("registration.toml");
     let s = Session::spawn(&[
         "register",
+        "--simulate",
         "--config",
         &config,
         "--pointer",
         &pointer,
-        "--igtl",
-        &addr,
+        "--seed",
+        "5",
         "--out",
         &reg,
-        "--sweep-points",
-        "100",
         "--dashboard",
         "127.0.0.1:0",
     ]);
@@ -549,7 +552,9 @@ fn the_registration_is_started_and_followed_in_the_console_in_a_real_browser() {
     );
     let result = seen["result"].to_string();
     assert!(
-        result.contains("registered: FRE") && result.contains("error at [goal]: within"),
+        result.contains("registered: FRE")
+            && result.contains("error at [goal]: within")
+            && result.contains("true error at [goal]"),
         "{seen}"
     );
     let events = seen["events"].to_string();
@@ -565,6 +570,19 @@ fn the_registration_is_started_and_followed_in_the_console_in_a_real_browser() {
     assert!(ok, "{printed}");
     assert!(printed.contains("registered: FRE"), "{printed}");
     assert!(std::path::Path::new(&reg).exists());
+}
+
+/// A pointer file with the simulated stylus's true tip.
+fn true_pointer(dir: &TempDir) -> String {
+    let pointer = dir.path("sim-pointer.toml");
+    std::fs::write(
+        &pointer,
+        "[pointer]\ndevice = \"StylusToTracker\"\ntip_in_marker_mm = [2.5, -4.0, 161.0]\n\
+         pivot_in_tracker_mm = [0.0, 0.0, 0.0]\nrms_mm = 0.3\nmax_mm = 0.8\nkept = 300\n\
+         rejected = 0\ninvalid = 0\nspread_deg = 40.0\ncalibrated_at = \"now\"\n",
+    )
+    .unwrap();
+    pointer
 }
 
 /// `examples/run-sim.toml` with its own loopback address, a brisk simulated operator and `extra`
@@ -627,14 +645,7 @@ fn a_registration_rehearsed_in_the_built_in_world_is_within_its_bound_or_refused
         "radii_m = [0.075, 0.095, 0.11]\nmax_tre_mm = 0.3\n",
     );
     std::fs::write(&strict, text).unwrap();
-    let pointer = dir.path("pointer.toml");
-    std::fs::write(
-        &pointer,
-        "[pointer]\ndevice = \"StylusToTracker\"\ntip_in_marker_mm = [2.5, -4.0, 161.0]\n\
-         pivot_in_tracker_mm = [0.0, 0.0, 0.0]\nrms_mm = 0.3\nmax_mm = 0.8\nkept = 300\n\
-         rejected = 0\ninvalid = 0\nspread_deg = 40.0\ncalibrated_at = \"now\"\n",
-    )
-    .unwrap();
+    let pointer = true_pointer(&dir);
     let refused_at = dir.path("refused.toml");
     let out = mocomp(&[
         "register",

@@ -49,13 +49,17 @@ pub enum AirHabit {
 
 /// `[tracker.simulated.operator]`: the simulated operator and the patient's skin. Millimetres
 /// and seconds.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct OperatorConfig {
     /// A touch lands this far from where it was aimed along the skin, 1σ per axis, mm.
     pub touch_sigma_mm: f64,
     /// The anatomical landmark lies this far from the image's along the skin, 1σ per axis, mm.
     pub image_landmark_sigma_mm: f64,
+    /// Landmarks placed wrong on the image: the anatomical one lies this far (image frame, mm)
+    /// from the image's, by name (then on the skin).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub landmark_offsets_mm: BTreeMap<String, [f64; 3]>,
     /// The tip presses the skin in by up to this, mm.
     pub skin_compression_mm: f64,
     /// The skin is off the head model along its normal by this, 1σ, mm…
@@ -87,6 +91,7 @@ impl Default for OperatorConfig {
         Self {
             touch_sigma_mm: 0.7,
             image_landmark_sigma_mm: 0.7,
+            landmark_offsets_mm: BTreeMap::new(),
             skin_compression_mm: 1.0,
             model_sigma_mm: 0.5,
             model_correlation_mm: 20.0,
@@ -143,6 +148,14 @@ impl OperatorConfig {
                 return Err(OperatorError {
                     key,
                     why: format!("{v}: must be {lo} to {hi}"),
+                });
+            }
+        }
+        for (name, v) in &self.landmark_offsets_mm {
+            if !v.iter().all(|x| x.is_finite() && x.abs() <= 100.0) {
+                return Err(OperatorError {
+                    key: "landmark_offsets_mm",
+                    why: format!("{name} = {v:?}: within 100 mm"),
                 });
             }
         }
@@ -253,7 +266,12 @@ impl Operator {
         let skin = TrueSkin::new(head, image_from_shape, field);
         let mut truth = BTreeMap::new();
         for (name, p) in landmarks {
-            let on = skin.nearest(p);
+            let off = config
+                .landmark_offsets_mm
+                .iter()
+                .find(|(k, _)| k.eq_ignore_ascii_case(name))
+                .map_or_else(Vector3::zeros, |(_, v)| Vector3::from(*v) * mm);
+            let on = skin.nearest(&(p + off));
             let moved = along_skin(&mut rng, &on, config.image_landmark_sigma_mm * mm);
             truth.insert(name.to_lowercase(), skin.nearest(&moved));
         }
