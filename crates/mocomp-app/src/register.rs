@@ -205,6 +205,23 @@ pub fn image_landmarks_all(setup: &Setup) -> Vec<Landmark> {
         .collect()
 }
 
+/// The image's landmarks `names` exist and lie on the configuration's scalp (within 10 mm, not on
+/// a scan's cut): a configuration error, before anything starts.
+pub fn check_landmarks(setup: &Setup, names: &[String]) -> Result<(), AppError> {
+    let scalp = ImageScalp::of(setup)?;
+    let shape = scalp.shape();
+    let image = image_landmarks(setup, names)?;
+    mocomp_nav::registration::on_scalp(
+        &Scalp {
+            shape: &shape,
+            cuts: scalp.cuts(),
+        },
+        &image,
+    )
+    .map(|_| ())
+    .map_err(|e| AppError::Config(format!("head.landmarks: {e}")))
+}
+
 /// Registers live: the procedure fed the tips the streams give, `follow` told of each step,
 /// `ask` of each prompt (a simulated operator listens), until it is done.
 pub fn register_live(

@@ -71,13 +71,19 @@ struct Opened {
 }
 
 impl Common {
-    fn open(&self, progress: &mut dyn Write) -> anyhow::Result<Opened> {
+    /// The configuration.
+    fn load(&self) -> anyhow::Result<Setup> {
         crate::args::positive("--timeout", self.timeout)?;
         let config = self
             .config
             .as_ref()
             .ok_or_else(|| crate::UsageError("--config: needed".into()))?;
-        let setup = Setup::load(config)?;
+        Ok(Setup::load(config)?)
+    }
+
+    /// The streams and the pointer for `setup` (with --simulate: the rehearsal started, the
+    /// pointer calibrated on it unless given).
+    fn open(&self, setup: Setup, progress: &mut dyn Write) -> anyhow::Result<Opened> {
         let timeout = Duration::from_secs_f64(self.timeout);
         let (addr, head_device, rehearsal) = if self.simulate {
             let r = Rehearsal::start(&setup, self.seed)?;
@@ -195,8 +201,8 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     // With --json, standard output is the result alone: progress goes to stderr.
     let mut stderr = std::io::stderr();
     let progress: &mut dyn Write = if a.json { &mut stderr } else { out };
-    let o = a.common.open(progress)?;
-    let section = &o.setup.file.registration;
+    let setup = a.common.load()?;
+    let section = &setup.file.registration;
     let asked = Asked {
         landmarks: a
             .landmarks
@@ -204,6 +210,9 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
             .unwrap_or_else(|| section.landmarks.clone()),
         sweep_points: a.sweep_points.unwrap_or(section.sweep_points),
     };
+    // The image's landmarks on the scalp before a pointer is pivoted or a tip read.
+    mocomp_app::register::check_landmarks(&setup, &asked.landmarks)?;
+    let o = a.common.open(setup, progress)?;
     let controls = mocomp_app::frontend::Controls::new();
     let console = a.dashboard.start(&o.setup, &controls, progress)?;
     let mut page = crate::navigation_page::Page::new(console.as_ref(), "registration");
@@ -272,7 +281,8 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
 
 fn check(c: CheckArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let mut stderr = std::io::stderr();
-    let o = c.common.open(&mut stderr)?;
+    let setup = c.common.load()?;
+    let o = c.common.open(setup, &mut stderr)?;
     if let Some(r) = &o.rehearsal {
         r.ask(Ask::Touch(c.landmark.clone()));
     }

@@ -51,7 +51,10 @@ pub struct Limits {
 pub enum Refusal {
     /// A landmark's distances to the others disagree with the image's: it was touched somewhere
     /// else (in the air, on another point).
-    #[error("{why}: touch the {name} again, on the skin")]
+    #[error(
+        "{why}: touch the {name} again, on the skin; if it disagrees again, check \
+         [head.landmarks] {name} against the image"
+    )]
     LandmarkMisplaced {
         /// The landmark.
         name: String,
