@@ -301,11 +301,7 @@ pub fn register_live(
 pub fn conclude(setup: &Setup, outcome: Outcome) -> Registered {
     let file = match (&outcome.registration, outcome.refusals.is_empty()) {
         (Ok(r), true) => Some(RegistrationFile {
-            registration: Record::new(
-                r,
-                setup.file.registration.noise_record(),
-                &crate::targets::now(),
-            ),
+            registration: Record::new(r, setup.file.registration.noise, &crate::targets::now()),
             overrides: Vec::new(),
         }),
         _ => None,

@@ -6,6 +6,12 @@
 //! ```toml
 //! [registration]
 //! landmarks = ["nasion", "lpa", "rpa"]
+//! max_fre_mm = 4.0
+//! sweep_points = 300            # the most
+//! min_sweep_points = 40         # the fewest before the sweep may end early
+//! sweep_until_mm = 2.0          # the sweep ends when the error bound at every target is under this
+//! retouches = 2                 # a landmark that disagrees with the others is asked for again
+//! [registration.noise]
 //! touch_sigma_mm = 0.7          # where a touch lands on the skin, per axis along it (1 mm RMS)
 //! image_landmark_sigma_mm = 0.7 # where the image's landmark lies against the same point
 //! tracker_sigma_mm = 0.25       # the tracked tip, per axis
@@ -13,11 +19,6 @@
 //! model_sigma_mm = 0.5          # the scalp model against the skin, alike over
 //! model_correlation_mm = 20.0   # this distance, and in or out as a whole by
 //! model_offset_mm = 0.3
-//! max_fre_mm = 4.0
-//! sweep_points = 300            # the most
-//! min_sweep_points = 40         # the fewest before the sweep may end early
-//! sweep_until_mm = 2.0          # the sweep ends when the error bound at every target is under this
-//! retouches = 2                 # a landmark that disagrees with the others is asked for again
 //! ```
 
 use crate::AppError;
@@ -42,21 +43,6 @@ pub fn capture_options(noise: &NoiseModel) -> CaptureOptions {
 pub struct RegistrationSection {
     /// The landmarks to touch, in order (each named in `[head.landmarks]`).
     pub landmarks: Vec<String>,
-    /// Where a touch lands on the skin against the anatomical point, per axis along the skin,
-    /// mm.
-    pub touch_sigma_mm: f64,
-    /// Where the image's landmark lies against the same point, per axis along the scalp, mm.
-    pub image_landmark_sigma_mm: f64,
-    /// The tracked tip's noise, per axis, mm.
-    pub tracker_sigma_mm: f64,
-    /// The skin gives under the tip by up to this, mm.
-    pub skin_compression_mm: f64,
-    /// The scalp model's error against the skin, along its normal, mm.
-    pub model_sigma_mm: f64,
-    /// The distance over which that error is alike, mm.
-    pub model_correlation_mm: f64,
-    /// Its part common to the whole head, mm.
-    pub model_offset_mm: f64,
     /// The landmarks' FRE (the RMS of their errors in the final fit) at most, mm.
     pub max_fre_mm: f64,
     /// Sweep points at most (0: the landmarks alone).
@@ -68,13 +54,34 @@ pub struct RegistrationSection {
     pub sweep_until_mm: f64,
     /// How often a landmark that disagrees with the others is asked for again.
     pub retouches: usize,
+    /// `[registration.noise]`: what each input is worth.
+    pub noise: NoiseSection,
 }
 
-impl Default for RegistrationSection {
+/// `[registration.noise]` (and the registration file's): the noise each input is weighed by, mm.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NoiseSection {
+    /// Where a touch lands on the skin against the anatomical point, per axis along the skin.
+    pub touch_sigma_mm: f64,
+    /// Where the image's landmark lies against the same point, per axis along the scalp.
+    pub image_landmark_sigma_mm: f64,
+    /// The tracked tip's noise, per axis.
+    pub tracker_sigma_mm: f64,
+    /// The skin gives under the tip by up to this.
+    pub skin_compression_mm: f64,
+    /// The scalp model's error against the skin, along its normal.
+    pub model_sigma_mm: f64,
+    /// The distance over which that error is alike.
+    pub model_correlation_mm: f64,
+    /// Its part common to the whole head.
+    pub model_offset_mm: f64,
+}
+
+impl Default for NoiseSection {
     fn default() -> Self {
         let n = NoiseModel::default();
         Self {
-            landmarks: vec!["nasion".into(), "lpa".into(), "rpa".into()],
             touch_sigma_mm: n.touch_sigma_m * MM_PER_M,
             image_landmark_sigma_mm: n.image_landmark_sigma_m * MM_PER_M,
             tracker_sigma_mm: n.tracker_sigma_m * MM_PER_M,
@@ -82,18 +89,13 @@ impl Default for RegistrationSection {
             model_sigma_mm: n.model_sigma_m * MM_PER_M,
             model_correlation_mm: n.model_correlation_m * MM_PER_M,
             model_offset_mm: n.model_offset_m * MM_PER_M,
-            max_fre_mm: 4.0,
-            sweep_points: 300,
-            min_sweep_points: 40,
-            sweep_until_mm: 2.0,
-            retouches: 2,
         }
     }
 }
 
-impl RegistrationSection {
+impl NoiseSection {
     /// The noise model, m.
-    pub fn noise(&self) -> NoiseModel {
+    pub fn model(&self) -> NoiseModel {
         let m = |mm: f64| mm / MM_PER_M;
         NoiseModel {
             touch_sigma_m: m(self.touch_sigma_mm),
@@ -105,18 +107,26 @@ impl RegistrationSection {
             model_offset_m: m(self.model_offset_mm),
         }
     }
+}
 
-    /// The noise model as the registration file records it.
-    pub fn noise_record(&self) -> crate::registration_file::NoiseRecord {
-        crate::registration_file::NoiseRecord {
-            touch_sigma_mm: self.touch_sigma_mm,
-            image_landmark_sigma_mm: self.image_landmark_sigma_mm,
-            tracker_sigma_mm: self.tracker_sigma_mm,
-            skin_compression_mm: self.skin_compression_mm,
-            model_sigma_mm: self.model_sigma_mm,
-            model_correlation_mm: self.model_correlation_mm,
-            model_offset_mm: self.model_offset_mm,
+impl Default for RegistrationSection {
+    fn default() -> Self {
+        Self {
+            landmarks: vec!["nasion".into(), "lpa".into(), "rpa".into()],
+            max_fre_mm: 4.0,
+            sweep_points: 300,
+            min_sweep_points: 40,
+            sweep_until_mm: 2.0,
+            retouches: 2,
+            noise: NoiseSection::default(),
         }
+    }
+}
+
+impl RegistrationSection {
+    /// The noise model, m.
+    pub fn noise(&self) -> NoiseModel {
+        self.noise.model()
     }
 
     /// Every value in range, the key named.
@@ -129,7 +139,7 @@ impl RegistrationSection {
         }
         self.noise()
             .validate()
-            .map_err(|e| AppError::Config(format!("registration.{}_mm: {}", e.key, e.why)))?;
+            .map_err(|e| AppError::Config(format!("registration.noise.{}_mm: {}", e.key, e.why)))?;
         if !(self.max_fre_mm.is_finite() && self.max_fre_mm > 0.0 && self.max_fre_mm <= 50.0) {
             return Err(AppError::Config(format!(
                 "registration.max_fre_mm = {}: must be in (0, 50]",

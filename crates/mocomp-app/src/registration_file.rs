@@ -19,8 +19,8 @@
 //! # the pose's covariance, a left perturbation in the image's frame about its origin:
 //! # rotation (mrad) then translation (mm), 6 × 6 row by row
 //! covariance_mrad_mm = [0.02, 0.0, ...]
-//! [registration.noise]
-//! touch_sigma_mm = 1.0
+//! [registration.noise]                # [registration.noise] as it was
+//! touch_sigma_mm = 0.7
 //! ...
 //! [registration.landmarks.nasion]
 //! image_mm = [1.5, 85.1, -34.8]      # on the scalp
@@ -35,6 +35,7 @@
 //! reason = "patient cannot stay longer; accepted by Dr X"
 //! ```
 
+use crate::registration_config::NoiseSection;
 use crate::{AppError, Context};
 use mocomp_geom::nalgebra::{Isometry3, Matrix6, Point3, Vector3};
 use mocomp_nav::Registration;
@@ -77,30 +78,10 @@ pub struct Record {
     /// The covariance of a left perturbation of `image_from_marker` in the image's frame about
     /// its origin: rotation (mrad) then translation (mm), 6 × 6 row by row.
     pub covariance_mrad_mm: Vec<f64>,
-    /// The noise it was weighed by.
-    pub noise: NoiseRecord,
+    /// The noise it was weighed by (`[registration.noise]` as it was).
+    pub noise: NoiseSection,
     /// Each landmark used.
     pub landmarks: BTreeMap<String, LandmarkRecord>,
-}
-
-/// The noise model as written (`[registration]`'s keys).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NoiseRecord {
-    /// Touch, per axis along the skin, mm.
-    pub touch_sigma_mm: f64,
-    /// The image's landmark, per axis along the scalp, mm.
-    pub image_landmark_sigma_mm: f64,
-    /// The tracked tip, per axis, mm.
-    pub tracker_sigma_mm: f64,
-    /// The skin's give, at most, mm.
-    pub skin_compression_mm: f64,
-    /// The model against the skin, mm.
-    pub model_sigma_mm: f64,
-    /// Alike over, mm.
-    pub model_correlation_mm: f64,
-    /// In common, mm.
-    pub model_offset_mm: f64,
 }
 
 /// One landmark as used.
@@ -139,7 +120,7 @@ fn mm(p: &Point3<f64>) -> [f64; 3] {
 
 impl Record {
     /// The record of `r`, weighed by `noise` (as configured), made `at` (a date).
-    pub fn new(r: &Registration, noise: NoiseRecord, at: &str) -> Self {
+    pub fn new(r: &Registration, noise: NoiseSection, at: &str) -> Self {
         let head_from_image = r.image_from_marker.inverse();
         let (t, v) = (
             head_from_image.translation.vector,

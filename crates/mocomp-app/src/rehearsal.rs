@@ -96,15 +96,8 @@ impl Rehearsal {
     pub fn start(setup: &Setup, seed: Option<u64>) -> Result<Self, AppError> {
         let file = &setup.file;
         let s = &file.tracker.simulated;
-        let tracker_from_base = match &s.base_from_tracker {
-            Some(y) => y.iso(),
-            None => setup.base_from_tracker,
-        }
-        .inverse();
-        let rest = s.base_from_head.iso();
         let head_from_image = true_head_from_image(setup);
-        let trajectory = s.motion.trajectory();
-        let head_at = move |t: f64| tracker_from_base * rest * trajectory.rest_from_head(t);
+        let head_at = crate::world::simulated_head(setup);
         let head_at_too = head_at.clone();
         let ask = Arc::new(Mutex::new(Ask::Rest));
         let asked = Arc::clone(&ask);

@@ -353,21 +353,36 @@ fn scalp_contact(setup: &Setup, head_t0: Arc<OnceLock<Instant>>) -> Result<ToolL
     }))
 }
 
+/// Where the simulated tracker truly is in the robot's base: `[tracker.simulated]
+/// base_from_tracker`, else the calibration's.
+fn tracker_from_base(setup: &Setup) -> Isometry3<f64> {
+    match &setup.file.tracker.simulated.base_from_tracker {
+        Some(y) => y.iso(),
+        None => setup.base_from_tracker,
+    }
+    .inverse()
+}
+
+/// The simulated head marker in the tracker's view `t` seconds into its motion
+/// (`[tracker.simulated]`: at rest where `base_from_head` says, moving as `motion` says).
+pub fn simulated_head(setup: &Setup) -> impl Fn(f64) -> Isometry3<f64> + Clone + Send + 'static {
+    let s = &setup.file.tracker.simulated;
+    let tracker_from_base = tracker_from_base(setup);
+    let rest = s.base_from_head.iso();
+    let trajectory = s.motion.trajectory();
+    move |t| tracker_from_base * rest * trajectory.rest_from_head(t)
+}
+
 /// The simulated tracker: the head marker (moving as configured) and, when the robot is
 /// simulated, the calibration marker on its flange (at the simulated robot's joints).
 fn start_tracker(setup: &Setup, sim: Option<Arc<Sim>>) -> Result<TrackerServer, AppError> {
     let file = &setup.file;
     let s = &file.tracker.simulated;
-    let tracker_from_base = match &s.base_from_tracker {
-        Some(y) => y.iso(),
-        None => setup.base_from_tracker,
-    }
-    .inverse();
-    let rest = s.base_from_head.iso();
-    let trajectory = s.motion.trajectory();
+    let head = simulated_head(setup);
+    let tracker_from_base = tracker_from_base(setup);
     let mut markers = vec![TrackedMarker {
         device: file.tracker.device.clone(),
-        truth: Box::new(move |t| Some(tracker_from_base * rest * trajectory.rest_from_head(t))),
+        truth: Box::new(move |t| Some(head(t))),
     }];
     if let Some(sim) = sim {
         let flange_from_marker = s.flange_from_marker.iso();

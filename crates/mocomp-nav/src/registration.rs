@@ -106,6 +106,18 @@ pub struct LandmarkFit {
     pub chi2_limit: f64,
 }
 
+impl LandmarkFit {
+    /// The landmark as the image and the touch pair it.
+    pub fn pair(&self) -> Pair {
+        Pair {
+            name: self.name.clone(),
+            image: self.image,
+            normal: self.normal,
+            touched: self.touched,
+        }
+    }
+}
+
 /// How the swept points fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SurfaceFit {
@@ -207,16 +219,7 @@ pub fn register_checked(
     noise: &NoiseModel,
 ) -> Result<Registration, NavError> {
     let mut r = register_on_scalp(scalp, image, touched, swept, noise)?;
-    let pairs: Vec<Pair> = r
-        .landmarks
-        .iter()
-        .map(|l| Pair {
-            name: l.name.clone(),
-            image: l.image,
-            normal: l.normal,
-            touched: l.touched,
-        })
-        .collect();
+    let pairs: Vec<Pair> = r.landmarks.iter().map(LandmarkFit::pair).collect();
     r.halves = halves(scalp, &pairs, swept, noise, &r.image_from_marker)?;
     Ok(r)
 }

@@ -180,12 +180,7 @@ pub fn verdict(
     let pairs: Vec<Pair> = registration
         .landmarks
         .iter()
-        .map(|l| Pair {
-            name: l.name.clone(),
-            image: l.image,
-            normal: l.normal,
-            touched: l.touched,
-        })
+        .map(crate::registration::LandmarkFit::pair)
         .collect();
     // A landmark touched elsewhere spoils the whole fit: it is what to redo, before anything the
     // fit says.
