@@ -185,8 +185,6 @@ pub struct Rehearsed {
     pub outcome: Outcome,
     /// The registration's true error at each target, m (none without a registration).
     pub true_errors: Vec<(String, f64)>,
-    /// How long the procedure took, s.
-    pub took_s: f64,
 }
 
 /// Steps `world` until the procedure is done (or `max_s`): the operator does what it is asked,
@@ -213,7 +211,6 @@ pub fn rehearse_offline(world: OfflineWorld<'_>) -> Result<Rehearsed, AppError> 
     let dt = 1.0 / tracker.rate_hz;
     let mut t = 0.0;
     let mut head: Option<Isometry3<f64>> = None;
-    let mut last_t = 0.0;
     while !procedure.done() && t < max_s {
         t += dt;
         // Each pointer sample with the head marker's of the same instant, its tip in the head
@@ -248,7 +245,6 @@ pub fn rehearse_offline(world: OfflineWorld<'_>) -> Result<Rehearsed, AppError> 
         );
         for (at, tip) in tips {
             procedure.feed(at, &tip);
-            last_t = at;
             ask = ask_for(&procedure.prompt());
         }
     }
@@ -260,6 +256,5 @@ pub fn rehearse_offline(world: OfflineWorld<'_>) -> Result<Rehearsed, AppError> 
     Ok(Rehearsed {
         outcome,
         true_errors,
-        took_s: last_t,
     })
 }

@@ -16,7 +16,7 @@
 //!   and the model has a part common to the whole head ([`NoiseModel::model_offset_m`]: a
 //!   threshold that puts the whole scalp in or out).
 
-use mocomp_geom::nalgebra::{Matrix3, Vector3};
+use mocomp_geom::nalgebra::{Matrix3, Point3, Vector3};
 
 /// The noise a registration is weighed by.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -121,6 +121,24 @@ impl NoiseModel {
     /// model's error, and the skin's give (a hand presses alike along a stroke), m².
     pub fn correlated_variance(&self) -> f64 {
         self.model_sigma_m.powi(2) + self.skin_compression_m.powi(2) / 12.0
+    }
+
+    /// Each of `points`' weight across the skin (one over its variance): its own part, and the
+    /// correlated part once for every point near it (a Gaussian kernel of their distances over
+    /// the correlation length, itself included), so that a patch swept densely weighs as one
+    /// patch, 1/m².
+    pub fn shared_weights(&self, points: &[Point3<f64>]) -> Vec<f64> {
+        let k = -0.5 / self.model_correlation_m.powi(2);
+        points
+            .iter()
+            .map(|p| {
+                let near: f64 = points
+                    .iter()
+                    .map(|q| ((p - q).norm_squared() * k).exp())
+                    .sum();
+                1.0 / (self.independent_variance() + self.correlated_variance() * near)
+            })
+            .collect()
     }
 
     /// A swept point's whole variance across the skin, m².

@@ -234,11 +234,6 @@ impl<'a> Procedure<'a> {
         self.sweep.points()
     }
 
-    /// The registration so far (after the landmarks).
-    pub fn estimate(&self) -> Option<&Registration> {
-        self.estimate.as_ref()
-    }
-
     /// What the operator is to do now.
     pub fn prompt(&self) -> Prompt {
         match &self.stage {

@@ -10,7 +10,8 @@ use crate::bound::norm_quantile;
 use crate::noise::NoiseModel;
 use crate::registration::{CONFIDENCE, ImageLandmark, error_covariance_at};
 use crate::scalp::Scalp;
-use mocomp_geom::nalgebra::{Matrix6, Point3, Unit, Vector3, Vector6};
+use crate::solve::surface_row;
+use mocomp_geom::nalgebra::{Matrix6, Point3, Unit, Vector3};
 
 /// Directions the scalp is sampled along (a Fibonacci sphere).
 const DIRECTIONS: usize = 600;
@@ -126,20 +127,15 @@ pub type SkinPoints = [(Point3<f64>, Vector3<f64>)];
 /// The information `points` hold: each one's distance across the skin, its correlated error
 /// shared with the points near it (as the fit weighs them).
 pub fn surface_information(points: &SkinPoints, noise: &NoiseModel) -> Matrix6<f64> {
-    let k = -0.5 / noise.model_correlation_m.powi(2);
-    let mut h = Matrix6::zeros();
-    for (p, n) in points {
-        let near: f64 = points
-            .iter()
-            .map(|(q, _)| ((p - q).norm_squared() * k).exp())
-            .sum();
-        let w = 1.0 / (noise.independent_variance() + noise.correlated_variance() * near);
-        let mut j = Vector6::zeros();
-        j.fixed_rows_mut::<3>(0).copy_from(&p.coords.cross(n));
-        j.fixed_rows_mut::<3>(3).copy_from(n);
-        h += j * j.transpose() * w;
-    }
-    h
+    let at: Vec<Point3<f64>> = points.iter().map(|(p, _)| *p).collect();
+    points
+        .iter()
+        .zip(noise.shared_weights(&at))
+        .map(|((p, n), w)| {
+            let j = surface_row(p, n);
+            j * j.transpose() * w
+        })
+        .sum()
 }
 
 /// The region whose thorough sweep would lower the worst bound at `targets` most, with that

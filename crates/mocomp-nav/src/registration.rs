@@ -14,7 +14,7 @@ use crate::bound::{chi2_quantile, norm_quantile};
 use crate::landmarks::{Landmark, register_landmarks};
 use crate::noise::NoiseModel;
 use crate::scalp::Scalp;
-use crate::solve::{GATE_SIGMAS, Pair, point_jacobian, solve};
+use crate::solve::{GATE_SIGMAS, Pair, point_jacobian, solve, surface_row};
 use mocomp_geom::nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Matrix6, Point3, Vector3, Vector6,
 };
@@ -375,10 +375,7 @@ fn landmark_fits(
             );
             let q = pose * p.touched;
             let s = scalp.nearest(&q);
-            let nrm = s.normal.into_inner();
-            let mut row = Vector6::zeros();
-            row.fixed_rows_mut::<3>(0).copy_from(&q.coords.cross(&nrm));
-            row.fixed_rows_mut::<3>(3).copy_from(&nrm);
+            let row = surface_row(&q, &s.normal.into_inner());
             let spread = (across + (row.transpose() * covariance * row)[(0, 0)]).sqrt();
             LandmarkFit {
                 name: p.name.clone(),

@@ -7,8 +7,8 @@
 //! variance along that motion, which the landmarks then bound.
 //!
 //! The model's error is correlated along the skin: each swept point's variance carries the
-//! model's part once for every point near it (a Gaussian kernel over
-//! [`NoiseModel::model_correlation_m`]), so a patch swept densely weighs as one patch, and the part
+//! model's part once for every point near it ([`NoiseModel::shared_weights`]), so a patch swept
+//! densely weighs as one patch, and the part
 //! common to the whole head ([`NoiseModel::model_offset_m`]) enters as one shared term (the
 //! Sherman–Morrison form of its rank-one covariance). Points off the skin (the pointer
 //! approaching, lifting off, a hair tie) are left out by a gate of [`GATE_SIGMAS`] of their own
@@ -81,27 +81,11 @@ pub fn point_jacobian(q: &Point3<f64>) -> Matrix3x6<f64> {
 }
 
 /// A swept point's row: its distance across the skin at `q` with outward normal `n`.
-fn surface_row(q: &Point3<f64>, n: &Vector3<f64>) -> Vector6<f64> {
+pub(crate) fn surface_row(q: &Point3<f64>, n: &Vector3<f64>) -> Vector6<f64> {
     let mut j = Vector6::zeros();
     j.fixed_rows_mut::<3>(0).copy_from(&q.coords.cross(n));
     j.fixed_rows_mut::<3>(3).copy_from(n);
     j
-}
-
-/// How many used points share each used point's model error: the Gaussian kernel of their
-/// distances (head marker frame, where they do not move) over the correlation length, itself
-/// included.
-fn neighbours(swept: &[Point3<f64>], used: &[bool], rho: f64) -> Vec<f64> {
-    let k = -0.5 / (rho * rho);
-    let idx: Vec<usize> = (0..swept.len()).filter(|&i| used[i]).collect();
-    let mut n = vec![0.0; swept.len()];
-    for &i in &idx {
-        n[i] = idx
-            .iter()
-            .map(|&j| ((swept[i] - swept[j]).norm_squared() * k).exp())
-            .sum();
-    }
-    n
 }
 
 /// The weighted normal equations at `pose`.
@@ -187,17 +171,16 @@ pub fn solve(
     let mut covariance = Matrix6::zeros();
     let mut information = Matrix6::zeros();
     for _ in 0..ROUNDS {
-        let n = neighbours(swept, &used, noise.model_correlation_m);
+        // The used points' weights (head marker frame, where they do not move); 0 for the rest.
+        let kept: Vec<Point3<f64>> = swept
+            .iter()
+            .zip(&used)
+            .filter_map(|(p, &u)| u.then_some(*p))
+            .collect();
+        let mut shared = noise.shared_weights(&kept).into_iter();
         let weights: Vec<f64> = used
             .iter()
-            .zip(&n)
-            .map(|(&u, &k)| {
-                if u {
-                    1.0 / (noise.independent_variance() + noise.correlated_variance() * k)
-                } else {
-                    0.0
-                }
-            })
+            .map(|&u| if u { shared.next().unwrap_or(0.0) } else { 0.0 })
             .collect();
         for _ in 0..MAX_ITERATIONS {
             iterations += 1;

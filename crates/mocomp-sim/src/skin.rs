@@ -43,15 +43,6 @@ impl Field {
         }
     }
 
-    /// None: the model is the skin.
-    pub fn zero() -> Self {
-        Self {
-            features: Vec::new(),
-            amplitude: 0.0,
-            offset: 0.0,
-        }
-    }
-
     /// The field at `p`, m.
     pub fn at(&self, p: &Point3<f64>) -> f64 {
         self.offset
@@ -152,6 +143,5 @@ mod tests {
         assert!((sd / s - 1.0).abs() < 0.1, "{sd}");
         let corr = ab / (aa * bb).sqrt();
         assert!((corr - (-0.5f64).exp()).abs() < 0.05, "{corr}");
-        assert_eq!(Field::zero().at(&a), 0.0);
     }
 }
