@@ -28,8 +28,9 @@ pub struct CaptureOptions {
     pub hold_within_m: f64,
     /// How far the tip must go from a hold for it to count as left, m.
     pub away_m: f64,
-    /// How long before a hold its arrival is measured from, s.
-    pub arrival_s: f64,
+    /// A hold's arrival is the way the tip came over its last this much before it, m (the
+    /// last stretch of the way in, however fast: not the travel from the last landmark).
+    pub arrival_m: f64,
     /// A hold whose distances to the landmarks already taken differ from the image's by more
     /// than this is not a touch of this landmark, m.
     pub consistent_within_m: f64,
@@ -45,7 +46,7 @@ impl Default for CaptureOptions {
             hold_samples: 20,
             hold_within_m: 1e-3,
             away_m: 0.015,
-            arrival_s: 0.5,
+            arrival_m: 0.015,
             consistent_within_m: 0.01,
             insist_s: 1.0,
         }
@@ -199,11 +200,12 @@ impl LandmarkCapture {
             Some((p, since)) if (p - median).norm() <= 2.0 * self.options.hold_within_m => since,
             _ => self.burst_t0,
         };
-        let before = start - self.options.arrival_s;
-        let arrival = self
-            .history
-            .iter()
-            .find(|(t0, _)| *t0 >= before)
+        // Back from the hold's start: the last tip `arrival_m` from it, else the oldest kept.
+        let mut earlier = self.history.iter().rev().filter(|(t0, _)| *t0 < start);
+        let from = earlier
+            .find(|(_, p)| (median - p).norm() >= self.options.arrival_m)
+            .or_else(|| self.history.iter().find(|(t0, _)| *t0 < start));
+        let arrival = from
             .map(|(_, p)| median - p)
             .filter(|a| a.norm() >= MIN_ARRIVAL_M)
             .map(|a| a.normalize());

@@ -516,3 +516,97 @@ fn far_from_others(
             })
         })
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)] // test code
+    use super::*;
+    use crate::{CaptureOptions, SweepOptions};
+    use mocomp_geom::nalgebra::Vector3;
+    use mocomp_head::{Ellipsoid, HeadShape};
+
+    fn settings(targets: Vec<Target>) -> Settings {
+        Settings {
+            landmarks: vec!["nasion".into(), "lpa".into(), "rpa".into()],
+            noise: NoiseModel::default(),
+            capture: CaptureOptions::default(),
+            sweep: SweepOptions::default(),
+            min_points: 40,
+            max_points: 0,
+            sweep_until_m: 0.0,
+            retouches: 2,
+            targets,
+            limits: Limits {
+                max_fre_m: 4e-3,
+                max_error_m: 1.0,
+            },
+        }
+    }
+
+    /// A touch at `at` on `head` (image frame = marker frame here): the pointer brought straight
+    /// from where the last touch left it to 50 mm out along the normal, in, held 1.5 s, lifted;
+    /// 60 tips a second from `t`. Its half-second before the touch spans the jump from the last
+    /// landmark: what counts as its arrival is the last stretch in.
+    fn touch(p: &mut Procedure<'_>, head: &Ellipsoid, at: Point3<f64>, t: &mut f64) -> Vec<Notice> {
+        let n = head.nearest(&at).normal.into_inner();
+        let mut said = Vec::new();
+        let mut feed = |q: Point3<f64>, said: &mut Vec<Notice>| {
+            *t += 1.0 / 60.0;
+            said.extend(p.feed(*t, &q));
+        };
+        for k in 0..30 {
+            feed(at + n * (0.05 * (1.0 - k as f64 / 29.0)), &mut said);
+        }
+        for _ in 0..90 {
+            feed(at, &mut said);
+        }
+        for k in 0..30 {
+            feed(at + n * (0.05 * k as f64 / 29.0), &mut said);
+        }
+        said
+    }
+
+    /// The lpa touched 15 mm behind its place (held on, so it is taken): the landmarks' check asks
+    /// for it again by name (with the nasion, the one distance that disagrees being theirs), and
+    /// touched right as asked, the procedure goes on to its end.
+    #[test]
+    fn a_landmark_touched_in_the_wrong_place_is_asked_for_again_by_name() {
+        let head = Ellipsoid::adult();
+        let on = |d: Vector3<f64>| head.nearest(&Point3::from(d * 0.2)).point;
+        let image = vec![
+            Landmark::new("nasion", on(Vector3::new(0.0, 1.0, -0.3))),
+            Landmark::new("lpa", on(Vector3::new(-1.0, 0.0, -0.3))),
+            Landmark::new("rpa", on(Vector3::new(1.0, 0.0, -0.3))),
+        ];
+        let scalp = Scalp::whole(&head);
+        let mut p = Procedure::new(scalp, &image, settings(Vec::new())).unwrap();
+        let mut t = 0.0;
+        assert_eq!(p.prompt(), Prompt::Touch("nasion".into()));
+        touch(&mut p, &head, image[0].point, &mut t);
+        assert_eq!(p.prompt(), Prompt::Touch("lpa".into()));
+        let wrong = head
+            .nearest(&(image[1].point + Vector3::new(0.0, -0.015, 0.0)))
+            .point;
+        touch(&mut p, &head, wrong, &mut t);
+        let said = touch(&mut p, &head, image[2].point, &mut t);
+        assert!(
+            said.iter()
+                .any(|n| matches!(n, Notice::Again { name, .. } if name == "lpa")),
+            "{said:?}"
+        );
+        // Touched where asked, now right.
+        for _ in 0..4 {
+            let Prompt::Touch(name) = p.prompt() else {
+                break;
+            };
+            let at = image.iter().find(|l| l.name == name).unwrap().point;
+            touch(&mut p, &head, at, &mut t);
+        }
+        assert!(p.done(), "{:?}", p.prompt());
+        let out = p.finish();
+        let r = out.registration.unwrap();
+        let lpa = r.landmarks.iter().find(|l| l.name == "lpa").unwrap();
+        assert!(lpa.error_m < 2e-3, "{lpa:?}");
+        assert!(out.refusals.is_empty(), "{:?}", out.refusals);
+    }
+}
