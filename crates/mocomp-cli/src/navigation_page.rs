@@ -55,9 +55,11 @@ impl<'a> Page<'a> {
         if self.console.is_none() {
             return;
         }
-        let step = match p.prompt() {
-            Prompt::Touch(n) => format!("touch the {n} with the pointer and hold still"),
-            Prompt::TakeAway(n) => format!("take the pointer off the {n}"),
+        let prompt = p.prompt();
+        let step = match &prompt {
+            Prompt::Touch(_) | Prompt::TakeAway(_) => {
+                mocomp_app::register::prompt_line(&prompt).unwrap_or_default()
+            }
             Prompt::Sweep {
                 region: Some(r), ..
             } => {

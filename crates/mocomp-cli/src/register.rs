@@ -46,7 +46,7 @@ struct Common {
     /// The OpenIGTLink server streaming the pointer and the head marker.
     #[arg(long, value_name = "HOST:PORT", required_unless_present = "simulate")]
     igtl: Option<String>,
-    /// The head marker's device.
+    /// The head marker's device (with --simulate: `[tracker] device`).
     #[arg(long, default_value = "HeadToTracker")]
     head_device: String,
     /// Give up when nothing arrives for this many seconds.
