@@ -71,18 +71,38 @@ impl Heard {
     }
 }
 
-/// What a listen heard in all: the poses and the client's counters, as one line.
-pub fn counts_line(poses: u64, c: &ClientCounters) -> String {
-    format!(
-        "{poses} poses; {} messages, {} CRC errors, {} malformed, {} zero timestamps, {} backwards, {} clock steps, {} reconnects",
+/// What a listen heard in all: the client's counters and the last damage it named.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Listened {
+    /// The client's counters.
+    pub counters: ClientCounters,
+    /// The last stream error, in words (a damaged message, a dropped stream, a reader failure).
+    pub last_error: Option<String>,
+}
+
+/// What a listen heard in all, as one line: the poses, the messages, the damaged ones (and the
+/// last damage named), the timestamps' faults and the reconnects.
+pub fn counts_line(poses: u64, l: &Listened) -> String {
+    let c = &l.counters;
+    let damaged = c.crc_errors + c.malformed + c.fatal_errors + c.reader_failures;
+    let mut line = format!(
+        "{poses} poses; {} messages, {damaged} damaged ({} CRC errors, {} malformed, {} streams out of step, {} reader failures), {} zero timestamps, {} backwards, {} clock steps, {} reconnects",
         c.messages,
         c.crc_errors,
         c.malformed,
+        c.fatal_errors,
+        c.reader_failures,
         c.zero_timestamps,
         c.backwards_timestamps,
         c.clock_steps,
         c.connections.saturating_sub(1)
-    )
+    );
+    if damaged > 0
+        && let Some(e) = &l.last_error
+    {
+        line.push_str(&format!("; last: {e}"));
+    }
+    line
 }
 
 /// What a listener's callback answers: go on, stop, or fail.
@@ -94,10 +114,10 @@ pub type Flow = Result<ControlFlow<()>, AppError>;
 pub fn listen(
     o: &ListenOptions,
     each: &mut dyn FnMut(&Heard) -> Flow,
-) -> Result<ClientCounters, AppError> {
+) -> Result<Listened, AppError> {
     let mut poses = 0u64;
     if o.count == Some(0) {
-        return Ok(ClientCounters::default());
+        return Ok(Listened::default());
     }
     listen_devices(o, &[o.device.as_str()], &mut |_, h| {
         poses += 1;
@@ -117,7 +137,7 @@ pub fn listen_devices(
     o: &ListenOptions,
     devices: &[&str],
     each: &mut dyn FnMut(usize, &Heard) -> Flow,
-) -> Result<ClientCounters, AppError> {
+) -> Result<Listened, AppError> {
     let mut cfg = ClientConfig::new(&o.addr);
     cfg.device = devices.first().map(|d| d.to_string());
     cfg.keep_messages = 4096;
@@ -132,7 +152,7 @@ pub fn listen_devices(
             if last.elapsed() > o.timeout {
                 let c = client.counters();
                 refuse!(
-                    "--igtl {}: no pose of {} for {:.1} s ({} messages, {} connections, last error: {})",
+                    "--igtl {}: no pose of {} for {:.1} s ({} messages, {} damaged, {} connections, last error: {})",
                     o.addr,
                     devices
                         .iter()
@@ -141,6 +161,7 @@ pub fn listen_devices(
                         .join(" or "),
                     o.timeout.as_secs_f64(),
                     c.messages,
+                    c.crc_errors + c.malformed + c.fatal_errors + c.reader_failures,
                     c.connections,
                     client.last_error().unwrap_or_else(|| "none".into())
                 );
@@ -165,7 +186,10 @@ pub fn listen_devices(
                 },
             )?;
             if flow.is_break() {
-                return Ok(client.counters());
+                return Ok(Listened {
+                    counters: client.counters(),
+                    last_error: client.last_error(),
+                });
             }
         }
     }

@@ -412,6 +412,9 @@ pub struct TrackerFigures {
     pub backwards_timestamps: u64,
     /// Steps of the tracker's clock the client re-based for (`timestamps = "estimated"`).
     pub clock_steps: u64,
+    /// Times the client's reader failed on a message (it dropped the connection and made it
+    /// again).
+    pub reader_failures: u64,
 }
 
 impl From<mocomp_igtl::client::ClientCounters> for TrackerFigures {
@@ -423,6 +426,7 @@ impl From<mocomp_igtl::client::ClientCounters> for TrackerFigures {
             streams_dropped: c.fatal_errors,
             backwards_timestamps: c.backwards_timestamps,
             clock_steps: c.clock_steps,
+            reader_failures: c.reader_failures,
         }
     }
 }

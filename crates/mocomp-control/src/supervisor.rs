@@ -8,6 +8,7 @@
 //! |---|---|---|
 //! | `NoTracker` | hold | nothing to follow yet |
 //! | `TrackerStale` (lost longer than `tracker_stale_s + coast_s`) | hold | where the head is is unknown; moving blind is worse than staying |
+//! | `TrackerInputFailed` (the thread feeding the tracker failed, and no sample came since) | hold | as a lost tracker, with the cause named; the input reconnects by itself |
 //! | `TrackerFrozen` | hold | a frozen stream looks like a still head but is not one |
 //! | `MarkerInvalid` (longer than the coast time) | hold | as a lost tracker |
 //! | `HeadTooFast` | retreat | a head faster than the robot may follow must not catch the coil: back off along the approach axis, keep following from there |
@@ -70,6 +71,9 @@ pub enum Reason {
     NoTracker,
     /// The newest sample is older than `tracker_stale_s + coast_s` (its age, s).
     TrackerStale(f64),
+    /// The thread feeding the tracker's samples failed (panicked, or ended when nobody asked)
+    /// this many times, and no sample has come since: the tracker is lost for that named cause.
+    TrackerInputFailed(u64),
     /// `frozen_samples` identical samples in a row.
     TrackerFrozen,
     /// The tracker has marked the marker invalid (lost, out of view) for longer than the coast
@@ -197,6 +201,7 @@ pub fn reaction(reason: &Reason) -> Reaction {
     match reason {
         Reason::NoTracker => Hold,
         Reason::TrackerStale(_) => Hold,
+        Reason::TrackerInputFailed(_) => Hold,
         Reason::TrackerFrozen => Hold,
         Reason::MarkerInvalid => Hold,
         Reason::HeadTooFast(..) => Retreat,
@@ -293,6 +298,8 @@ pub struct TrackerInputs {
     pub identical: u32,
     /// The estimated head speed, m/s and rad/s.
     pub speed: (f64, f64),
+    /// Failures of the thread feeding the samples since the newest sample (0: none).
+    pub input_failures: u64,
 }
 
 /// The tracker rules' verdict.
@@ -309,10 +316,13 @@ pub enum TrackerVerdict {
 /// The tracker rules, in order: none yet, lost past the coast time, frozen, too fast; a short
 /// dropout (late or invalid samples) is coasted.
 pub fn tracker_rules(t: &TrackerInputs, p: &LoopParams) -> TrackerVerdict {
+    let lost_after = p.tracker_stale_s + p.coast_s;
+    if t.input_failures > 0 && (!t.initialised || t.age_s > lost_after) {
+        return TrackerVerdict::Refused(Reason::TrackerInputFailed(t.input_failures));
+    }
     if !t.initialised {
         return TrackerVerdict::Refused(Reason::NoTracker);
     }
-    let lost_after = p.tracker_stale_s + p.coast_s;
     if t.age_s > lost_after {
         return TrackerVerdict::Refused(if t.valid {
             Reason::TrackerStale(t.age_s)
@@ -370,6 +380,7 @@ mod tests {
             age_s: 0.03,
             identical: 0,
             speed: (0.05, 0.3),
+            input_failures: 0,
         }
     }
 
@@ -382,6 +393,26 @@ mod tests {
     #[test]
     fn a_fresh_sample_of_a_moving_head_is_followed() {
         assert_eq!(verdict(|_| {}), TrackerVerdict::Fresh);
+    }
+
+    #[test]
+    fn a_failed_input_is_named_once_the_tracker_is_lost_and_not_before() {
+        let p = LoopParams::default();
+        let lost = p.tracker_stale_s + p.coast_s + 0.001;
+        // The reader failed but the next sample came within the coast time: followed.
+        assert_eq!(verdict(|t| t.input_failures = 1), TrackerVerdict::Fresh);
+        // Lost after it failed: the hold names the failure, not a stale tracker.
+        let v = verdict(|t| {
+            t.input_failures = 2;
+            t.age_s = lost;
+        });
+        assert_eq!(v, TrackerVerdict::Refused(Reason::TrackerInputFailed(2)));
+        let v = verdict(|t| {
+            t.input_failures = 1;
+            t.initialised = false;
+        });
+        assert_eq!(v, TrackerVerdict::Refused(Reason::TrackerInputFailed(1)));
+        assert_eq!(reaction(&Reason::TrackerInputFailed(1)), Reaction::Hold);
     }
 
     #[test]

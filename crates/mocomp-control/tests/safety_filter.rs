@@ -74,6 +74,15 @@ fn run_with_robot(
     seconds: f64,
     mut before: impl FnMut(f64, &mut Compensator, &mut MemRobot),
 ) -> (Run, MemRobot) {
+    run_with_tracker(motion, seconds, |t, comp, robot, _| before(t, comp, robot))
+}
+
+/// [`run_with_robot`], `before` also given the tracker (its reader failing, its samples lost).
+fn run_with_tracker(
+    motion: Motion,
+    seconds: f64,
+    mut before: impl FnMut(f64, &mut Compensator, &mut MemRobot, &mut ScriptedPoses),
+) -> (Run, MemRobot) {
     let arm = Arm::new(Model::Ur3e);
     let cfg = LoopConfig::new(
         base_from_tracker(),
@@ -107,7 +116,7 @@ fn run_with_robot(
         let t = k as f64 * PERIOD;
         robot.tick(t);
         poses.now = t;
-        before(t, &mut comp, &mut robot);
+        before(t, &mut comp, &mut robot, &mut poses);
         let rec = comp.cycle(t, &mut robot, &mut poses);
         let coil_pose = arm.fk_flange(&rec.q_command) * flange_from_coil();
         let acts = if rec.horizon_s > 0.0 {
@@ -606,4 +615,34 @@ fn a_goal_set_while_running_is_checked_first_and_a_refused_one_changes_nothing()
     let higher = head_from_coil_goal() * Isometry3::translation(0.0, 0.0, -0.01);
     comp.set_goal(&higher).unwrap();
     assert_eq!(comp.config().head_from_coil_goal, higher);
+}
+
+#[test]
+fn a_failed_tracker_reader_holds_with_its_cause_named_and_tracking_resumes_after() {
+    // From 2 s the tracker's reader fails (its samples stop); at 3 s it is back (reconnected).
+    let (run, _) = run_with_tracker(at_rest, 5.0, |t, _, _, poses| {
+        poses.silent = (2.0..3.0).contains(&t);
+        if t >= 2.0 {
+            poses.failures = 1;
+        }
+    });
+    let events = run.events();
+    let held: Vec<f64> = events
+        .iter()
+        .filter(|(_, e)| *e == Event::Hold(Reason::TrackerInputFailed(1)))
+        .map(|(t, _)| *t)
+        .collect();
+    assert_eq!(held.len(), 1, "{events:?}");
+    assert!(held[0] > 2.0 && held[0] < 3.0, "{events:?}");
+    assert!(
+        !events
+            .iter()
+            .any(|(_, e)| matches!(e, Event::Hold(Reason::TrackerStale(_)))),
+        "the hold names the failure, not a stale tracker: {events:?}"
+    );
+    assert!(
+        events.iter().any(|(t, e)| *t > 3.0 && *e == Event::Resume),
+        "{events:?}"
+    );
+    assert_eq!(run.records.last().unwrap().mode, Mode::Tracking);
 }

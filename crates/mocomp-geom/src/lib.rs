@@ -27,6 +27,7 @@ pub mod sample;
 pub mod seqlock;
 pub mod text;
 pub mod units;
+pub mod watch;
 
 pub use error::GeomError;
 pub use interp::{average, interpolate, slerp};
@@ -41,6 +42,7 @@ pub use pose::{
 };
 pub use sample::{Clock, MonotonicClock, PoseSample, PoseSource, SteppedClock};
 pub use seqlock::SeqLock;
+pub use watch::Watch;
 
 /// A rigid transform `a_from_b` (rotation and translation in metres).
 pub type Pose = nalgebra::Isometry3<f64>;

@@ -21,6 +21,13 @@ pub struct PoseSample {
 pub trait PoseSource {
     /// The newest sample not yet returned, if any.
     fn latest(&mut self) -> Option<PoseSample>;
+
+    /// How many times the thread feeding this source failed (panicked, or ended when nobody
+    /// asked it to); it restarts by itself where it can. One atomic load: the loop asks every
+    /// cycle, and names the failure as the reason it holds when samples stop.
+    fn failures(&self) -> u64 {
+        0
+    }
 }
 
 /// A monotonic clock, seconds. The live system uses the machine's monotonic clock; the simulator

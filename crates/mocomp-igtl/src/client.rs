@@ -23,9 +23,9 @@ use crate::message::{Body, Message, pose_of};
 use crate::name::{DeviceName, Name};
 use crate::offset::OffsetEstimator;
 use crate::timestamp::Timestamp;
-use mocomp_geom::LatestCell;
 use mocomp_geom::nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use mocomp_geom::{Clock, PoseSample, PoseSource};
+use mocomp_geom::{LatestCell, Watch};
 use std::collections::HashMap;
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
@@ -133,6 +133,7 @@ counters! {
     invalid_poses: "Of those, marked invalid (status metadata, or not rigid).",
     non_rigid: "Transforms of the configured device that were not rigid.",
     consumer_drops: "Messages not kept because the message channel was full.",
+    reader_failures: "Times the reader failed (a panic on a message): it dropped the connection and reconnected.",
 }
 
 struct Shared {
@@ -142,6 +143,7 @@ struct Shared {
     stop: AtomicBool,
     stream: Mutex<Option<TcpStream>>,
     last_error: Mutex<Option<String>>,
+    watch: Watch,
 }
 
 /// A message as received.
@@ -181,6 +183,7 @@ impl Client {
             stop: AtomicBool::new(false),
             stream: Mutex::new(None),
             last_error: Mutex::new(None),
+            watch: Watch::new(),
         });
         let (tx, rx) = if config.keep_messages > 0 {
             let (tx, rx) = sync_channel(config.keep_messages);
@@ -309,6 +312,10 @@ impl PoseSource for IgtlPoseSource {
         self.seen = v;
         Some(s)
     }
+
+    fn failures(&self) -> u64 {
+        self.shared.watch.failures()
+    }
 }
 
 struct Worker {
@@ -390,59 +397,18 @@ impl Worker {
                     stream.write_all(&encode(&m)).ok();
                 }
             }
-            'conn: loop {
-                if self.stopping() {
-                    break;
-                }
-                match stream.read(&mut buf) {
-                    Ok(0) => {
-                        if decoder.buffered() > 0 {
-                            c.truncated.fetch_add(1, Ordering::Relaxed);
-                            self.set_error(format!(
-                                "connection closed in the middle of a message ({} bytes pending)",
-                                decoder.buffered()
-                            ));
-                        }
-                        c.disconnects.fetch_add(1, Ordering::Relaxed);
-                        break;
-                    }
-                    Ok(n) => {
-                        c.bytes.fetch_add(n as u64, Ordering::Relaxed);
-                        decoder.feed(&buf[..n]);
-                        while let Some(r) = decoder.next_message() {
-                            match r {
-                                Ok(m) => self.handle(m),
-                                Err(e) => {
-                                    self.set_error(e.to_string());
-                                    if e.is_fatal() {
-                                        c.fatal_errors.fetch_add(1, Ordering::Relaxed);
-                                        c.disconnects.fetch_add(1, Ordering::Relaxed);
-                                        break 'conn;
-                                    }
-                                    match e {
-                                        crate::codec::DecodeError::Crc { .. } => {
-                                            c.crc_errors.fetch_add(1, Ordering::Relaxed)
-                                        }
-                                        _ => c.malformed.fetch_add(1, Ordering::Relaxed),
-                                    };
-                                }
-                            }
-                        }
-                    }
-                    Err(e)
-                        if matches!(
-                            e.kind(),
-                            ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                        ) => {}
-                    Err(e) => {
-                        if decoder.buffered() > 0 {
-                            c.truncated.fetch_add(1, Ordering::Relaxed);
-                        }
-                        c.disconnects.fetch_add(1, Ordering::Relaxed);
-                        self.set_error(format!("read: {e}"));
-                        break;
-                    }
-                }
+            let served = shared.watch.run("igtl-client", || {
+                self.serve(&mut stream, &mut decoder, &mut buf);
+            });
+            if served.is_none() {
+                // A message the reader could not take (a bug it met, not a stream fault): the
+                // connection is dropped, counted and named, and made again.
+                c.reader_failures.fetch_add(1, Ordering::Relaxed);
+                c.disconnects.fetch_add(1, Ordering::Relaxed);
+                let what = self.shared.watch.last().unwrap_or_default();
+                self.set_error(format!(
+                    "{what}; the connection was dropped and is made again"
+                ));
             }
             self.shared.connected.store(false, Ordering::Relaxed);
             if let Ok(mut g) = self.shared.stream.lock() {
@@ -450,6 +416,66 @@ impl Worker {
             }
             if !self.stopping() {
                 self.sleep(backoff);
+            }
+        }
+    }
+
+    /// Reads and decodes one connection until it ends (closed, failed, a fatal error, or stop).
+    fn serve(&mut self, stream: &mut TcpStream, decoder: &mut Decoder, buf: &mut [u8]) {
+        let shared = Arc::clone(&self.shared);
+        let c = &shared.counters;
+        loop {
+            if self.stopping() {
+                break;
+            }
+            match stream.read(buf) {
+                Ok(0) => {
+                    if decoder.buffered() > 0 {
+                        c.truncated.fetch_add(1, Ordering::Relaxed);
+                        self.set_error(format!(
+                            "connection closed in the middle of a message ({} bytes pending)",
+                            decoder.buffered()
+                        ));
+                    }
+                    c.disconnects.fetch_add(1, Ordering::Relaxed);
+                    break;
+                }
+                Ok(n) => {
+                    c.bytes.fetch_add(n as u64, Ordering::Relaxed);
+                    decoder.feed(&buf[..n]);
+                    while let Some(r) = decoder.next_message() {
+                        match r {
+                            Ok(m) => self.handle(m),
+                            Err(e) => {
+                                self.set_error(e.to_string());
+                                if e.is_fatal() {
+                                    c.fatal_errors.fetch_add(1, Ordering::Relaxed);
+                                    c.disconnects.fetch_add(1, Ordering::Relaxed);
+                                    return;
+                                }
+                                match e {
+                                    crate::codec::DecodeError::Crc { .. } => {
+                                        c.crc_errors.fetch_add(1, Ordering::Relaxed)
+                                    }
+                                    _ => c.malformed.fetch_add(1, Ordering::Relaxed),
+                                };
+                            }
+                        }
+                    }
+                }
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+                    ) => {}
+                Err(e) => {
+                    if decoder.buffered() > 0 {
+                        c.truncated.fetch_add(1, Ordering::Relaxed);
+                    }
+                    c.disconnects.fetch_add(1, Ordering::Relaxed);
+                    self.set_error(format!("read: {e}"));
+                    break;
+                }
             }
         }
     }

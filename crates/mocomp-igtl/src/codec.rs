@@ -114,38 +114,107 @@ pub struct Header {
     pub crc: u64,
 }
 
-fn be_u16(b: &[u8], o: usize) -> u16 {
-    u16::from_be_bytes([b[o], b[o + 1]])
+/// A bounded reader over a message body: every read checks that the bytes are there before it
+/// takes them, and an error names the body offset it stopped at. Nothing here indexes a slice.
+struct Reader<'a> {
+    h: &'a Header,
+    rest: &'a [u8],
+    /// Body offset of `rest[0]`.
+    at: usize,
 }
-fn be_u32(b: &[u8], o: usize) -> u32 {
-    u32::from_be_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
-}
-fn be_u64(b: &[u8], o: usize) -> u64 {
-    let mut a = [0u8; 8];
-    a.copy_from_slice(&b[o..o + 8]);
-    u64::from_be_bytes(a)
-}
-fn be_f32(b: &[u8], o: usize) -> f32 {
-    f32::from_bits(be_u32(b, o))
+
+impl<'a> Reader<'a> {
+    fn new(h: &'a Header, bytes: &'a [u8], at: usize) -> Self {
+        Self { h, rest: bytes, at }
+    }
+
+    fn fail(&self, reason: impl Into<String>) -> DecodeError {
+        malformed(self.h, self.at, reason)
+    }
+
+    fn short(&self, what: &str, needed: usize) -> DecodeError {
+        self.fail(format!(
+            "{what}: {needed} bytes needed, {} left",
+            self.rest.len()
+        ))
+    }
+
+    fn bytes(&mut self, n: usize, what: &str) -> Result<&'a [u8], DecodeError> {
+        let (taken, rest) = self
+            .rest
+            .split_at_checked(n)
+            .ok_or_else(|| self.short(what, n))?;
+        self.rest = rest;
+        self.at += n;
+        Ok(taken)
+    }
+
+    fn array<const N: usize>(&mut self, what: &str) -> Result<[u8; N], DecodeError> {
+        let mut a = [0u8; N];
+        let taken = self.bytes(N, what)?;
+        a.copy_from_slice(taken);
+        Ok(a)
+    }
+
+    fn u8(&mut self, what: &str) -> Result<u8, DecodeError> {
+        Ok(self.array::<1>(what)?[0])
+    }
+    fn u16(&mut self, what: &str) -> Result<u16, DecodeError> {
+        Ok(u16::from_be_bytes(self.array(what)?))
+    }
+    fn u32(&mut self, what: &str) -> Result<u32, DecodeError> {
+        Ok(u32::from_be_bytes(self.array(what)?))
+    }
+    fn u64(&mut self, what: &str) -> Result<u64, DecodeError> {
+        Ok(u64::from_be_bytes(self.array(what)?))
+    }
+    fn f32(&mut self, what: &str) -> Result<f32, DecodeError> {
+        Ok(f32::from_bits(self.u32(what)?))
+    }
+    fn floats<const N: usize>(&mut self, what: &str) -> Result<[f32; N], DecodeError> {
+        let mut f = [0f32; N];
+        for v in &mut f {
+            *v = self.f32(what)?;
+        }
+        Ok(f)
+    }
+
+    /// The rest, which must be empty.
+    fn end(&self, what: &str) -> Result<(), DecodeError> {
+        if self.rest.is_empty() {
+            Ok(())
+        } else {
+            Err(self.fail(format!("{} bytes after the {what}", self.rest.len())))
+        }
+    }
 }
 
 /// Decodes the 58-byte header (no limit check).
 pub fn decode_header(b: &[u8; HEADER_SIZE]) -> Result<Header, DecodeError> {
-    let version = be_u16(b, 0);
+    let (v, rest) = b.split_at(2);
+    let version = u16::from_be_bytes([v[0], v[1]]);
     if version != 1 && version != 2 {
         return Err(DecodeError::HeaderVersion { version });
     }
     let mut t = [0u8; 12];
-    t.copy_from_slice(&b[2..14]);
     let mut d = [0u8; 20];
-    d.copy_from_slice(&b[14..34]);
+    let mut n = [[0u8; 8]; 3];
+    let (tb, rest) = rest.split_at(12);
+    let (db, mut rest) = rest.split_at(20);
+    t.copy_from_slice(tb);
+    d.copy_from_slice(db);
+    for v in &mut n {
+        let (x, r) = rest.split_at(8);
+        v.copy_from_slice(x);
+        rest = r;
+    }
     Ok(Header {
         version,
         type_name: TypeName::from_wire(&t).ok_or(DecodeError::HeaderName { field: "type" })?,
         device: DeviceName::from_wire(&d).ok_or(DecodeError::HeaderName { field: "device" })?,
-        timestamp: Timestamp(be_u64(b, 34)),
-        body_size: be_u64(b, 42),
-        crc: be_u64(b, 50),
+        timestamp: Timestamp(u64::from_be_bytes(n[0])),
+        body_size: u64::from_be_bytes(n[1]),
+        crc: u64::from_be_bytes(n[2]),
     })
 }
 
@@ -158,13 +227,121 @@ fn malformed(h: &Header, offset: usize, reason: impl Into<String>) -> DecodeErro
     }
 }
 
+/// The parts of a header-version-2 body: content and metadata apart, sizes checked against the
+/// body before anything is read.
+struct V2Parts<'a> {
+    message_id: u32,
+    content: &'a [u8],
+    content_at: usize,
+    meta_header: &'a [u8],
+    meta: &'a [u8],
+    meta_at: usize,
+}
+
+fn split_v2<'a>(h: &'a Header, body: &'a [u8]) -> Result<V2Parts<'a>, DecodeError> {
+    let mut r = Reader::new(h, body, 0);
+    let ext = usize::from(r.u16("extended header size")?);
+    let meta_header_size = usize::from(r.u16("metadata header size")?);
+    let meta_size = r.u32("metadata size")? as usize;
+    let message_id = r.u32("message id")?;
+    if ext < EXT_HEADER_SIZE || ext > body.len() {
+        return Err(malformed(
+            h,
+            0,
+            format!(
+                "extended header size {ext}: below {EXT_HEADER_SIZE} or past the {}-byte body",
+                body.len()
+            ),
+        ));
+    }
+    let after_ext = body.len() - ext;
+    let tail = meta_header_size
+        .checked_add(meta_size)
+        .filter(|t| *t <= after_ext)
+        .ok_or_else(|| {
+            malformed(
+                h,
+                2,
+                format!(
+                    "metadata header {meta_header_size} + metadata {meta_size} bytes do not fit the {after_ext} bytes after the extended header"
+                ),
+            )
+        })?;
+    let (head, meta_all) = body.split_at(body.len() - tail);
+    let (meta_header, meta) = meta_all.split_at(meta_header_size);
+    let (_, content) = head.split_at(ext);
+    Ok(V2Parts {
+        message_id,
+        content,
+        content_at: ext,
+        meta_header,
+        meta,
+        meta_at: body.len() - tail,
+    })
+}
+
+fn decode_metadata(h: &Header, p: &V2Parts<'_>) -> Result<Vec<MetaEntry>, DecodeError> {
+    if p.meta_header.is_empty() {
+        if !p.meta.is_empty() {
+            return Err(malformed(h, 4, "metadata without a metadata header"));
+        }
+        return Ok(Vec::new());
+    }
+    let mut index = Reader::new(h, p.meta_header, p.meta_at);
+    let count = usize::from(index.u16("metadata count")?);
+    if p.meta_header.len() != 2 + 8 * count {
+        return Err(malformed(
+            h,
+            p.meta_at,
+            format!(
+                "metadata header size {} for {count} entries (expected {})",
+                p.meta_header.len(),
+                2 + 8 * count
+            ),
+        ));
+    }
+    let mut values = Reader::new(h, p.meta, p.meta_at + p.meta_header.len());
+    // At most 65,535 entries of at least 8 index bytes each, all within the body already read:
+    // the capacity is bounded by the body's size.
+    let mut metadata = Vec::with_capacity(count);
+    for i in 0..count {
+        let key_size = usize::from(index.u16("metadata key size")?);
+        let encoding = index.u16("metadata encoding")?;
+        let value_size = index.u32("metadata value size")? as usize;
+        let at = values.at;
+        let key = values
+            .bytes(key_size, &format!("metadata entry {i}'s key"))
+            .map_err(|_| malformed(h, at, format!("metadata entry {i} runs past the body")))?;
+        let key = std::str::from_utf8(key)
+            .map_err(|_| malformed(h, at, format!("metadata key {i} is not UTF-8")))?
+            .to_string();
+        let value = values
+            .bytes(value_size, &format!("metadata entry {i}'s value"))
+            .map_err(|_| malformed(h, at, format!("metadata entry {i} runs past the body")))?
+            .to_vec();
+        metadata.push(MetaEntry {
+            key,
+            encoding,
+            value,
+        });
+    }
+    if !values.rest.is_empty() {
+        return Err(malformed(
+            h,
+            values.at,
+            format!(
+                "metadata sizes add up to {} bytes, not {}",
+                p.meta.len() - values.rest.len(),
+                p.meta.len()
+            ),
+        ));
+    }
+    Ok(metadata)
+}
+
 /// Decodes a body (CRC already checked) into a message.
 pub fn decode_body(h: &Header, body: &[u8]) -> Result<Message, DecodeError> {
-    let mut message_id = 0;
-    let mut metadata = Vec::new();
-    let mut content = body;
-    let mut content_offset = 0;
-    if h.version == 2 {
+    let (message_id, metadata, content, content_at) = if h.version == 2 {
         if body.len() < EXT_HEADER_SIZE {
             return Err(malformed(
                 h,
@@ -175,73 +352,13 @@ pub fn decode_body(h: &Header, body: &[u8]) -> Result<Message, DecodeError> {
                 ),
             ));
         }
-        let ext = usize::from(be_u16(body, 0));
-        let meta_header = usize::from(be_u16(body, 2));
-        let meta_size = be_u32(body, 4) as usize;
-        message_id = be_u32(body, 8);
-        if ext < EXT_HEADER_SIZE || ext > body.len() {
-            return Err(malformed(h, 0, format!("extended header size {ext}")));
-        }
-        let tail = meta_header.checked_add(meta_size).filter(|t| ext + t <= body.len()).ok_or_else(|| {
-            malformed(h, 2, format!("metadata header {meta_header} + metadata {meta_size} bytes do not fit the body"))
-        })?;
-        let meta_start = body.len() - tail;
-        if meta_header > 0 {
-            let mh = &body[meta_start..meta_start + meta_header];
-            let count = usize::from(be_u16(mh, 0));
-            if meta_header != 2 + 8 * count {
-                return Err(malformed(
-                    h,
-                    meta_start,
-                    format!(
-                        "metadata header size {meta_header} for {count} entries (expected {})",
-                        2 + 8 * count
-                    ),
-                ));
-            }
-            let mut pos = meta_start + meta_header;
-            let end = body.len();
-            for i in 0..count {
-                let o = 2 + 8 * i;
-                let key_size = usize::from(be_u16(mh, o));
-                let encoding = be_u16(mh, o + 2);
-                let value_size = be_u32(mh, o + 4) as usize;
-                if pos + key_size + value_size > end {
-                    return Err(malformed(
-                        h,
-                        pos,
-                        format!("metadata entry {i} runs past the body"),
-                    ));
-                }
-                let key = std::str::from_utf8(&body[pos..pos + key_size])
-                    .map_err(|_| malformed(h, pos, format!("metadata key {i} is not UTF-8")))?
-                    .to_string();
-                pos += key_size;
-                let value = body[pos..pos + value_size].to_vec();
-                pos += value_size;
-                metadata.push(MetaEntry {
-                    key,
-                    encoding,
-                    value,
-                });
-            }
-            if pos != end {
-                return Err(malformed(
-                    h,
-                    pos,
-                    format!(
-                        "metadata sizes add up to {} bytes, not {meta_size}",
-                        pos - meta_start - meta_header
-                    ),
-                ));
-            }
-        } else if meta_size != 0 {
-            return Err(malformed(h, 4, "metadata without a metadata header"));
-        }
-        content = &body[ext..meta_start];
-        content_offset = ext;
-    }
-    let body = decode_content(h, content, content_offset)?;
+        let parts = split_v2(h, body)?;
+        let metadata = decode_metadata(h, &parts)?;
+        (parts.message_id, metadata, parts.content, parts.content_at)
+    } else {
+        (0, Vec::new(), body, 0)
+    };
+    let body = decode_content(h, content, content_at)?;
     Ok(Message {
         header_version: h.version,
         type_name: h.type_name,
@@ -253,12 +370,9 @@ pub fn decode_body(h: &Header, body: &[u8]) -> Result<Message, DecodeError> {
     })
 }
 
-fn floats12(c: &[u8], o: usize) -> [f32; 12] {
-    std::array::from_fn(|k| be_f32(c, o + 4 * k))
-}
-
 fn decode_content(h: &Header, c: &[u8], base: usize) -> Result<Body, DecodeError> {
     let t = h.type_name.as_str();
+    let mut r = Reader::new(h, c, base);
     let need = |n: usize| -> Result<(), DecodeError> {
         if c.len() == n {
             Ok(())
@@ -273,27 +387,28 @@ fn decode_content(h: &Header, c: &[u8], base: usize) -> Result<Body, DecodeError
     Ok(match t {
         "TRANSFORM" => {
             need(48)?;
-            Body::Transform(floats12(c, 0))
+            Body::Transform(r.floats("transform")?)
         }
         "POSITION" => {
-            let q = match c.len() {
-                12 => [0.0, 0.0, 0.0, 1.0],
+            if !matches!(c.len(), 12 | 24 | 28) {
+                return Err(malformed(
+                    h,
+                    base,
+                    format!("{} content bytes, expected 12, 24 or 28", c.len()),
+                ));
+            }
+            let position = r.floats::<3>("position")?;
+            let quaternion = match c.len() {
                 24 => {
-                    let (x, y, z) = (be_f32(c, 12), be_f32(c, 16), be_f32(c, 20));
+                    let [x, y, z] = r.floats::<3>("quaternion")?;
                     [x, y, z, (1.0 - x * x - y * y - z * z).max(0.0).sqrt()]
                 }
-                28 => [be_f32(c, 12), be_f32(c, 16), be_f32(c, 20), be_f32(c, 24)],
-                n => {
-                    return Err(malformed(
-                        h,
-                        base,
-                        format!("{n} content bytes, expected 12, 24 or 28"),
-                    ));
-                }
+                28 => r.floats::<4>("quaternion")?,
+                _ => [0.0, 0.0, 0.0, 1.0],
             };
             Body::Position {
-                position: [be_f32(c, 0), be_f32(c, 4), be_f32(c, 8)],
-                quaternion: q,
+                position,
+                quaternion,
             }
         }
         "TDATA" => {
@@ -308,64 +423,48 @@ fn decode_content(h: &Header, c: &[u8], base: usize) -> Result<Body, DecodeError
                 ));
             }
             let mut tools = Vec::with_capacity(c.len() / TDATA_ELEMENT);
-            for (i, e) in c.chunks_exact(TDATA_ELEMENT).enumerate() {
-                let mut n = [0u8; 20];
-                n.copy_from_slice(&e[0..20]);
-                let name = DeviceName::from_wire(&n).ok_or_else(|| {
-                    malformed(
-                        h,
-                        base + i * TDATA_ELEMENT,
-                        format!("tool {i} name is not ASCII"),
-                    )
-                })?;
+            for i in 0..c.len() / TDATA_ELEMENT {
+                let at = r.at;
+                let name = DeviceName::from_wire(&r.array::<20>("tool name")?)
+                    .ok_or_else(|| malformed(h, at, format!("tool {i} name is not ASCII")))?;
+                let kind = r.u8("tool type")?;
+                r.u8("reserved")?;
                 tools.push(TDataElement {
                     name,
-                    kind: e[20],
-                    matrix: floats12(e, 22),
+                    kind,
+                    matrix: r.floats("tool matrix")?,
                 });
             }
             Body::TData(tools)
         }
         "STATUS" => {
-            if c.len() < 30 {
-                return Err(malformed(
-                    h,
-                    base,
-                    format!("{} content bytes, at least 30 expected", c.len()),
-                ));
-            }
-            let mut n = [0u8; 20];
-            n.copy_from_slice(&c[10..30]);
-            let error_name = Name::<20>::from_wire(&n)
-                .ok_or_else(|| malformed(h, base + 10, "error name is not ASCII"))?;
-            let text = &c[30..];
-            let text = &text[..text.iter().position(|&b| b == 0).unwrap_or(text.len())];
+            let code = r.u16("status code")?;
+            let subcode = r.u64("status subcode")? as i64;
+            let at = r.at;
+            let error_name = Name::<20>::from_wire(&r.array::<20>("error name")?)
+                .ok_or_else(|| malformed(h, at, "error name is not ASCII"))?;
+            let text = r.rest;
+            let text = text.split(|&b| b == 0).next().unwrap_or(text);
             Body::Status(Status {
-                code: be_u16(c, 0),
-                subcode: be_u64(c, 2) as i64,
+                code,
+                subcode,
                 error_name,
                 message: String::from_utf8_lossy(text).into_owned(),
             })
         }
         "STRING" => {
-            if c.len() < 4 {
-                return Err(malformed(
-                    h,
-                    base,
-                    format!("{} content bytes, at least 4 expected", c.len()),
-                ));
-            }
-            let len = usize::from(be_u16(c, 2));
-            if 4 + len != c.len() {
+            let encoding = r.u16("string encoding")?;
+            let len = usize::from(r.u16("string length")?);
+            if len != r.rest.len() {
                 return Err(malformed(
                     h,
                     base + 2,
-                    format!("string length {len} but {} bytes follow", c.len() - 4),
+                    format!("string length {len} but {} bytes follow", r.rest.len()),
                 ));
             }
             Body::String {
-                encoding: be_u16(c, 0),
-                text: c[4..].to_vec(),
+                encoding,
+                text: r.rest.to_vec(),
             }
         }
         "STT_TDATA" => {
@@ -376,19 +475,21 @@ fn decode_content(h: &Header, c: &[u8], base: usize) -> Result<Body, DecodeError
                 }
             } else {
                 need(36)?;
-                let mut n = [0u8; 32];
-                n.copy_from_slice(&c[4..36]);
-                let coordinate = Name::<32>::from_wire(&n)
-                    .ok_or_else(|| malformed(h, base + 4, "coordinate name is not ASCII"))?;
+                let resolution_ms = r.u32("resolution")?;
+                let at = r.at;
+                let coordinate = Name::<32>::from_wire(&r.array::<32>("coordinate name")?)
+                    .ok_or_else(|| malformed(h, at, "coordinate name is not ASCII"))?;
                 Body::StartTData {
-                    resolution_ms: be_u32(c, 0),
+                    resolution_ms,
                     coordinate,
                 }
             }
         }
         "RTS_TDATA" => {
             need(1)?;
-            Body::RtsTData { status: c[0] }
+            let status = r.u8("status")?;
+            r.end("status")?;
+            Body::RtsTData { status }
         }
         _ if crate::message::query_of(t).is_some() => Body::Query(c.to_vec()),
         _ => Body::Unknown { size: c.len() },
@@ -399,12 +500,10 @@ fn decode_content(h: &Header, c: &[u8], base: usize) -> Result<Body, DecodeError
 /// n)))`: a message and the bytes it used. A non-fatal error also consumed its message's bytes;
 /// see [`Decoder`] for a stream.
 pub fn decode(buf: &[u8], max_body: u64) -> Result<Option<(Message, usize)>, (DecodeError, usize)> {
-    if buf.len() < HEADER_SIZE {
+    let Some((hb, rest)) = buf.split_first_chunk::<HEADER_SIZE>() else {
         return Ok(None);
-    }
-    let mut hb = [0u8; HEADER_SIZE];
-    hb.copy_from_slice(&buf[..HEADER_SIZE]);
-    let h = decode_header(&hb).map_err(|e| (e, 0))?;
+    };
+    let h = decode_header(hb).map_err(|e| (e, 0))?;
     if h.body_size > max_body {
         return Err((
             DecodeError::BodyTooLarge {
@@ -416,11 +515,12 @@ pub fn decode(buf: &[u8], max_body: u64) -> Result<Option<(Message, usize)>, (De
             0,
         ));
     }
-    let total = HEADER_SIZE + h.body_size as usize;
-    if buf.len() < total {
+    // Below the limit, so it fits a usize.
+    let body_size = usize::try_from(h.body_size).unwrap_or(usize::MAX);
+    let Some(body) = rest.get(..body_size) else {
         return Ok(None);
-    }
-    let body = &buf[HEADER_SIZE..total];
+    };
+    let total = HEADER_SIZE + body_size;
     let computed = CRC64.checksum(body);
     if computed != h.crc {
         return Err((
@@ -487,7 +587,10 @@ impl Decoder {
         if self.failed {
             return None;
         }
-        match decode(&self.buf[self.start..], self.max_body) {
+        match decode(
+            self.buf.get(self.start..).unwrap_or_default(),
+            self.max_body,
+        ) {
             Ok(None) => None,
             Ok(Some((m, n))) => {
                 self.start += n;

@@ -359,3 +359,56 @@ fn flush_waits_until_every_client_has_been_written_to() {
     s.stop();
     wait_until("500 poses", || c.counters().poses == 500);
 }
+
+/// A clock that panics the once its `n`-th reading is asked for: a fault injected into the
+/// reader thread where it handles a message (every message reads the clock).
+#[derive(Debug)]
+struct PanicsOnce {
+    n: u64,
+    calls: std::sync::atomic::AtomicU64,
+    inner: MonotonicClock,
+}
+
+impl Clock for PanicsOnce {
+    fn now_s(&self) -> f64 {
+        let k = self
+            .calls
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        assert!(k + 1 != self.n, "injected fault on reading {}", self.n);
+        self.inner.now_s()
+    }
+}
+
+#[test]
+fn a_reader_that_panics_is_named_counted_and_reconnects() {
+    let s = server();
+    let mut cfg = ClientConfig::new(&s.local_addr().to_string());
+    cfg.device = Some("HeadToTracker".into());
+    let clock = PanicsOnce {
+        n: 3,
+        calls: Default::default(),
+        inner: MonotonicClock::new(),
+    };
+    let c = Client::start(cfg, Arc::new(clock));
+    let mut src = c.pose_source();
+    wait_until("connection", || s.client_count() == 1);
+    // Send until 10 poses arrived: the third message's reading panics, the client drops that
+    // connection and makes it again, and what is sent after arrives.
+    let mut sent = 0;
+    wait_until("10 poses after the reader's failure", || {
+        s.send(&Message::transform("HeadToTracker", &pose(sent as f64), Timestamp::now()).unwrap());
+        sent += 1;
+        std::thread::sleep(Duration::from_millis(2));
+        c.counters().poses >= 10
+    });
+    let n = c.counters();
+    assert_eq!(n.reader_failures, 1, "{n:?}");
+    assert_eq!(n.connections, 2, "{n:?}");
+    assert_eq!(src.failures(), 1, "the loop sees it");
+    let e = c.last_error().unwrap_or_default();
+    assert!(
+        e.contains("igtl-client panicked") && e.contains("injected fault on reading 3"),
+        "{e}"
+    );
+    assert!(src.latest().unwrap().valid);
+}

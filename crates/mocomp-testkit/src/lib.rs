@@ -24,6 +24,7 @@
 
 pub mod anatomy;
 pub mod controller;
+pub mod fuzz;
 pub mod mem;
 pub mod proxy;
 

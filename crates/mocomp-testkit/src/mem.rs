@@ -103,6 +103,10 @@ pub struct ScriptedPoses {
     pub rate_hz: f64,
     /// Acquisition to availability, s.
     pub latency_s: f64,
+    /// While set, samples are lost (a tracker whose reader stopped).
+    pub silent: bool,
+    /// What [`PoseSource::failures`] reports (a reader thread's failures, set by the test).
+    pub failures: u64,
     truth: Truth,
     k: u64,
 }
@@ -124,6 +128,8 @@ impl ScriptedPoses {
             now: 0.0,
             rate_hz,
             latency_s,
+            silent: false,
+            failures: 0,
             truth,
             k: 0,
         }
@@ -139,6 +145,9 @@ impl PoseSource for ScriptedPoses {
                 return newest;
             }
             self.k += 1;
+            if self.silent {
+                continue;
+            }
             newest = Some(match (self.truth)(t) {
                 Some(pose) => PoseSample {
                     tracker_from_marker: pose,
@@ -154,6 +163,10 @@ impl PoseSource for ScriptedPoses {
                 },
             });
         }
+    }
+
+    fn failures(&self) -> u64 {
+        self.failures
     }
 }
 

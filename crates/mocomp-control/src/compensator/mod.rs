@@ -370,6 +370,7 @@ impl Compensator {
         rec.command_delay_s = self.cmd.delay.estimate();
         rec.standoff_m = self.standoff.distance;
         // Sense, the tracker first: samples are taken even while the robot is faulted.
+        self.head.note_failures(source.failures());
         let mut event = source
             .latest()
             .and_then(|s| self.head.take_sample(s, &self.cfg.params, self.period));

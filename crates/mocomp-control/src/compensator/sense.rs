@@ -24,6 +24,9 @@ pub(super) struct HeadState {
     pub(super) identical: u32,
     /// Whether the previous cycle coasted through a dropout.
     pub(super) coasting: bool,
+    /// The source's failure count when the newest sample was taken, and now.
+    pub(super) failures_at_sample: u64,
+    pub(super) failures: u64,
     /// The head (`base_from_head`) the previous command was checked against.
     pub(super) last_head: Option<Isometry3<f64>>,
     /// The head's true pose at any time, for a bound no predictor can beat (the experiment's
@@ -70,6 +73,8 @@ impl HeadState {
             last_valid: true,
             identical: 0,
             coasting: false,
+            failures_at_sample: 0,
+            failures: 0,
             last_head: None,
             oracle: None,
         }
@@ -117,8 +122,14 @@ impl HeadState {
             }
         }
         self.last_raw = Some(s);
+        self.failures_at_sample = self.failures;
         self.predictor.update(s.acquired_s, &s.tracker_from_marker);
         None
+    }
+
+    /// The source's failure count now (see [`mocomp_geom::PoseSource::failures`]).
+    pub(super) fn note_failures(&mut self, failures: u64) {
+        self.failures = failures;
     }
 
     /// The tracker rules' verdict at `now` (see [`crate::supervisor::tracker_rules`]).
@@ -137,6 +148,7 @@ impl HeadState {
                 age_s: age,
                 identical: self.identical,
                 speed: (v.norm(), w.norm()),
+                input_failures: self.failures - self.failures_at_sample.min(self.failures),
             },
             p,
         )
