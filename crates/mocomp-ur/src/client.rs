@@ -345,7 +345,24 @@ impl UrRobot {
             let clock = Arc::clone(&clock);
             std::thread::Builder::new()
                 .name("ur-state".into())
-                .spawn(move || state_thread(conn, out, values, shared, clock))
+                .spawn(move || {
+                    let watch = mocomp_geom::Watch::new();
+                    let done = watch.run("ur-state", || {
+                        state_thread(conn, out, values, Arc::clone(&shared), clock);
+                    });
+                    if done.is_none() {
+                        // The reader met a bug, not a fault of the stream: the connection is
+                        // given up as if lost (the loop stops the arm), named for the summary;
+                        // a re-arm connects afresh.
+                        record(&shared, watch.last().unwrap_or_default());
+                        if let Some((_, w)) = shared.cell.read() {
+                            let mut s = decode_state(&w);
+                            s.connected = false;
+                            shared.cell.publish(&encode_state(&s));
+                        }
+                        wake(&shared);
+                    }
+                })
                 .map_err(|e| UrError::io("starting the state thread", e))?
         };
         let mut robot = UrRobot {

@@ -3,13 +3,17 @@
 //! client, ur_rtde); anything else is an error naming the command and the reply.
 
 use crate::error::UrError;
+use crate::line::{LineRead, read_line_bounded};
 use crate::robot::{RobotMode, SafetyMode};
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufReader, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::time::Duration;
 
 /// The standard dashboard port.
 pub const DASHBOARD_PORT: u16 = 29999;
+
+/// The longest reply line taken, bytes (the controller's longest is a few hundred).
+pub const MAX_LINE: usize = 4096;
 
 /// A connected dashboard client.
 #[derive(Debug)]
@@ -59,24 +63,26 @@ impl Dashboard {
         self.line(command)
     }
 
+    /// One reply line, at most [`MAX_LINE`] bytes (a longer one is refused, not read on), text
+    /// taken lossily (a reply is compared, never executed).
     fn line(&mut self, what: &str) -> Result<String, UrError> {
-        let mut s = String::new();
-        match self.reader.read_line(&mut s) {
-            Ok(0) => Err(UrError::Closed {
+        let mut s = Vec::new();
+        match read_line_bounded(&mut self.reader, MAX_LINE, &mut s) {
+            Ok(LineRead::Complete) => Ok(String::from_utf8_lossy(&s)
+                .trim_end_matches(['\n', '\r'])
+                .to_string()),
+            Ok(LineRead::Closed) => Err(UrError::Closed {
                 what: format!("dashboard at {}", self.addr),
             }),
-            Ok(_) => Ok(s.trim_end_matches(['\n', '\r']).to_string()),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                ) =>
-            {
-                Err(UrError::Timeout {
-                    what: format!("the dashboard's answer to {what:?}"),
-                    ms: 0,
-                })
-            }
+            Ok(LineRead::TooLong) => Err(UrError::Dashboard {
+                command: what.into(),
+                reply: format!("a line of more than {MAX_LINE} bytes"),
+                expected: "one reply line",
+            }),
+            Ok(LineRead::Partial) => Err(UrError::Timeout {
+                what: format!("the dashboard's answer to {what:?}"),
+                ms: 0,
+            }),
             Err(e) => Err(UrError::io(format!("dashboard at {}", self.addr), e)),
         }
     }

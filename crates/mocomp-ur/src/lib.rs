@@ -25,6 +25,7 @@ pub mod command;
 pub mod connection;
 pub mod dashboard;
 pub mod error;
+pub mod line;
 pub mod program;
 pub mod recovery;
 pub mod robot;

@@ -4,9 +4,10 @@ use crate::controller::{Controller, ControllerConfig, InputSlot, OutputVar};
 use mocomp_ur::codec::{
     FrameDecoder, PROTOCOL_V2, Recipe, Reply, Request, TextMessage, decode_request, encode_reply,
 };
+use mocomp_ur::line::{LineRead, read_line_bounded};
 use mocomp_ur::types::{DataType, Value};
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader, ErrorKind, Read, Write};
+use std::io::{BufReader, ErrorKind, Read, Write};
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
@@ -789,26 +790,32 @@ fn for_each_line(
     let mut r = BufReader::new(s);
     let mut line = Vec::new();
     while !shared.stop.load(Ordering::Relaxed) {
-        match r.read_until(b'\n', &mut line) {
-            Ok(0) => return,
-            Ok(_) if line.last() == Some(&b'\n') => {
+        match read_line_bounded(&mut r, max, &mut line) {
+            Ok(LineRead::Complete) => {
                 let text = String::from_utf8_lossy(&line).into_owned();
                 line.clear();
                 if !on_line(text) {
                     return;
                 }
             }
-            Ok(_) => {}
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                ) => {}
-            Err(_) => return,
-        }
-        if line.len() > max {
-            line.clear();
-            lock(&shared.ctrl).record_event(format!("input line over {max} bytes dropped"));
+            Ok(LineRead::Partial) => {}
+            Ok(LineRead::TooLong) => {
+                // Skipped to its end: what follows the next \n is a line again.
+                line.clear();
+                lock(&shared.ctrl).record_event(format!("input line over {max} bytes dropped"));
+                loop {
+                    match read_line_bounded(&mut r, max, &mut line) {
+                        Ok(LineRead::TooLong) | Ok(LineRead::Partial) => line.clear(),
+                        Ok(LineRead::Complete) => break,
+                        Ok(LineRead::Closed) | Err(_) => return,
+                    }
+                    if shared.stop.load(Ordering::Relaxed) {
+                        return;
+                    }
+                }
+                line.clear();
+            }
+            Ok(LineRead::Closed) | Err(_) => return,
         }
     }
 }
