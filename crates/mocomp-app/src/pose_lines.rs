@@ -112,7 +112,11 @@ pub fn serve(
             std::thread::sleep(wait);
         }
     }
-    server.flush(Duration::from_secs(2));
+    if !server.flush(Duration::from_secs(2)) {
+        refuse!(
+            "sent {k} poses, but a client had not taken them all 2 s after the last: not every pose was delivered"
+        );
+    }
     let c = server.counters();
     Ok(Served {
         sent: k,

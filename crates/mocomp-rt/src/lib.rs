@@ -532,7 +532,12 @@ impl Ticker {
     /// call (1 on time, more when late): the caller runs that many steps, up to `max_late`.
     pub fn wait(&mut self) -> u32 {
         sleep_until(self.next);
-        let now = Instant::now();
+        self.advance(Instant::now())
+    }
+
+    /// The deadlines due at `now` (at least 1; see [`Ticker::wait`]), the schedule moved on: the
+    /// clock-free half of `wait`.
+    pub fn advance(&mut self, now: Instant) -> u32 {
         let behind = now.saturating_duration_since(self.next);
         let mut due = 1 + (behind.as_nanos() / self.period.as_nanos().max(1)) as u64;
         if due > u64::from(self.max_late) {
@@ -755,16 +760,31 @@ mod tests {
 
     #[test]
     fn the_ticker_counts_late_deadlines_instead_of_bursting() {
-        let mut t = Ticker::new(Duration::from_millis(1), 5);
+        // Stepped time: the schedule is judged at instants the test chooses, not the machine's.
+        let ms = Duration::from_millis(1);
+        let mut t = Ticker::new(ms, 5);
+        let start = t.next - ms;
+        // On time, and half a period late: one step each.
+        assert_eq!(t.advance(start + ms), 1);
+        assert_eq!(t.advance(start + ms * 2 + ms / 2), 1);
+        // Two periods late: three steps due, none missed.
+        assert_eq!(t.advance(start + ms * 5 + ms / 2), 3);
+        assert_eq!(t.missed(), 0);
+        // 30 periods late: at most max_late steps are due, the rest counted as missed.
+        let late = start + ms * 36;
+        assert_eq!(t.advance(late), 5);
+        assert_eq!(t.missed(), 26);
+        // Back on schedule from the restart: the next deadline is one period after it.
+        assert_eq!(t.next, late + ms);
+        assert_eq!(t.advance(late + ms), 1);
+        assert_eq!(t.missed(), 26);
+    }
+
+    #[test]
+    fn the_ticker_sleeps_to_its_deadline() {
+        let mut t = Ticker::new(Duration::from_millis(2), 5);
+        let deadline = t.next;
         assert!(t.wait() >= 1);
-        // Fall 30 periods behind: at most max_late steps are due, the rest counted as missed.
-        std::thread::sleep(Duration::from_millis(30));
-        let due = t.wait();
-        assert_eq!(due, 5);
-        assert!(t.missed() >= 20, "{}", t.missed());
-        // Back on schedule: the next deadline is a period after the restart.
-        let before = Instant::now();
-        t.wait();
-        assert!(Instant::now() >= before);
+        assert!(Instant::now() >= deadline, "woke before the deadline");
     }
 }

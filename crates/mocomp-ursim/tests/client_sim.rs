@@ -302,37 +302,43 @@ fn slow_work_between_commands_keeps_the_program_running_when_run_through_keep_al
     let s = robot.state().unwrap();
     assert_eq!(s.fault(), None);
     assert_eq!(s.runtime_state, RuntimeState::Playing);
-    // The same work done without it stops the program.
-    std::thread::sleep(Duration::from_millis(1500));
-    assert_eq!(
-        robot.state().unwrap().fault(),
-        Some(RobotFault::ProgramStopped)
-    );
+    // The same work done without it stops the program (however long the machine takes to see
+    // it: waited for, not slept).
+    wait_until("the watchdog stops the unfed program", || {
+        robot.state().unwrap().fault() == Some(RobotFault::ProgramStopped)
+    });
 }
 
 #[test]
 fn busy_work_keeps_the_program_running_under_a_real_time_caller_pinned_to_one_cpu() {
     // The loop's situation: the caller at SCHED_FIFO, pinned to one CPU; the work spins (no
     // blocking) for six watchdog periods. The worker must not inherit the caller's priority and
-    // CPU, or the feeder could not preempt it. Needs root or an rtprio limit (CI runs as root).
+    // CPU, or the feeder could not preempt it. SCHED_FIFO needs root or an rtprio limit
+    // (`/etc/security/limits.conf`); a user without either runs the same scenario with the
+    // caller pinned at normal priority, which still checks that the work leaves the caller's
+    // CPU and policy and that the watchdog is fed, though not against a real-time caller.
     let sim = sim(Model::Ur5e, SimClock::RealTime);
     let mut cfg = config_for(&sim);
     cfg.watchdog_hz = 20.0;
     let answer = std::thread::scope(|s| {
         s.spawn(|| {
             mocomp_rt::pin_to_cpu(0).expect("pinning the test's thread to CPU 0");
-            mocomp_rt::set_fifo(40).expect("SCHED_FIFO for the test's thread (root or rtprio)");
+            if let Err(e) = mocomp_rt::set_fifo(40) {
+                eprintln!("no SCHED_FIFO for this user ({e}): the caller is pinned only");
+            }
             let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
-            let answer = robot
+            let (answer, policy) = robot
                 .keep_alive_while(|| {
+                    let policy = mocomp_rt::current_policy().unwrap();
                     let start = std::time::Instant::now();
                     let mut spins = 0u64;
                     while start.elapsed() < Duration::from_millis(300) {
                         spins = std::hint::black_box(spins + 1);
                     }
-                    spins > 0
+                    (spins > 0, policy)
                 })
                 .unwrap();
+            assert_eq!(policy, mocomp_rt::Policy::Normal, "the work left real time");
             // The controller's own account (the state read back may predate a stop).
             let stops: Vec<String> = sim.with(|c| {
                 c.events()
