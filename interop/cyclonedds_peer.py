@@ -3,10 +3,11 @@ tests, speaking ROS 2's DDS names and types as a ROS 2 node would.
 
 Requests (one JSON line each; each may name its DDS "domain", default 0):
   {"op": "version"}                        -> {"version": "11.0.1"}
-  {"op": "listen", "seconds": s, "wait": w}
+  {"op": "listen", "seconds": s, "wait": w, "idle": i}
       subscribes to rt/joint_states, rt/tf, rt/mocomp/coil_pose, rt/mocomp/head_pose and
-      rt/diagnostics, waits up to w s for the first joint state, then reads for s seconds ->
-      {"counts": {topic: n}, "rates_hz": {topic: r}, "last": {topic: message as JSON},
+      rt/diagnostics, waits up to w s for the first joint state, then reads for s seconds (with
+      i: until nothing came for i s, at most s; every sample counted) ->
+      {"counts": {topic: n}, "rates_hz": {topic: r}, "last"/"first": {topic: message as JSON},
        "latency_ms": {"median": m, "p99": p, "n": n}}  (joint states: receive time - header stamp)
   {"op": "publish_head", "topic": t, "rate_hz": r, "seconds": s, "frame": f,
    "pose": [x, y, z, qx, qy, qz, qw], "wait": w, "noise_m": n, "seed": k}
@@ -201,27 +202,48 @@ def listen(req):
     p = dp(req)
     readers = {k: DataReader(p, Topic(p, name, t), qos=qos(rel)) for k, (name, t, rel) in TOPICS.items()}
     deadline = time.time() + float(req.get("wait", 10))
-    while time.time() < deadline and not readers["joint_states"].take(N=100):
-        time.sleep(0.002)
-    seconds = float(req["seconds"])
     counts = {k: 0 for k in readers}
     last = {}
+    earliest = {}
     latency = []
+    while time.time() < deadline:
+        first = readers["joint_states"].take(N=100)
+        if first:
+            # Counted: with "idle" every sample is.
+            counts["joint_states"] += len(first)
+            last["joint_states"] = first[-1]
+            earliest["joint_states"] = first[0]
+            break
+        time.sleep(0.002)
+    seconds = float(req["seconds"])
+    # With "idle": read until nothing new came for that long (the sender has stopped), at most
+    # `seconds`: the counts then do not depend on how fast this machine is.
+    idle = req.get("idle")
     start = time.time()
     end = start + seconds
+    newest = start
     while time.time() < end:
+        got = 0
         for k, r in readers.items():
             for s in r.take(N=1000):
+                got += 1
                 counts[k] += 1
                 last[k] = s
+                earliest.setdefault(k, s)
                 if k == "joint_states":
                     latency.append((time.time() - stamp_s(s.header)) * 1e3)
+        if got:
+            newest = time.time()
+        elif idle is not None and time.time() - newest > float(idle):
+            break
         time.sleep(0.0005)
+    seconds = max(1e-9, (newest if idle is not None else time.time()) - start)
     latency.sort()
     out = {
         "counts": counts,
         "rates_hz": {k: n / seconds for k, n in counts.items()},
         "last": {k: to_json(v) for k, v in last.items()},
+        "first": {k: to_json(v) for k, v in earliest.items()},
     }
     if latency:
         out["latency_ms"] = {

@@ -164,6 +164,13 @@ impl std::fmt::Debug for HeadSource {
     }
 }
 
+impl HeadSource {
+    /// Head poses the node has received so far (however often `latest` was asked).
+    pub fn received(&self) -> u64 {
+        self.cell.read().map_or(0, |(v, _)| v)
+    }
+}
+
 impl PoseSource for HeadSource {
     fn latest(&mut self) -> Option<PoseSample> {
         let (v, mut s) = self.cell.read()?;
