@@ -9,11 +9,15 @@ Requests (one JSON line each; each may name its DDS "domain", default 0):
       i: until nothing came for i s, at most s; every sample counted) ->
       {"counts": {topic: n}, "rates_hz": {topic: r}, "last"/"first": {topic: message as JSON},
        "latency_ms": {"median": m, "p99": p, "n": n}}  (joint states: receive time - header stamp)
+  {"op": "wait_diag", "message": m, "wait": w}
+      waits up to w s for an rt/diagnostics status whose message starts with m -> {"message",
+      "level"} or {"error"}
   {"op": "publish_head", "topic": t, "rate_hz": r, "seconds": s, "frame": f,
-   "pose": [x, y, z, qx, qy, qz, qw], "wait": w, "noise_m": n, "seed": k}
+   "pose": [x, y, z, qx, qy, qz, qw], "wait": w, "noise_m": n, "seed": k, "until_unmatched": u}
       waits up to w s for a subscriber to topic t, then publishes geometry_msgs/PoseStamped at r Hz
-      for s seconds, each stamped now, its position with n m of Gaussian noise per axis (seeded
-      by k) -> {"published": n, "matched": bool}
+      for s seconds (with u: stops early once the matched subscriber has gone), each stamped now,
+      its position with n m of Gaussian noise per axis (seeded by k) -> {"published": n,
+      "matched": bool}
 
   {"op": "call", "service": "/mocomp/hold", "seq": n, "wait": w}
       calls a std_srvs/Trigger service as rmw_cyclonedds_cpp does -> {"success": b, "message": m}
@@ -207,7 +211,7 @@ def listen(req):
     earliest = {}
     latency = []
     while time.time() < deadline:
-        first = readers["joint_states"].take(N=100)
+        first = [s for s in readers["joint_states"].take(N=100) if type(s).__name__ != "InvalidSample"]
         if first:
             # Counted: with "idle" every sample is.
             counts["joint_states"] += len(first)
@@ -226,6 +230,9 @@ def listen(req):
         got = 0
         for k, r in readers.items():
             for s in r.take(N=1000):
+                if type(s).__name__ == "InvalidSample":
+                    # The writer went away (its instances unregistered): no data.
+                    continue
                 got += 1
                 counts[k] += 1
                 last[k] = s
@@ -254,6 +261,28 @@ def listen(req):
     return out
 
 
+def wait_diag(req):
+    """{"op": "wait_diag", "message": m, "wait": w} -> {"message": m, "level": l} once a
+    diagnostics status says m (its first word(s)), or {"error": ...} after w s."""
+    p = dp(req)
+    if "diag" not in STATE:
+        name, t, rel = TOPICS["diagnostics"]
+        STATE["diag"] = DataReader(p, Topic(p, name, t), qos=qos(rel))
+    r = STATE["diag"]
+    deadline = time.time() + float(req.get("wait", 30))
+    seen = []
+    while time.time() < deadline:
+        for s in r.take(N=100):
+            if type(s).__name__ == "InvalidSample":
+                continue
+            for st in s.status:
+                seen.append(st.message)
+                if st.message.startswith(req["message"]):
+                    return {"message": st.message, "level": st.level}
+        time.sleep(0.01)
+    return {"error": "no diagnostics saying %r; seen %r" % (req["message"], seen[-5:])}
+
+
 def publish_head(req):
     p = dp(req)
     writer = DataWriter(p, Topic(p, "rt" + req["topic"], PoseStamped), qos=qos(False))
@@ -272,7 +301,11 @@ def publish_head(req):
     n = 0
     end = time.time() + float(req["seconds"])
     nxt = time.time()
+    until_unmatched = bool(req.get("until_unmatched", False))
     while time.time() < end:
+        if until_unmatched and matched and not writer.get_matched_subscriptions():
+            # The subscriber has gone (its run ended): nothing more to publish to.
+            break
         now = time.time()
         sec = int(now)
         writer.write(PoseStamped(
@@ -319,6 +352,8 @@ def handle(req):
         return {"version": md.version("cyclonedds")}
     if op == "listen":
         return listen(req)
+    if op == "wait_diag":
+        return wait_diag(req)
     if op == "publish_head":
         return publish_head(req)
     if op == "call":

@@ -54,6 +54,9 @@ pub struct StreamReport {
     pub period_max_ms: f64,
     /// Periods without a command.
     pub missed_cycles: usize,
+    /// Deadlines passed without a command (woken too late for them, or no state yet): with
+    /// `cycles`, every deadline of the run.
+    pub skipped_deadlines: usize,
     /// Time in the servo call, median.
     pub servo_call_median_us: f64,
     /// The same, 99th percentile.
@@ -235,14 +238,20 @@ pub fn stream(
     let mut last_send = f64::NAN;
     let mut fault = None;
     let mut k = 0usize;
+    let mut skipped = 0usize;
     while k < n {
         // Absolute deadlines; a late wake-up skips the deadlines it missed instead of sending
         // them in a burst, and the target is taken at the real time, so the trajectory the
         // controller sees stays smooth whatever this thread's timing.
         mocomp_rt::sleep_until(t0 + Duration::from_secs_f64(k as f64 * period));
         let t = clock.now_s() - start;
-        k = k.max((t / period).floor() as usize) + 1;
-        let Some(s) = robot.state() else { continue };
+        let next = (k.max((t / period).floor() as usize) + 1).min(n);
+        skipped += next - k - 1;
+        k = next;
+        let Some(s) = robot.state() else {
+            skipped += 1;
+            continue;
+        };
         if let Some(f) = s.fault() {
             fault = Some((t, f.to_string()));
             break;
@@ -291,6 +300,7 @@ pub fn stream(
         period_p99_ms: percentile(&mut periods.clone(), 99.0),
         period_max_ms: max(&periods),
         missed_cycles: missed,
+        skipped_deadlines: skipped,
         servo_call_median_us: percentile(&mut calls.clone(), 50.0),
         servo_call_p99_us: percentile(&mut calls, 99.0),
         ack_latency_median_ms: percentile(&mut acks.clone(), 50.0),
