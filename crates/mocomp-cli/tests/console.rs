@@ -530,17 +530,18 @@ fn the_demo_with_a_console_runs_in_real_time_shows_each_controller_and_records_t
         !first["scene"]["links_mm"].as_array().unwrap().is_empty(),
         "{first}"
     );
-    // Paced in real time: the experiment's clock advances no faster than the wall clock.
+    // Paced in real time: the experiment's clock advances no faster than the wall clock (a
+    // busy machine makes it slower, never faster). Its progress is waited for.
     let wall = Instant::now();
     let t0 = first["t"].as_f64().unwrap();
-    let later = s.wait_status_for("a second of mocomp's run", 30, |v| {
-        wall.elapsed() >= Duration::from_secs(1) || v["controller"] != "mocomp"
+    let later = s.wait_status_for("half a second of mocomp's run", 60, |v| {
+        v["controller"] != "mocomp" || v["t"].as_f64().is_some_and(|t| t >= t0 + 0.5)
     });
     let elapsed = wall.elapsed().as_secs_f64();
     if later["controller"] == "mocomp" {
         let dt = later["t"].as_f64().unwrap() - t0;
         assert!(
-            dt > 0.2 && dt < elapsed + 0.1,
+            dt < elapsed + 0.1,
             "{dt} s of the experiment in {elapsed} s"
         );
     }

@@ -293,12 +293,20 @@ fn the_client_backs_off_while_nothing_listens() {
     wait_until("four refused connections", || {
         c.counters().connect_failures >= 4
     });
-    // Waits of 50, 100, 200 ms between them: a busy machine makes them longer, never shorter,
-    // and a client that did not back off would fail hundreds of times in this span.
-    let elapsed = start.elapsed();
-    assert!(elapsed >= Duration::from_millis(350), "{elapsed:?}");
+    // Waits of 50, 100, 200, … ms (doubling up to 2 s) between them: n failures take at least
+    // the first n − 1 waits. A busy machine makes them longer, never shorter, so the count read
+    // and the time taken after it must always fit; a client that did not back off would fail
+    // hundreds of times in the span.
     let failures = c.counters().connect_failures;
-    assert!(failures <= 5, "{failures} in {elapsed:?}");
+    let elapsed = start.elapsed();
+    let least: Duration = (0..failures.saturating_sub(1))
+        .map(|i| Duration::from_millis(50 << i.min(10)).min(Duration::from_secs(2)))
+        .sum();
+    assert!(failures >= 4, "{failures}");
+    assert!(
+        elapsed >= least,
+        "{failures} failures in {elapsed:?}, backing off would take {least:?}"
+    );
 }
 
 /// Sends poses stamped `latency` before their sending time and returns the sample age the client
