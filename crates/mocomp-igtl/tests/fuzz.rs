@@ -2,7 +2,12 @@
 //! long campaign), and the hostile messages it or others found, kept as regression cases: each is
 //! refused as damaged, by name, and the stream goes on to decode the valid message after it.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
 
 use mocomp_igtl::codec::{CRC64, EXT_HEADER_SIZE, HEADER_SIZE};
 use mocomp_igtl::message::{Status, TDataElement};

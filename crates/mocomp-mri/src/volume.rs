@@ -249,7 +249,21 @@ fn check_data_type(file: &str, h: &NiftiHeader) -> Result<(), MriError> {
         | NiftiType::Uint64
         | NiftiType::Int64
         | NiftiType::Float32
-        | NiftiType::Float64 => Ok(()),
+        | NiftiType::Float64 => {
+            // The reader sizes the voxel data by bitpix and reads it by datatype: a header where
+            // they disagree would be read past what it sized (a panic in the nifti crate).
+            let bits = 8 * t.size_of();
+            if usize::try_from(h.bitpix).ok() == Some(bits) {
+                Ok(())
+            } else {
+                Err(header_error(
+                    "bitpix",
+                    h.bitpix,
+                    file,
+                    format!("datatype {} ({t:?}) has {bits} bits a voxel", h.datatype),
+                ))
+            }
+        }
         other => Err(header_error(
             "datatype",
             format!("{} ({other:?})", h.datatype),

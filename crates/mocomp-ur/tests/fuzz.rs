@@ -3,7 +3,12 @@
 //! versions, their frame sizes, kinds, text lengths, recipe ids and name lists corrupted; the
 //! frame decoder, both package decoders and a recipe negotiated from the replies take them.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::print_stderr
+)] // test code
 
 use mocomp_testkit::fuzz::{Field, Fuzzer, Input, Kind, campaign};
 use mocomp_ur::RtdeError;
