@@ -432,12 +432,16 @@ impl From<mocomp_igtl::client::ClientCounters> for TrackerFigures {
 }
 
 /// What the ROS 2 node did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct Ros2Figures {
     /// Messages published.
     pub published: u64,
     /// Messages the node could not take in time (dropped, never waited for).
     pub dropped: u64,
+    /// Times the node's thread failed (a panic) and went on.
+    pub failures: u64,
+    /// The last of them, in words.
+    pub last_failure: Option<String>,
 }
 
 impl RunReport {

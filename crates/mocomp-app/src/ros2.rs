@@ -74,9 +74,14 @@ impl Ros2FrontEnd {
         report.record = self
             .record
             .and_then(|s| s.lock().unwrap_or_else(PoisonError::into_inner).take());
-        report.ros2 = self.bridge.map(|b| Ros2Figures {
-            published: b.published(),
-            dropped: b.dropped(),
+        report.ros2 = self.bridge.map(|b| {
+            let (failures, last_failure) = b.failures();
+            Ros2Figures {
+                published: b.published(),
+                dropped: b.dropped(),
+                failures,
+                last_failure,
+            }
         });
     }
 }

@@ -19,7 +19,7 @@ use crate::msg::{
     DiagnosticArray, JointState, PoseStamped, RosMessage, TfMessage, TriggerRequest,
     TriggerResponse,
 };
-use mocomp_geom::{Clock, LatestCell, PoseSample, PoseSource};
+use mocomp_geom::{Clock, LatestCell, PoseSample, PoseSource, Watch};
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, QosProfile,
     ServiceMapping, ServiceTypeName,
@@ -137,6 +137,7 @@ pub struct Ros2Bridge {
     head: Arc<LatestCell>,
     dropped: AtomicU64,
     published: Arc<AtomicU64>,
+    watch: Arc<Watch>,
 }
 
 impl std::fmt::Debug for Ros2Bridge {
@@ -154,6 +155,7 @@ pub struct HeadSource {
     cell: Arc<LatestCell>,
     seen: u64,
     clock: Arc<dyn Clock>,
+    watch: Arc<Watch>,
 }
 
 impl std::fmt::Debug for HeadSource {
@@ -183,6 +185,10 @@ impl PoseSource for HeadSource {
         s.acquired_s = self.clock.now_s() - age.max(0.0);
         Some(s)
     }
+
+    fn failures(&self) -> u64 {
+        self.watch.failures()
+    }
 }
 
 fn unix_now() -> f64 {
@@ -208,15 +214,30 @@ impl Ros2Bridge {
         let (tx, rx) = sync_channel(QUEUE);
         let stop = Arc::new(AtomicBool::new(false));
         let published = Arc::new(AtomicU64::new(0));
+        let watch = Arc::new(Watch::new());
         let thread = {
-            let (stop, head, published) =
-                (Arc::clone(&stop), Arc::clone(&head), Arc::clone(&published));
+            let (stop, head, published, watch) = (
+                Arc::clone(&stop),
+                Arc::clone(&head),
+                Arc::clone(&published),
+                Arc::clone(&watch),
+            );
             std::thread::Builder::new()
                 .name("mocomp-ros2".into())
                 .spawn(move || {
                     // Keep the context alive as long as the node.
                     let _context = context;
-                    io.run(&rx, &stop, &head, &published);
+                    // A panic in the node's work (a message it could not take, the
+                    // application's handler) is counted and named, and the node goes on: its
+                    // topics and services stay, only that one item is lost.
+                    while !stop.load(Ordering::Relaxed) {
+                        if watch
+                            .run("mocomp-ros2", || io.run(&rx, &stop, &head, &published))
+                            .is_some()
+                        {
+                            break;
+                        }
+                    }
                 })
                 .map_err(Ros2Error::Thread)?
         };
@@ -227,7 +248,13 @@ impl Ros2Bridge {
             head,
             dropped: AtomicU64::new(0),
             published,
+            watch,
         })
+    }
+
+    /// Times the node's thread failed (a panic) and went on; the last failure in words.
+    pub fn failures(&self) -> (u64, Option<String>) {
+        (self.watch.failures(), self.watch.last())
     }
 
     /// Sends `out` to the node; never waits (a full queue drops it and counts it).
@@ -255,6 +282,7 @@ impl Ros2Bridge {
             cell: Arc::clone(&self.head),
             seen: 0,
             clock,
+            watch: Arc::clone(&self.watch),
         }
     }
 }

@@ -106,3 +106,63 @@ fn hold_and_resume_answer_a_client_in_the_enhanced_mapping() {
 fn hold_and_resume_answer_a_client_in_the_cyclone_mapping() {
     served_in(ServiceMappingName::Cyclone, ServiceMapping::Cyclone, 25);
 }
+
+#[test]
+fn a_handler_that_panics_is_a_named_failure_and_the_node_goes_on() {
+    // A fault injected into the node's thread: the application's handler panics on hold. The
+    // node counts and names it, the head source reports it to the loop, and the next call is
+    // served.
+    assert_loopback_only();
+    let handler: Handler = Box::new(|c: Call| match c {
+        Call::Hold => panic!("injected: the handler failed on hold"),
+        Call::Resume => Ok("resume requested".into()),
+    });
+    let cfg = Ros2Config {
+        domain_id: 26,
+        service_mapping: ServiceMappingName::Enhanced,
+        ..Ros2Config::default()
+    };
+    let bridge = Ros2Bridge::start(&cfg, Some(handler)).unwrap();
+    let head = bridge.head_source(Arc::new(mocomp_geom::MonotonicClock::new()));
+    let context = Context::with_options(ContextOptions::new().domain_id(26)).unwrap();
+    let mut node = context
+        .new_node(
+            NodeName::new("/", "failing_handler_test").unwrap(),
+            NodeOptions::new().enable_rosout(false),
+        )
+        .unwrap();
+    // The hold's request is taken and the handler panics: no answer comes; the node goes on.
+    let qos = QosProfile::publisher_default()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 })
+        .reliability(Reliability::Reliable {
+            when_full: ros2_client::qos::WhenFull::DEFAULT,
+        });
+    let client = node
+        .create_client::<TriggerRequest, TriggerResponse>(
+            ServiceMapping::Enhanced,
+            &Name::new("/mocomp", "hold").unwrap(),
+            &ServiceTypeName::new("std_srvs", "Trigger"),
+            qos.clone(),
+            qos,
+        )
+        .unwrap();
+    let end = Instant::now() + Duration::from_secs(30);
+    while bridge.failures().0 == 0 {
+        assert!(Instant::now() < end, "the hold never reached the handler");
+        client.send_request(TriggerRequest::default()).unwrap();
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let (n, last) = bridge.failures();
+    assert!(n >= 1);
+    let last = last.unwrap_or_default();
+    assert!(
+        last.contains("mocomp-ros2 panicked") && last.contains("injected: the handler failed"),
+        "{last}"
+    );
+    use mocomp_geom::PoseSource;
+    assert_eq!(head.failures(), n, "the loop sees it");
+    let resume = call(&mut node, ServiceMapping::Enhanced, "resume");
+    assert!(resume.success, "{resume:?}");
+    assert_eq!(resume.message, "resume requested");
+}
