@@ -155,6 +155,10 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
         "{kinds:?}"
     );
 
+    // Hostile bytes: a body over the limit, a body that is no JSON, a request that is no HTTP,
+    // a WebSocket message over its limit. Each is refused; the console and the loop go on.
+    hostile_requests(&s);
+
     // Stop: the run ends (stopj, standstill) well before its 60 s, and succeeds.
     let (code, _) = s.post_auth("/api/stop", &json!({}));
     assert_eq!(code, 200);
@@ -162,6 +166,68 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     assert!(ok, "{summary}");
     assert!(summary.contains("Hold(Operator)"), "{summary}");
     assert!(summary.contains("standstill"), "{summary}");
+}
+
+/// Sends what no page sends to a running console; checks each is refused and that the status
+/// still comes and still moves.
+fn hostile_requests(s: &Session) {
+    use std::io::{Read, Write};
+    let before = s.get("/api/status").1["t"].as_f64().unwrap();
+    // Over the 64 KiB limit, with the token: refused before it is read.
+    let big = json!({"loop": {"note": "x".repeat(70 * 1024)}});
+    let (code, _) = s.post_auth("/api/params", &big);
+    assert_eq!(code, 413);
+    // Not JSON (a body cut off, then bytes that are no UTF-8), with the token.
+    let bearer = format!("Bearer {}", s.token);
+    for body in [
+        &b"{\"loop\": {\"speed_fraction\""[..],
+        &[0xff, 0xfe, 0x7b, 0x00][..],
+    ] {
+        let mut r = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .build()
+            .new_agent()
+            .post(format!("{}/api/params", s.base))
+            .header("Authorization", &bearer)
+            .header("Content-Type", "application/json")
+            .send(body)
+            .unwrap();
+        let code = r.status().as_u16();
+        assert!(code == 400 || code == 422, "{code}");
+        assert!(!r.body_mut().read_to_string().unwrap().is_empty());
+    }
+    // Not HTTP at all, and a request line of 100 kB: the connection is closed or refused,
+    // nothing else.
+    let addr = s.base.trim_start_matches("http://").to_string();
+    for junk in [vec![0u8, 1, 2, 0xff, b'\n', b'\n'], {
+        let mut v = b"GET /".to_vec();
+        v.extend(std::iter::repeat_n(b'a', 100_000));
+        v.extend(b" HTTP/1.1\r\n\r\n");
+        v
+    }] {
+        let mut c = std::net::TcpStream::connect(&addr).unwrap();
+        c.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        c.write_all(&junk).ok();
+        let mut answer = Vec::new();
+        c.read_to_end(&mut answer).ok();
+        let text = String::from_utf8_lossy(&answer);
+        assert!(
+            answer.is_empty() || text.starts_with("HTTP/1.1 4"),
+            "{text}"
+        );
+    }
+    // A WebSocket message over the console's limit: the socket is closed, the server goes on.
+    let ws_url = format!("{}/ws", s.base.replacen("http", "ws", 1));
+    let (mut ws, _) = tungstenite::connect(ws_url.as_str()).unwrap();
+    ws.send(tungstenite::Message::Text("x".repeat(64 * 1024).into()))
+        .ok();
+    let closed = (0..1000).any(|_| ws.read().is_err());
+    assert!(closed, "a 64 kB message did not close the WebSocket");
+    // The console answers and the loop runs on.
+    let later = s.wait_status("the status after the hostile requests", |v| {
+        v["t"].as_f64().is_some_and(|t| t > before)
+    });
+    assert_eq!(later["running"], true, "{later}");
 }
 
 #[test]
