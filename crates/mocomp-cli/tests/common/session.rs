@@ -174,6 +174,53 @@ impl Session {
         }
     }
 
+    /// Waits until the loop has tracked for `seconds` of its own time without a break, doing
+    /// what an operator does when the controller stopped the arm by itself: a simulated
+    /// controller shares this machine, whose host can stop one of its virtual CPUs for 100 ms
+    /// (seen with `perf sched`), and its 50 ms watchdog then stops the program as a real
+    /// controller would for a frozen PC. Such a stop (`watchdog_stops()`, the controller's own
+    /// count, has grown past the resumes given) is printed and resumed. Returns how many were.
+    /// The deadline (wall seconds) only catches a run that never gets there.
+    #[allow(dead_code)] // not every test file that shares this module uses it
+    pub fn track_for(
+        &self,
+        seconds: f64,
+        deadline_s: u64,
+        watchdog_stops: &dyn Fn() -> usize,
+    ) -> usize {
+        let deadline = Instant::now() + Duration::from_secs(deadline_s);
+        let mut resumed = 0;
+        let mut since: Option<f64> = None;
+        loop {
+            let (_, v) = self.get("/api/status");
+            let t = v["t"].as_f64().unwrap_or(0.0);
+            let stopped = v["reason"]
+                .as_str()
+                .is_some_and(|r| r.starts_with("Robot(ProgramStopped"));
+            if v["mode"] == "tracking" {
+                if t - *since.get_or_insert(t) >= seconds {
+                    return resumed;
+                }
+            } else {
+                since = None;
+                if v["mode"] == "faulted" && stopped && watchdog_stops() > resumed {
+                    eprintln!(
+                        "the controller's watchdog stopped the program (this machine stalled): resuming as an operator would"
+                    );
+                    let (code, _) = self.post_auth("/api/resume", &serde_json::json!({}));
+                    assert_eq!(code, 200);
+                    resumed += 1;
+                }
+            }
+            assert!(
+                Instant::now() < deadline,
+                "never tracked for {seconds} s; last status {v}; events {}",
+                self.get("/api/events").1
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// Kills the run (SIGKILL: no handler runs, no stop is sent), and waits for it.
     pub fn kill(&mut self) {
         self.child.kill().unwrap();
