@@ -122,18 +122,9 @@ fn serve_poses_rejects_a_bad_feed() {
 /// The hostile messages kept by mocomp-igtl's fuzzing (valid CRCs, damaged layouts, a body of
 /// 2⁶³ bytes): what, the bytes.
 fn hostile() -> Vec<(String, Vec<u8>)> {
-    include_str!("../../mocomp-igtl/tests/data/hostile.tsv")
-        .lines()
-        .filter(|l| !l.starts_with('#') && !l.is_empty())
-        .map(|l| {
-            let f: Vec<&str> = l.split('\t').collect();
-            let hex = f[2];
-            let bytes = (0..hex.len())
-                .step_by(2)
-                .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
-                .collect();
-            (f[0].to_string(), bytes)
-        })
+    mocomp_testkit::fuzz::kept_cases(include_str!("../../mocomp-igtl/tests/data/hostile.tsv"))
+        .into_iter()
+        .map(|k| (k.what, k.bytes))
         .collect()
 }
 

@@ -12,8 +12,8 @@
 use mocomp_igtl::codec::{CRC64, EXT_HEADER_SIZE, HEADER_SIZE};
 use mocomp_igtl::message::{Status, TDataElement};
 use mocomp_igtl::name::Name;
-use mocomp_igtl::{Body, DecodeError, Decoder, DeviceName, Message, MetaEntry, encode};
-use mocomp_testkit::fuzz::{Field, Fuzzer, Input, Kind, campaign};
+use mocomp_igtl::{Body, Decoder, DeviceName, Message, MetaEntry, encode};
+use mocomp_testkit::fuzz::{Field, Fuzzer, Input, Kept, Kind, campaign, kept_cases, variant};
 
 const LIMIT: u64 = 64 * 1024;
 
@@ -136,14 +136,6 @@ fn fix_crc(b: &mut [u8]) {
     b[50..58].copy_from_slice(&crc.to_be_bytes());
 }
 
-fn kind(e: &DecodeError) -> String {
-    format!("{e:?}")
-        .split([' ', '{'])
-        .next()
-        .unwrap()
-        .to_string()
-}
-
 /// Feeds the bytes in two pieces and takes out everything; the decoder never holds more than
 /// one message within the limit plus the pieces fed.
 fn check(bytes: &[u8]) -> Result<(), String> {
@@ -155,7 +147,7 @@ fn check(bytes: &[u8]) -> Result<(), String> {
         while let Some(r) = d.next_message() {
             if let Err(e) = r {
                 assert!(!e.to_string().is_empty());
-                outcome = Err(kind(&e));
+                outcome = Err(variant(&e));
             }
         }
         assert!(d.buffered() as u64 <= LIMIT + HEADER_SIZE as u64 + bytes.len() as u64);
@@ -182,28 +174,16 @@ fn valid_pose() -> Vec<u8> {
     encode(&Message::new("TRANSFORM", "HeadToTracker", Body::Transform([0.0; 12])).unwrap())
 }
 
-/// The kept hostile messages: what, the error expected, the bytes.
-fn hostile() -> Vec<(String, String, Vec<u8>)> {
-    let text = include_str!("data/hostile.tsv");
-    text.lines()
-        .filter(|l| !l.starts_with('#') && !l.is_empty())
-        .map(|l| {
-            let mut f = l.split('\t');
-            let (what, expected, hex) = (f.next().unwrap(), f.next().unwrap(), f.next().unwrap());
-            let bytes = (0..hex.len())
-                .step_by(2)
-                .map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap())
-                .collect();
-            (what.to_string(), expected.to_string(), bytes)
-        })
-        .collect()
-}
-
 #[test]
 fn kept_hostile_messages_are_refused_by_name_and_the_stream_goes_on() {
-    let kept = hostile();
+    let kept = kept_cases(include_str!("data/hostile.tsv"));
     assert_eq!(kept.len(), 4);
-    for (what, expected, mut bytes) in kept {
+    for Kept {
+        what,
+        expected,
+        mut bytes,
+    } in kept
+    {
         // Each carries a valid CRC over what it holds: it is refused for its layout, not its CRC.
         let held = &bytes[HEADER_SIZE..];
         assert_eq!(
@@ -215,7 +195,7 @@ fn kept_hostile_messages_are_refused_by_name_and_the_stream_goes_on() {
         let mut d = Decoder::new(LIMIT);
         d.feed(&bytes);
         let e = d.next_message().unwrap().unwrap_err();
-        assert_eq!(kind(&e), expected, "{what}: {e}");
+        assert_eq!(variant(&e), expected, "{what}: {e}");
         assert!(e.to_string().contains("TRANSFORM"), "{what}: {e}");
         if e.is_fatal() {
             assert!(e.to_string().contains("9223372036854775808"), "{e}");

@@ -368,35 +368,12 @@ fn flush_waits_until_every_client_has_been_written_to() {
     wait_until("500 poses", || c.counters().poses == 500);
 }
 
-/// A clock that panics the once its `n`-th reading is asked for: a fault injected into the
-/// reader thread where it handles a message (every message reads the clock).
-#[derive(Debug)]
-struct PanicsOnce {
-    n: u64,
-    calls: std::sync::atomic::AtomicU64,
-    inner: MonotonicClock,
-}
-
-impl Clock for PanicsOnce {
-    fn now_s(&self) -> f64 {
-        let k = self
-            .calls
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        assert!(k + 1 != self.n, "injected fault on reading {}", self.n);
-        self.inner.now_s()
-    }
-}
-
 #[test]
 fn a_reader_that_panics_is_named_counted_and_reconnects() {
     let s = server();
     let mut cfg = ClientConfig::new(&s.local_addr().to_string());
     cfg.device = Some("HeadToTracker".into());
-    let clock = PanicsOnce {
-        n: 3,
-        calls: Default::default(),
-        inner: MonotonicClock::new(),
-    };
+    let clock = mocomp_testkit::mem::PanicsOnce::on_reading(3);
     let c = Client::start(cfg, Arc::new(clock));
     let mut src = c.pose_source();
     wait_until("connection", || s.client_count() == 1);

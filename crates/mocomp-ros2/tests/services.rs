@@ -24,24 +24,32 @@ use ros2_client::{
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-/// Calls `service` until it answers (discovery takes a moment; a request sent before it is
-/// lost, so it is sent again each half second), for at most 20 s.
-fn call(node: &mut ros2_client::Node, mapping: ServiceMapping, service: &str) -> TriggerResponse {
+/// A `std_srvs/Trigger` client of `/mocomp/<service>`, with ROS 2's default service QoS.
+fn trigger_client(
+    node: &mut ros2_client::Node,
+    mapping: ServiceMapping,
+    service: &str,
+) -> ros2_client::Client<TriggerRequest, TriggerResponse> {
     let qos = QosProfile::publisher_default()
         .durability(Durability::Volatile)
         .history(History::KeepLast { depth: 10 })
         .reliability(Reliability::Reliable {
             when_full: ros2_client::qos::WhenFull::DEFAULT,
         });
-    let client = node
-        .create_client::<TriggerRequest, TriggerResponse>(
-            mapping,
-            &Name::new("/mocomp", service).unwrap(),
-            &ServiceTypeName::new("std_srvs", "Trigger"),
-            qos.clone(),
-            qos,
-        )
-        .unwrap();
+    node.create_client::<TriggerRequest, TriggerResponse>(
+        mapping,
+        &Name::new("/mocomp", service).unwrap(),
+        &ServiceTypeName::new("std_srvs", "Trigger"),
+        qos.clone(),
+        qos,
+    )
+    .unwrap()
+}
+
+/// Calls `service` until it answers (discovery takes a moment; a request sent before it is
+/// lost, so it is sent again each half second), for at most 20 s.
+fn call(node: &mut ros2_client::Node, mapping: ServiceMapping, service: &str) -> TriggerResponse {
+    let client = trigger_client(node, mapping, service);
     let end = Instant::now() + Duration::from_secs(20);
     while Instant::now() < end {
         let id = client.send_request(TriggerRequest::default()).unwrap();
@@ -132,21 +140,7 @@ fn a_handler_that_panics_is_a_named_failure_and_the_node_goes_on() {
         )
         .unwrap();
     // The hold's request is taken and the handler panics: no answer comes; the node goes on.
-    let qos = QosProfile::publisher_default()
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 10 })
-        .reliability(Reliability::Reliable {
-            when_full: ros2_client::qos::WhenFull::DEFAULT,
-        });
-    let client = node
-        .create_client::<TriggerRequest, TriggerResponse>(
-            ServiceMapping::Enhanced,
-            &Name::new("/mocomp", "hold").unwrap(),
-            &ServiceTypeName::new("std_srvs", "Trigger"),
-            qos.clone(),
-            qos,
-        )
-        .unwrap();
+    let client = trigger_client(&mut node, ServiceMapping::Enhanced, "hold");
     let end = Instant::now() + Duration::from_secs(30);
     while bridge.failures().0 == 0 {
         assert!(Instant::now() < end, "the hold never reached the handler");

@@ -331,11 +331,7 @@ pub fn campaign(
             Ok(Ok(())) => tally.decoded += 1,
             Ok(Err(kind)) => *tally.refused.entry(kind).or_default() += 1,
             Err(p) => {
-                let what = p
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default();
+                let what = mocomp_geom::watch::panic_message(&*p);
                 panic!(
                     "{name}: case {case} (seed {case_seed:#x}) panicked: {what}\nmutations: {:?}\nbytes ({}): {}",
                     f.log,
@@ -351,4 +347,49 @@ pub fn campaign(
         "{name}: a campaign that never decodes or never refuses tests nothing: {tally:?}"
     );
     tally
+}
+
+/// An error enum's variant name (`Malformed` of `Malformed { .. }`): the kind a campaign tallies.
+pub fn variant(e: &impl std::fmt::Debug) -> String {
+    format!("{e:?}")
+        .split([' ', '{', '('])
+        .next()
+        .unwrap_or("")
+        .to_string()
+}
+
+/// A case a campaign (or a report) found, kept for good.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Kept {
+    /// What it is, in words.
+    pub what: String,
+    /// The error the decoder must answer with.
+    pub expected: String,
+    /// Its bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// The kept cases of a corpus file: `#` comments, then one case a line, `what<TAB>expected<TAB>
+/// bytes in hex`.
+pub fn kept_cases(text: &str) -> Vec<Kept> {
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let f: Vec<&str> = l.split('\t').collect();
+            assert_eq!(f.len(), 3, "a kept case is what, expected, hex: {l:?}");
+            let hex = f[2].trim();
+            let bytes = (0..hex.len())
+                .step_by(2)
+                .map(|i| {
+                    u8::from_str_radix(hex.get(i..i + 2).unwrap_or("?"), 16)
+                        .unwrap_or_else(|_| panic!("not hex at {i}: {l:?}"))
+                })
+                .collect();
+            Kept {
+                what: f[0].to_string(),
+                expected: f[1].to_string(),
+                bytes,
+            }
+        })
+        .collect()
 }

@@ -2,8 +2,38 @@
 //! without sockets, threads or clocks: time is whatever the test says.
 
 use mocomp_geom::nalgebra::Isometry3;
-use mocomp_geom::{PoseSample, PoseSource};
+use mocomp_geom::{Clock, MonotonicClock, PoseSample, PoseSource};
 use mocomp_ur::{Robot, RobotState, ServoParams, UrError};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// The machine's monotonic clock, except that its `n`-th reading panics (once): a fault injected
+/// into a thread that reads the clock for every message it handles (a reader, a worker), through
+/// the clock it is given and nothing else.
+#[derive(Debug)]
+pub struct PanicsOnce {
+    n: u64,
+    calls: AtomicU64,
+    inner: MonotonicClock,
+}
+
+impl PanicsOnce {
+    /// Panics on the `n`-th reading (from 1).
+    pub fn on_reading(n: u64) -> Self {
+        Self {
+            n,
+            calls: AtomicU64::new(0),
+            inner: MonotonicClock::new(),
+        }
+    }
+}
+
+impl Clock for PanicsOnce {
+    fn now_s(&self) -> f64 {
+        let k = self.calls.fetch_add(1, Ordering::Relaxed) + 1;
+        assert!(k != self.n, "injected fault on reading {}", self.n);
+        self.inner.now_s()
+    }
+}
 
 /// A robot that is wherever it was last commanded (a perfect servo), healthy, its state's times
 /// and faults set by the test through [`MemRobot::state`].

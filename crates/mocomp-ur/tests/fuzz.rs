@@ -10,8 +10,7 @@
     clippy::print_stderr
 )] // test code
 
-use mocomp_testkit::fuzz::{Field, Fuzzer, Input, Kind, campaign};
-use mocomp_ur::RtdeError;
+use mocomp_testkit::fuzz::{Field, Fuzzer, Input, Kind, campaign, variant};
 use mocomp_ur::codec::{
     ControllerVersion, FrameDecoder, Recipe, Reply, Request, TextMessage, decode_reply,
     decode_request, encode_reply, encode_request,
@@ -137,14 +136,6 @@ fn fix_size(b: &mut [u8]) {
     }
 }
 
-fn kind(e: &RtdeError) -> String {
-    format!("{e:?}")
-        .split([' ', '{', '('])
-        .next()
-        .unwrap()
-        .to_string()
-}
-
 fn check(bytes: &[u8]) -> Result<(), String> {
     let (Some(&version), Some(&side)) = (bytes.first(), bytes.get(1)) else {
         return Err("Empty".into());
@@ -162,7 +153,7 @@ fn check(bytes: &[u8]) -> Result<(), String> {
             let frame = match d.next_frame() {
                 Ok(Some(f)) => f,
                 Ok(None) => break,
-                Err(e) => return Err(kind(&e)),
+                Err(e) => return Err(variant(&e)),
             };
             let r = if side == 1 {
                 decode_request(frame.kind, frame.payload, version).map(|_| ())
@@ -183,7 +174,7 @@ fn check(bytes: &[u8]) -> Result<(), String> {
             };
             if let Err(e) = r {
                 assert!(!e.to_string().is_empty());
-                outcome = Err(kind(&e));
+                outcome = Err(variant(&e));
             }
         }
         assert!(d.pending() <= 2 * u16::MAX as usize + bytes.len());

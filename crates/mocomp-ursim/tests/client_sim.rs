@@ -519,33 +519,10 @@ fn the_client_powers_on_and_reconnects_on_request() {
     assert!(robot.state().unwrap().fault().is_none());
 }
 
-/// A clock that panics the once its `n`-th reading is asked for: a fault injected into the
-/// thread that reads the controller's state (it reads the clock for every package).
-#[derive(Debug)]
-struct PanicsOnce {
-    n: u64,
-    calls: std::sync::atomic::AtomicU64,
-    inner: MonotonicClock,
-}
-
-impl Clock for PanicsOnce {
-    fn now_s(&self) -> f64 {
-        let k = self
-            .calls
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        assert!(k + 1 != self.n, "injected fault on reading {}", self.n);
-        self.inner.now_s()
-    }
-}
-
 #[test]
 fn a_state_reader_that_panics_is_a_named_lost_connection() {
     let sim = sim(Model::Ur5e, SimClock::RealTime);
-    let clock = PanicsOnce {
-        n: 200,
-        calls: Default::default(),
-        inner: MonotonicClock::new(),
-    };
+    let clock = mocomp_testkit::mem::PanicsOnce::on_reading(200);
     let mut robot = UrRobot::connect(config_for(&sim), Arc::new(clock)).unwrap();
     wait_until("the reader's failure seen as a lost connection", || {
         robot.keep_alive().ok();
