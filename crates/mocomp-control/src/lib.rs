@@ -24,6 +24,7 @@ pub mod predict;
 pub mod safety;
 pub mod supervisor;
 pub mod transit;
+pub mod words;
 
 pub use compensator::{Compensator, CycleRecord, Event, HeadOracle, Mode, Plan, Reason};
 pub use config::{LoopConfig, LoopParams, ParamError};
