@@ -134,7 +134,7 @@ def loop_session(url, shots):
         assert str(still) == before or float(before) == still, (still, before)
         # Hold, then resume.
         d.find_element(By.ID, "hold").click()
-        wait("holding", lambda: text(d, "mode") == "holding" and "Operator" in text(d, "reason"))
+        wait("holding", lambda: text(d, "mode") == "holding" and text(d, "reason") == "held by the operator")
         seen["held_reason"] = text(d, "reason")
         assert not d.find_element(By.ID, "resume").get_attribute("disabled")
         settle(d)
@@ -150,7 +150,7 @@ def loop_session(url, shots):
         wait("tracking again", lambda: text(d, "mode") == "tracking", 40)
         rows = d.execute_script(
             "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
-        assert any("hold" in r and "Operator" in r for r in rows), rows
+        assert any("hold: held by the operator" in r for r in rows), rows
         seen["events_shown"] = len(rows)
         lat = d.execute_script("return window.mocomp.latencies.slice()")
         lat = [x for x in lat if x == x]
@@ -320,16 +320,16 @@ def session_session(url, shots):
         pulse = wait("a pulse in the events", lambda: next((r for r in rows() if "pulse on beside" in r), None))
         seen["pulse_row"] = pulse
         d.find_element(By.ID, "hold").click()
-        wait("holding", lambda: text(d, "mode") == "holding" and "Operator" in text(d, "reason"))
+        wait("holding", lambda: text(d, "mode") == "holding" and text(d, "reason") == "held by the operator")
         wait("free-drive offered", lambda: not d.find_element(By.ID, "freedrive").get_attribute("disabled"))
         d.find_element(By.ID, "freedrive").click()
-        wait("hand-guided", lambda: text(d, "reason") == "HandGuided")
+        wait("hand-guided", lambda: text(d, "reason") == "the operator guides the arm by hand")
         seen["guided_reason"] = text(d, "reason")
         settle(d)
         d.execute_script("window.scrollTo(0, 0)")
         d.save_screenshot(os.path.join(shots, "console-session.png"))
         d.find_element(By.ID, "handback").click()
-        wait("held again after the hand-over", lambda: text(d, "reason") == "Operator")
+        wait("held again after the hand-over", lambda: text(d, "reason") == "held by the operator")
         d.find_element(By.ID, "resume").click()
         wait("tracking after the hand-over", lambda: text(d, "mode") == "tracking", 40)
         seen["tracking_after_handback"] = True

@@ -21,7 +21,7 @@ pub struct Lines<W>(pub W);
 
 impl<W: std::io::Write + Send> Observer for Lines<W> {
     fn event(&mut self, t: f64, e: &Event) {
-        let _ = writeln!(self.0, "{t:9.3} s  event {e:?}");
+        let _ = writeln!(self.0, "{t:9.3} s  {e}");
     }
     fn session(&mut self, t: f64, text: &str) {
         let _ = writeln!(self.0, "{t:9.3} s  session: {text}");
@@ -69,11 +69,29 @@ pub(crate) struct Summary {
     /// The contact force read each cycle (with `force_sensing`), N.
     contact_force_n: Vec<f64>,
     by_mode: [u64; 5],
+    /// Cycles a rule (not the operator) held, stopped or backed the coil off, and the last
+    /// such rule: why a run that never reached its goal did not.
+    held_by_rule: u64,
+    last_rule: Option<Reason>,
     events: Vec<(f64, Event)>,
-    /// The session's notes, in words.
-    session_lines: Vec<(f64, String)>,
+    /// The session's notes, in words, and whether each is a pulse's (the pulse log has every
+    /// pulse; the text summary counts them rather than listing them).
+    session_lines: Vec<(f64, String, bool)>,
     /// Why the CSV log stopped being written, if it did.
     log_error: Option<String>,
+}
+
+impl Summary {
+    /// A cycle in `mode`: by kind, and whether a rule (not the operator) kept the coil off.
+    fn count_mode(&mut self, mode: &Mode) {
+        self.by_mode[mode.kind()] += 1;
+        if let Mode::Holding(why) | Mode::Faulted(why) | Mode::Retreating(why) = *mode
+            && !matches!(why, Reason::Operator | Reason::HandGuided)
+        {
+            self.held_by_rule += 1;
+            self.last_rule = Some(why);
+        }
+    }
 }
 
 /// The controller's protective stops among `events`: a protective stop latches until the
@@ -110,7 +128,8 @@ fn drain(session: &mut SessionLogSide, s: &mut Summary, observer: &mut dyn Obser
         let t = note_time(&n);
         let line = session.log.take(&n);
         observer.session(t, &line);
-        s.session_lines.push((t, line));
+        s.session_lines
+            .push((t, line, matches!(n, crate::frontend::Note::Pulse(..))));
     }
 }
 
@@ -177,7 +196,7 @@ pub(crate) fn logger(
             }
         }
         s.last_t = r.t;
-        s.by_mode[r.mode.kind()] += 1;
+        s.count_mode(&r.mode);
         s.compute_us.push(r.compute_ns as f64 / 1e3);
         s.delay_ms.push(r.command_delay_s * 1e3);
         // The measured flange against the goal for the head estimated at the same time (not the
@@ -367,10 +386,20 @@ pub struct RunReport {
     /// Retreats for a force rule (over the limit, over the warning level too long, a stale or
     /// saturated sensor).
     pub force_retreats: usize,
-    /// Events.
+    /// The loop's events.
     pub events: usize,
-    /// Each event: loop time (s) and what happened.
+    /// The session's notes other than pulses (the gate, the drift monitor, a target chosen).
+    pub session_notes: usize,
+    /// Each event and session note, pulses among them: loop time (s) and what happened (the
+    /// loop's events by their code, `Hold(NoPath(0.156…))`, for scripts).
     pub event_log: Vec<(f64, String)>,
+    /// The loop's events in words and the session's notes but pulses, by loop time (s): what
+    /// the text summary lists.
+    #[serde(skip)]
+    pub event_words: Vec<(f64, String)>,
+    /// Why the coil never reached its goal, where a rule held it off for most of the run
+    /// (`None`: it reached it, or the run ended while it was still on its way).
+    pub not_reached: Option<NotReached>,
     /// The mode at the end.
     pub final_mode: String,
     /// How the final stop went.
@@ -541,8 +570,18 @@ impl RunReport {
                 t.connections, t.poses, t.messages_dropped, t.streams_dropped, t.clock_steps
             )?;
         }
-        writeln!(out, "  events            {}", r.events)?;
-        for (t, e) in &r.event_log {
+        writeln!(
+            out,
+            "  events            {} of the loop, {} of the session{}",
+            r.events,
+            r.session_notes,
+            if ses.pulses > 0 {
+                format!("; {} pulses, each in the pulse log", ses.pulses)
+            } else {
+                String::new()
+            }
+        )?;
+        for (t, e) in &r.event_words {
             writeln!(out, "    {t:9.3} s  {e}")?;
         }
         if let Some(sim) = &r.simulator {
@@ -558,6 +597,9 @@ impl RunReport {
             }
         }
         writeln!(out, "  final mode        {}", r.final_mode)?;
+        if let Some(n) = &r.not_reached {
+            writeln!(out, "  NOT REACHED       {n}")?;
+        }
         writeln!(out, "  robot stop        {}", r.stop)?;
         if let Some(e) = &r.log_error {
             writeln!(out, "  log error         {e}")?;
@@ -631,16 +673,25 @@ impl RunReport {
                 })
                 .count(),
             events: s.events.len(),
-            event_log: {
-                let mut log: Vec<(f64, String)> = s
-                    .events
+            session_notes: s.session_lines.iter().filter(|l| !l.2).count(),
+            event_log: by_time(
+                s.events
                     .iter()
                     .map(|(t, e)| (*t, format!("{e:?}")))
-                    .chain(s.session_lines.iter().cloned())
-                    .collect();
-                log.sort_by(|a, b| a.0.total_cmp(&b.0));
-                log
-            },
+                    .chain(s.session_lines.iter().map(|(t, l, _)| (*t, l.clone()))),
+            ),
+            event_words: by_time(
+                s.events
+                    .iter()
+                    .map(|(t, e)| (*t, e.to_string()))
+                    .chain(
+                        s.session_lines
+                            .iter()
+                            .filter(|l| !l.2)
+                            .map(|(t, l, _)| (*t, l.clone())),
+                    ),
+            ),
+            not_reached: NotReached::judge(s),
             final_mode: mode_name(final_mode),
             stop,
             log_error: s.log_error.clone(),
@@ -656,7 +707,7 @@ impl RunReport {
     }
 
     /// What went wrong at the end, which fails the run although the loop ran: a robot that did
-    /// not stop, a cycle log left incomplete.
+    /// not stop, a cycle log left incomplete, a goal a rule kept the coil from.
     pub fn failure(&self, log_csv: Option<&Path>) -> Option<String> {
         if let StopOutcome::StillMoving { .. } = &self.stop {
             return Some(format!("the robot did not stop: {}", self.stop));
@@ -667,15 +718,68 @@ impl RunReport {
         if let Some(e) = self.record.as_ref().and_then(|r| r.error.as_ref()) {
             return Some(format!("the recording is incomplete: {e}"));
         }
-        self.log_error.as_ref().map(|e| {
-            format!(
+        if let Some(e) = &self.log_error {
+            return Some(format!(
                 "the cycle log {} is incomplete: {e}",
                 log_csv
                     .map(Path::display)
                     .map(|d| d.to_string())
                     .unwrap_or_default()
-            )
+            ));
+        }
+        self.not_reached.as_ref().map(ToString::to_string)
+    }
+}
+
+/// Events and notes in the order of their loop time.
+fn by_time(lines: impl Iterator<Item = (f64, String)>) -> Vec<(f64, String)> {
+    let mut log: Vec<_> = lines.collect();
+    log.sort_by(|a, b| a.0.total_cmp(&b.0));
+    log
+}
+
+/// A run whose coil never reached its goal because a rule held it off: the rule in words, its
+/// code and what to do. Not a run ended while the coil was still on its way (a short run, the
+/// operator's stop): only one a rule held, stopped or backed off for most of its cycles.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct NotReached {
+    /// The last rule that held it, in words.
+    pub reason: String,
+    /// The same, by its code (`NoPath(0.156…)`).
+    pub code: String,
+    /// Held, stopped or backed off by a rule: the share of the run's cycles, %.
+    pub held_percent: u32,
+    /// What to do about it.
+    pub advice: Option<String>,
+}
+
+impl NotReached {
+    fn judge(s: &Summary) -> Option<Self> {
+        let reached = s.by_mode[0] > 0 || s.events.iter().any(|(_, e)| *e == Event::Reached);
+        let rule = s.last_rule?;
+        if reached || s.held_by_rule * 2 <= s.cycles {
+            return None;
+        }
+        Some(Self {
+            reason: rule.to_string(),
+            code: format!("{rule:?}"),
+            held_percent: (100 * s.held_by_rule / s.cycles.max(1)) as u32,
+            advice: rule.advice().map(str::to_string),
         })
+    }
+}
+
+impl std::fmt::Display for NotReached {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the coil never reached its goal: a rule held it off for {} % of the run, last: {}",
+            self.held_percent, self.reason
+        )?;
+        if let Some(a) = &self.advice {
+            write!(f, "; {a}")?;
+        }
+        Ok(())
     }
 }
 
@@ -711,5 +815,131 @@ mod tests {
             (4.0, stop),
         ];
         assert_eq!(protective_stops(&ev), 2);
+    }
+
+    /// `modes`: (cycles, mode) in order, one cycle a count.
+    fn run_of(modes: &[(u64, Mode)], events: &[(f64, Event)]) -> RunReport {
+        let mut s = Summary::default();
+        for (n, m) in modes {
+            for _ in 0..*n {
+                s.cycles += 1;
+                s.count_mode(m);
+            }
+        }
+        s.events = events.to_vec();
+        let last = modes.last().map_or(Mode::Approaching, |m| m.1);
+        let stop = StopOutcome::Standstill { after_s: 0.1 };
+        RunReport::new(&mut s, None, &last, stop, SessionReport::default())
+    }
+
+    #[test]
+    fn a_run_a_rule_kept_from_its_goal_fails_with_the_rule_in_words_and_what_to_do() {
+        // F3 at the example placement: a short approach, then held for an unreachable goal,
+        // a singular one, no path.
+        let r = run_of(
+            &[
+                (50, Mode::Approaching),
+                (900, Mode::Holding(Reason::Unreachable)),
+                (800, Mode::Holding(Reason::Singular(0.0059))),
+                (700, Mode::Holding(Reason::NoPath(0.156))),
+            ],
+            &[(0.4, Event::Hold(Reason::Unreachable))],
+        );
+        let why = r.failure(None).expect("a failed run");
+        assert!(why.contains("never reached its goal"), "{why}");
+        assert!(why.contains("97 %"), "{why}");
+        assert!(why.contains("blocked 156 mm along it"), "{why}");
+        assert!(why.contains("move the patient or the robot"), "{why}");
+        let n = r.not_reached.as_ref().expect("not reached");
+        assert_eq!(n.code, "NoPath(0.156)");
+        let mut text = Vec::new();
+        r.write_text(&mut text, None).unwrap();
+        let text = String::from_utf8(text).unwrap();
+        assert!(text.contains("NOT REACHED       the coil never"), "{text}");
+        assert!(
+            text.contains("hold: the goal is out of the arm's reach"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn a_run_ended_on_its_way_held_by_the_operator_or_after_reaching_does_not_fail() {
+        let on_its_way = run_of(&[(125, Mode::Approaching)], &[]);
+        assert!(on_its_way.failure(None).is_none());
+        // Mostly on its way, a moment held by a stale robot state (a loaded host).
+        let stalled = run_of(
+            &[
+                (60, Mode::Approaching),
+                (40, Mode::Holding(Reason::RobotStale)),
+                (25, Mode::Approaching),
+            ],
+            &[],
+        );
+        assert!(stalled.failure(None).is_none());
+        let operator = run_of(
+            &[
+                (10, Mode::Approaching),
+                (990, Mode::Holding(Reason::Operator)),
+            ],
+            &[],
+        );
+        assert!(operator.failure(None).is_none());
+        let reached = run_of(
+            &[
+                (100, Mode::Approaching),
+                (10, Mode::Tracking),
+                (900, Mode::Holding(Reason::MarkerInvalid)),
+            ],
+            &[(0.8, Event::Reached)],
+        );
+        assert!(reached.failure(None).is_none());
+        // The same hold from the start, never reached: it fails, and says what to do.
+        let never = run_of(&[(900, Mode::Holding(Reason::MarkerInvalid))], &[]);
+        let why = never.failure(None).expect("a failed run");
+        assert!(why.contains("tracker's view"), "{why}");
+    }
+
+    #[test]
+    fn the_summary_counts_events_and_notes_apart_and_lists_no_pulse() {
+        let mut s = Summary {
+            cycles: 10,
+            events: vec![(0.5, Event::Reached), (2.0, Event::Hold(Reason::Operator))],
+            session_lines: vec![
+                (1.0, "gate open on f3".into(), false),
+                (
+                    1.2,
+                    "pulse on f3: 0.40 mm, 0.30 deg, gate open".into(),
+                    true,
+                ),
+                (
+                    1.4,
+                    "pulse on f3: 0.42 mm, 0.31 deg, gate open".into(),
+                    true,
+                ),
+            ],
+            ..Summary::default()
+        };
+        let session = SessionReport {
+            pulses: 2,
+            ..SessionReport::default()
+        };
+        let stop = StopOutcome::Standstill { after_s: 0.1 };
+        let r = RunReport::new(&mut s, None, &Mode::Tracking, stop, session);
+        assert_eq!((r.events, r.session_notes), (2, 1));
+        // The machine record keeps every line, codes for the loop's.
+        assert_eq!(r.event_log.len(), 5);
+        assert_eq!(r.event_log[0].1, "Reached");
+        let mut text = Vec::new();
+        r.write_text(&mut text, None).unwrap();
+        let text = String::from_utf8(text).unwrap();
+        assert!(
+            text.contains(
+                "events            2 of the loop, 1 of the session; 2 pulses, each in the pulse log"
+            ),
+            "{text}"
+        );
+        assert!(!text.contains("pulse on"), "{text}");
+        assert!(text.contains("reached the goal: tracking"), "{text}");
+        assert!(text.contains("gate open on f3"), "{text}");
     }
 }

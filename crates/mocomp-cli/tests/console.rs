@@ -164,7 +164,7 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     assert_eq!(code, 200);
     let (ok, summary) = s.finish();
     assert!(ok, "{summary}");
-    assert!(summary.contains("Hold(Operator)"), "{summary}");
+    assert!(summary.contains("hold: held by the operator"), "{summary}");
     assert!(summary.contains("standstill"), "{summary}");
 }
 
@@ -253,7 +253,7 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
     let seen = browse(&s, &shots, "loop");
     // What the page showed, checked again here (the helper asserts each in the page).
     assert_eq!(seen["hold_without_token"], 401, "{seen}");
-    assert_eq!(seen["held_reason"], "Operator", "{seen}");
+    assert_eq!(seen["held_reason"], "held by the operator", "{seen}");
     assert_eq!(seen["speed_fraction_after"], 0.45, "{seen}");
     assert!(
         seen["bad_value_error"]
@@ -271,7 +271,7 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
     // The stop in the page ended the run.
     let (ok, summary) = s.finish();
     assert!(ok, "{summary}");
-    assert!(summary.contains("Hold(Operator)"), "{summary}");
+    assert!(summary.contains("hold: held by the operator"), "{summary}");
 }
 
 #[test]
@@ -472,7 +472,10 @@ fn the_session_in_a_real_browser_switches_targets_shows_pulses_and_hands_the_arm
     let shots = dir.path("shots");
     let seen = browse(&s, &shots, "session");
     assert_eq!(seen["targets_shown"], json!(["hot", "beside"]), "{seen}");
-    assert_eq!(seen["guided_reason"], "HandGuided", "{seen}");
+    assert_eq!(
+        seen["guided_reason"], "the operator guides the arm by hand",
+        "{seen}"
+    );
     assert!(
         seen["pulse_row"]
             .as_str()

@@ -157,7 +157,23 @@ fn a_tracker_that_moved_since_the_calibration_holds_the_loop() {
             "base_from_tracker = [1.003, 0.1, 0.9, 2.0019, -1.4693, -0.5718]",
         )],
     );
-    let v = run(&cfg, "4");
+    // Held before the coil came near the head, for the whole run: the run fails, saying why
+    // (its summary printed first).
+    let out = mocomp(&run_args(&cfg, "4", &[]));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("never reached its goal") && err.contains("calibration no longer valid"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        v["not_reached"]["code"]
+            .as_str()
+            .map(|c| c.starts_with("CalibrationInvalid(")),
+        Some(true),
+        "{v}"
+    );
     let lines = event_lines(&v);
     assert!(
         v["session"]["calibration_invalid"].as_bool().unwrap(),

@@ -206,5 +206,5 @@ fn calibrate_collect_finds_the_true_tracker_placement_and_run_uses_it() {
     let out = mocomp(&["run", "--config", &path, "--seconds", "5", "--quiet"]);
     assert_success(&out);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("Reached"), "{text}");
+    assert!(text.contains("reached the goal: tracking"), "{text}");
 }

@@ -49,7 +49,7 @@ function showStatus(s) {
   const badge = $("mode-badge");
   badge.className = "badge " + s.mode;
   $("mode").textContent = s.mode;
-  $("reason").textContent = s.reason ? s.reason : "";
+  $("reason").textContent = s.reason_text || s.reason || "";
   $("deviation_mm").textContent = fmt(s.deviation_mm, 2);
   $("deviation_deg").textContent = fmt(s.deviation_deg, 2);
   $("head_speed_mm_s").textContent = fmt(s.head_speed_mm_s, 1);
@@ -273,7 +273,7 @@ function addEvent(e) {
   const body = document.querySelector("#events tbody");
   const tr = document.createElement("tr");
   tr.className = e.kind;
-  for (const text of [fmt(e.t, 3), e.kind, e.reason || (e.kind === "session" ? e.text : "")]) {
+  for (const text of [fmt(e.t, 3), e.kind, e.text]) {
     const td = document.createElement("td"); td.textContent = text; tr.appendChild(td);
   }
   body.insertBefore(tr, body.firstChild);

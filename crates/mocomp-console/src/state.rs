@@ -131,8 +131,11 @@ pub struct StatusJson {
     pub t: f64,
     /// The mode's kind: tracking, approaching, holding, faulted, retreating (or starting).
     pub mode: String,
-    /// Why, when the mode has a reason.
+    /// Why, when the mode has a reason: the rule's code for a loop's mode (`Operator`,
+    /// `NoPath(0.156…)`), words for a phase that is not the loop's.
     pub reason: Option<String>,
+    /// The same in words with units (what the page shows).
+    pub reason_text: Option<String>,
     /// The mode with its reason, as the log writes it.
     pub mode_text: String,
     /// Cycles per second over the last status interval.
@@ -186,6 +189,7 @@ impl StatusJson {
             t: 0.0,
             mode: "starting".into(),
             reason: None,
+            reason_text: None,
             mode_text: "starting".into(),
             rate_hz: 0.0,
             horizon_ms: f64::NAN,
@@ -225,17 +229,17 @@ pub struct EventJson {
     /// hold, retreat, resume, reached, outlier, coasting, transit; session (a pulse, the gate, the drift
     /// monitor: the text says which).
     pub kind: &'static str,
-    /// The rule that fired, if any.
+    /// The rule that fired, if any, by its code.
     pub reason: Option<String>,
-    /// The event as the log writes it.
+    /// The event in words with units (what the page shows).
     pub text: String,
 }
 
 impl EventJson {
     fn new(t: f64, e: &Event) -> Self {
         let (kind, reason) = match e {
-            Event::Hold(r) => ("hold", Some(reason_text(r))),
-            Event::Retreat(r) => ("retreat", Some(reason_text(r))),
+            Event::Hold(r) => ("hold", Some(rule_code(r))),
+            Event::Retreat(r) => ("retreat", Some(rule_code(r))),
             Event::Resume => ("resume", None),
             Event::Reached => ("reached", None),
             Event::Outlier(..) => ("outlier", None),
@@ -247,13 +251,14 @@ impl EventJson {
             t,
             kind,
             reason,
-            text: format!("{e:?}"),
+            text: e.to_string(),
         }
     }
 }
 
-/// A reason as the page shows it: its rule's name and values.
-pub fn reason_text(r: &Reason) -> String {
+/// A reason's code: its rule's name and values (`NoPath(0.156…)`), for the API's clients; the
+/// page shows its words ([`Reason`]'s `Display`).
+pub fn rule_code(r: &Reason) -> String {
     format!("{r:?}")
 }
 
@@ -435,6 +440,7 @@ impl Shared {
     pub fn publish_phase(&self, what: &str) {
         let mut status = StatusJson::starting();
         status.reason = Some(what.to_string());
+        status.reason_text = Some(what.to_string());
         status.mode_text = format!("starting: {what}");
         status.scene_version = self.scene().version;
         self.publish(status, None, None);
@@ -556,6 +562,7 @@ impl Shared {
         };
         status.mode = mode.into();
         status.mode_text = format!("{mode}: {reason}");
+        status.reason_text = Some(reason.clone());
         status.reason = Some(reason);
         status.running = matches!(c.state, "waiting" | "collecting");
         status.calibration = Some(c);
@@ -582,6 +589,7 @@ impl Shared {
         };
         status.mode = n.state.into();
         status.mode_text = format!("{}: {reason}", n.state);
+        status.reason_text = Some(reason.clone());
         status.reason = Some(reason);
         status.running = matches!(n.state, "waiting" | "running");
         status.navigation = Some(n);
@@ -676,13 +684,17 @@ impl ConsoleObserver {
     }
 
     fn status_of(&self, r: &CycleRecord, age_s: f64, rate_hz: f64) -> StatusJson {
-        let (mode, reason) = match r.mode {
+        let (mode, rule) = match r.mode {
             Mode::Tracking => ("tracking", None),
             Mode::Approaching => ("approaching", None),
-            Mode::Holding(x) => ("holding", Some(reason_text(&x))),
-            Mode::Faulted(x) => ("faulted", Some(reason_text(&x))),
-            Mode::Retreating(x) => ("retreating", Some(reason_text(&x))),
+            Mode::Holding(x) => ("holding", Some(x)),
+            Mode::Faulted(x) => ("faulted", Some(x)),
+            Mode::Retreating(x) => ("retreating", Some(x)),
         };
+        let (reason, reason_text) = (
+            rule.as_ref().map(rule_code),
+            rule.as_ref().map(ToString::to_string),
+        );
         let now_ms = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .map_or(f64::NAN, |d| d.as_secs_f64() * 1e3);
@@ -707,6 +719,7 @@ impl ConsoleObserver {
             t: r.t,
             mode: mode.into(),
             reason,
+            reason_text,
             mode_text: mode_name(&r.mode),
             rate_hz,
             horizon_ms: r.horizon_s * 1e3,
