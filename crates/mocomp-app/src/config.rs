@@ -985,6 +985,18 @@ impl Config {
                 "session.target: needs session.targets (the file it is in)".into(),
             ));
         }
+        // A pulse log no pulse can reach stays empty (`session_wiring` names the rest).
+        if self.session.pulse_log.is_some()
+            && self.session.pulse_input.is_none()
+            && self.session.igtl_device.is_none()
+        {
+            return Err(AppError::Config(
+                "session.pulse_log: no pulse can reach it: set session.pulse_input (the robot \
+                 input the stimulator's pulse comes in on) or session.igtl_device (pulses as \
+                 OpenIGTLink STRING \"pulse\")"
+                    .into(),
+            ));
+        }
         for (i, r) in self.head.radii_m.iter().enumerate() {
             Check::positive(&format!("head.radii_m[{i}]"), *r)?;
         }
@@ -1447,11 +1459,15 @@ impl Setup {
     /// The simulated robot's joints at start: `robot.initial_joints_rad`, or the coil 15 cm out
     /// on the goal's axis for the head at rest.
     pub fn initial_joints(&self) -> Result<[f64; 6], AppError> {
+        self.initial_joints_at(&self.file.tracker.simulated.base_from_head.iso())
+    }
+
+    /// [`Self::initial_joints`] with the head at `rest` (a placement tried).
+    pub fn initial_joints_at(&self, rest: &Isometry3<f64>) -> Result<[f64; 6], AppError> {
         if let Some(q) = self.file.robot.initial_joints_rad {
             return Ok(q);
         }
         let cfg = self.loop_config()?;
-        let rest = self.file.tracker.simulated.base_from_head.iso();
         let out = rest
             * cfg.head_from_coil_goal
             * Isometry3::translation(0.0, 0.0, -0.15)

@@ -15,6 +15,7 @@ mod ik;
 mod listen;
 mod models;
 mod navigation_page;
+mod placement;
 mod pointer;
 mod print;
 mod register;
@@ -51,6 +52,7 @@ enum Command {
     Demo(Box<demo::DemoCmd>),
     TeachGoal(teach_goal::TeachCmd),
     Targets(targets::TargetsCmd),
+    Placement(placement::PlacementCmd),
     Config(config::ConfigCmd),
     Robot(robot::RobotCmd),
     Calibrate(calibrate::CalibrateCmd),
@@ -80,6 +82,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo(c) => c.run(out)?,
         Command::TeachGoal(c) => c.run(out)?,
         Command::Targets(c) => c.run(out)?,
+        Command::Placement(c) => c.run(out)?,
         Command::Config(c) => c.run(out)?,
         Command::Robot(c) => c.run(out)?,
         Command::Calibrate(c) => c.run(out)?,

@@ -233,8 +233,42 @@ impl AddCmd {
             placed.clearance_m * 1e3
         )?;
         writeln!(out, "{}", placed.target.line())?;
-        Ok(())
+        reach_note(&setup, &self.name, &placed.target, &self.config, out)
     }
+}
+
+/// Whether the arm reaches a new target with the head at the configured placement: said, not
+/// refused (the placement is what changes; `mocomp placement search` finds one).
+fn reach_note(
+    setup: &Setup,
+    name: &str,
+    target: &mocomp_session::Target,
+    config: &std::path::Path,
+    out: &mut dyn Write,
+) -> anyhow::Result<()> {
+    use mocomp_app::placement::Targets;
+    let goal = mocomp_app::targets::head_from_coil(setup, target);
+    let targets = Targets::new(setup, &[(name.to_string(), goal)])?;
+    let place = setup.file.tracker.simulated.base_from_head.iso();
+    let rest = match setup.initial_joints_at(&place) {
+        Ok(q) => q,
+        Err(e) => {
+            writeln!(out, "reach not checked: {e}")?;
+            return Ok(());
+        }
+    };
+    for r in targets.check(&place, &rest) {
+        writeln!(out, "at the configured placement: {r}")?;
+        if r.refusal.is_some() {
+            writeln!(
+                out,
+                "NOT REACHABLE where the head is configured (tracker.simulated.base_from_head): \
+                 `mocomp placement search --config {}` finds a place that reaches every target",
+                config.display()
+            )?;
+        }
+    }
+    Ok(())
 }
 
 impl TargetsCmd {

@@ -30,6 +30,7 @@ mod command;
 mod held;
 mod in_flight;
 mod plan;
+pub mod reach;
 mod record;
 mod robot;
 mod sense;
