@@ -58,6 +58,9 @@ impl ConfigCmd {
                     setup.model,
                     setup.file.tracker.source
                 )?;
+                for note in mocomp_app::session_wiring::notes(&setup.file) {
+                    writeln!(out, "note: {note}")?;
+                }
             }
         }
         Ok(())

@@ -78,6 +78,9 @@ impl RunCmd {
         if let Some(warning) = setup.file.head_note() {
             eprintln!("warning: {warning}");
         }
+        for note in mocomp_app::session_wiring::notes(&setup.file) {
+            eprintln!("warning: {note}");
+        }
         if let Some(note) = mocomp_app::registration_gate::registration_gate(
             &setup,
             self.accept_registration.as_deref(),
