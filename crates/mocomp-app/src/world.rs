@@ -111,10 +111,19 @@ impl World {
             if file.tracker.source == TrackerSource::Simulated {
                 ctrl.tool_load = Some(scalp_contact(setup, Arc::clone(&head_t0))?);
             }
-            let sim = Sim::start(SimConfig::new(ctrl, host))
-                .what(|| format!("simulated robot on {host}"))?;
+            let (sim, on) = start_sim_free(&ctrl, host)?;
             let u = sim.ur_config();
-            say(out, format!("simulated {} on {host}", file.robot.model))?;
+            say(
+                out,
+                if on == host {
+                    format!("simulated {} on {host}", file.robot.model)
+                } else {
+                    format!(
+                        "simulated {} on {on} (robot.host {host}: its ports are taken)",
+                        file.robot.model
+                    )
+                },
+            )?;
             (Some(Arc::new(sim)), u)
         } else {
             (None, UrConfig::new(host))
@@ -371,6 +380,54 @@ pub fn simulated_head(setup: &Setup) -> impl Fn(f64) -> Isometry3<f64> + Clone +
     let rest = s.base_from_head.iso();
     let trajectory = s.motion.trajectory();
     move |t| tracker_from_base * rest * trajectory.rest_from_head(t)
+}
+
+/// How many loopback addresses past a taken `robot.host` the simulated robot tries.
+const FREE_LOOPBACK_TRIES: u8 = 32;
+
+/// Starts the simulated robot on `host`, or, where a UR port there is taken and `host` is a
+/// loopback address, on the next loopback address whose ports are free (the simulated world's
+/// robot is reached only through this process, so any will do). Elsewhere, or when none is
+/// free, the error names `robot.host`.
+fn start_sim_free(
+    ctrl: &ControllerConfig,
+    host: std::net::IpAddr,
+) -> Result<(Sim, std::net::IpAddr), AppError> {
+    let mut on = host;
+    for _ in 0..=FREE_LOOPBACK_TRIES {
+        match Sim::start(SimConfig::new(ctrl.clone(), on)) {
+            Ok(sim) => return Ok((sim, on)),
+            Err(mocomp_ursim::SimError::Bind { source, .. })
+                if source.kind() == std::io::ErrorKind::AddrInUse
+                    && let Some(next) = next_loopback(on) =>
+            {
+                on = next;
+            }
+            Err(e) => {
+                return Err(e).what(|| {
+                    format!(
+                        "robot.host {host}: the simulated robot (set robot.host to a free \
+                         loopback address: 127.0.0.2, 127.0.0.3, …)"
+                    )
+                });
+            }
+        }
+    }
+    Err(AppError::Config(format!(
+        "robot.host {host}: the UR ports of it and the next {FREE_LOOPBACK_TRIES} loopback \
+         addresses are taken"
+    )))
+}
+
+/// The loopback address after `a` (`None`: not loopback, or the last).
+fn next_loopback(a: std::net::IpAddr) -> Option<std::net::IpAddr> {
+    match a {
+        std::net::IpAddr::V4(v4) if v4.is_loopback() => {
+            let o = v4.octets();
+            (o[3] < 254).then(|| std::net::Ipv4Addr::new(o[0], o[1], o[2], o[3] + 1).into())
+        }
+        _ => None,
+    }
 }
 
 /// The simulated tracker: the head marker (moving as configured) and, when the robot is

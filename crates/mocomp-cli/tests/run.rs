@@ -288,3 +288,18 @@ fn the_run_replays_a_recorded_motion_relative_to_its_config() {
         "{err}"
     );
 }
+
+#[test]
+fn a_taken_robot_address_moves_the_simulated_robot_to_a_free_one_and_says_so() {
+    let dir = TempDir::new("mocomp-run-taken");
+    // Something else serves RTDE's port on the configured address.
+    let _taken = std::net::TcpListener::bind("127.0.0.240:30004").unwrap();
+    let path = example_at(&dir, "127.0.0.240");
+    let out = mocomp(&["run", "--config", &path, "--seconds", "1", "--quiet"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_success(&out);
+    assert!(
+        text.contains("on 127.0.0.241 (robot.host 127.0.0.240: its ports are taken)"),
+        "{text}"
+    );
+}
