@@ -75,6 +75,28 @@ pub fn find_landmark(
         .map(|(_, v)| point_from_mm(*v))
 }
 
+/// How far each configured landmark (`[head.landmarks]`, image frame) lies from the scalp of
+/// `setup`'s head model, m (positive outside, negative inside), by its name in the file: a
+/// landmark placed by eye off the skin moves every 10-20 position measured from it.
+pub fn landmark_offsets(setup: &Setup) -> Result<Vec<(String, f64)>, AppError> {
+    let head = setup.file.head_model()?;
+    let head_from_image = setup.file.head.head_from_image.iso();
+    Ok(setup
+        .file
+        .head
+        .landmarks
+        .iter()
+        .map(|(name, mm)| {
+            let p = head_from_image * point_from_mm(*mm);
+            (name.clone(), head.distance(&p))
+        })
+        .collect())
+}
+
+/// A landmark farther than this from the scalp is worth a warning, m: the landmarks are touched
+/// on the skin, and the 10-20 positions are measured along it.
+pub const LANDMARK_OFF_SCALP_WARN_M: f64 = 0.002;
+
 /// The positions of `system` on the scalp of `setup`, image frame.
 pub fn eeg_positions(setup: &Setup, system: System) -> Result<Vec<EegPosition>, AppError> {
     let head = setup.file.head_model()?;

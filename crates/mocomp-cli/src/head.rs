@@ -39,6 +39,37 @@ impl EegCmd {
     fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let setup = mocomp_app::config::Setup::load(&self.config)?;
         let positions = mocomp_app::navigation::eeg_positions(&setup, self.system)?;
+        // Where the landmarks lie against the scalp: said on standard error, so the positions
+        // stay the only thing on standard output.
+        let offsets = mocomp_app::navigation::landmark_offsets(&setup)?;
+        let far: Vec<String> = offsets
+            .iter()
+            .filter(|(_, d)| d.abs() > mocomp_app::navigation::LANDMARK_OFF_SCALP_WARN_M)
+            .map(|(n, d)| {
+                format!(
+                    "{n} {:.1} mm {}",
+                    d.abs() * 1e3,
+                    if *d > 0.0 { "outside" } else { "inside" }
+                )
+            })
+            .collect();
+        let all: Vec<String> = offsets
+            .iter()
+            .map(|(n, d)| format!("{n} {:+.1}", d * 1e3))
+            .collect();
+        eprintln!(
+            "landmarks off the scalp (mm, + outside): {}",
+            all.join(", ")
+        );
+        if !far.is_empty() {
+            eprintln!(
+                "warning: landmarks more than {:.0} mm from the scalp: {}; the positions are \
+                 measured from the scalp points nearest them: place the landmarks on the skin \
+                 in [head.landmarks]",
+                mocomp_app::navigation::LANDMARK_OFF_SCALP_WARN_M * 1e3,
+                far.join(", ")
+            );
+        }
         if self.json {
             let map: serde_json::Map<String, serde_json::Value> = positions
                 .iter()

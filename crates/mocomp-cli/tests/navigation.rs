@@ -382,3 +382,70 @@ fn targets_from_simnibs_localite_brainsight_and_slicer_land_where_ours_do() {
         assert!(d < 1e-6, "{name}: {d} mm apart");
     }
 }
+
+#[test]
+fn the_landmarks_distance_to_the_scalp_is_said_and_one_placed_off_it_is_named() {
+    let dir = TempDir::new("nav-cli-landmarks");
+    let config = setup(&dir);
+    let said = |config: &str| {
+        let out = mocomp(&["head", "eeg", "--config", config]);
+        assert_success(&out);
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let err = said(&config);
+    let line = err
+        .lines()
+        .find_map(|l| l.strip_prefix("landmarks off the scalp (mm, + outside): "))
+        .expect("the landmarks' line");
+    // Each landmark by its name in the file, with a signed distance.
+    let offsets: Vec<(String, f64)> = line
+        .split(", ")
+        .map(|e| {
+            let (n, d) = e.split_once(' ').unwrap();
+            (n.to_string(), d.parse().unwrap())
+        })
+        .collect();
+    assert_eq!(offsets.len(), 4, "{line}");
+    let nasion = offsets.iter().find(|(n, _)| n == "nasion").unwrap().1;
+    // The nasion moved 6 mm forward, off the face: 6 mm more (the face there is nearly square
+    // to the move), and named.
+    let text = std::fs::read_to_string(&config).unwrap();
+    let moved: String = text
+        .lines()
+        .map(|l| match l.strip_prefix("nasion = [") {
+            Some(rest) => {
+                let v: Vec<f64> = rest
+                    .trim_end_matches(']')
+                    .split(',')
+                    .map(|x| x.trim().parse().unwrap())
+                    .collect();
+                format!("nasion = [{}, {}, {}]\n", v[0], v[1] + 6.0, v[2])
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    let off = dir.path("off.toml");
+    std::fs::write(&off, moved).unwrap();
+    let err = said(&off);
+    let warning = err
+        .lines()
+        .find(|l| l.starts_with("warning: "))
+        .expect("a warning");
+    assert!(
+        warning.contains("nasion") && warning.contains("outside"),
+        "{err}"
+    );
+    let now: f64 = err
+        .lines()
+        .find_map(|l| l.strip_prefix("landmarks off the scalp (mm, + outside): "))
+        .unwrap()
+        .split(", ")
+        .find_map(|e| e.strip_prefix("nasion "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        now - nasion > 3.0 && now - nasion <= 6.1,
+        "{nasion} → {now}"
+    );
+}
