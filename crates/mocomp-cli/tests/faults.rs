@@ -456,9 +456,20 @@ fn rearms(ev: &[String]) -> usize {
     ev.iter().filter(|e| *e == "Rearmed").count()
 }
 
-/// The faults the robot reported.
+/// The faults the robot reported: each latched stop once until its re-arm (a stop is held
+/// again after a stale state in between, on a loaded host, without being another stop).
 fn robot_faults(ev: &[String]) -> usize {
-    ev.iter().filter(|e| e.starts_with("Hold(Robot(")).count()
+    let mut latched = false;
+    let mut n = 0;
+    for e in ev {
+        if e.starts_with("Hold(Robot(") && !latched {
+            latched = true;
+            n += 1;
+        } else if e == "Rearmed" {
+            latched = false;
+        }
+    }
+    n
 }
 
 /// The events' names in order (`Hold(Robot(ProgramStopped))`, `Rearmed`, …).
@@ -566,7 +577,7 @@ fn assert_rearmed_each_time(ev: &[String], n: usize, unplanned: usize, recovered
         .filter(|&&i| ev[i - 1] == format!("re-armed: {recovered}"))
         .count();
     assert!(as_said >= n, "the recovery before each re-arm: {ev:?}");
-    for i in rearms {
+    for &i in &rearms {
         assert!(
             ev[i - 1].starts_with("re-armed: "),
             "the recovery before the re-arm: {ev:?}"
@@ -577,8 +588,19 @@ fn assert_rearmed_each_time(ev: &[String], n: usize, unplanned: usize, recovered
             ev[since..i].iter().any(|e| e.starts_with("Hold(Robot")),
             "a fault named before the re-arm: {ev:?}"
         );
-        assert_eq!(ev.get(i + 1).map(String::as_str), Some("Resume"), "{ev:?}");
+        // Then the loop resumes, or (the host stalled the loop past the controller's watchdog
+        // again before it could) a new stop is named, which the operator re-arms in turn.
+        let next = ev.get(i + 1).map_or("", String::as_str);
+        assert!(
+            next == "Resume" || next.starts_with("Hold(Robot") && unplanned > 0,
+            "after the re-arm: {next:?} in {ev:?}"
+        );
     }
+    let last = rearms.last().copied().unwrap_or(0);
+    assert!(
+        ev[last..].iter().any(|e| e == "Resume" || e == "Reached"),
+        "the last re-arm brought the loop back: {ev:?}"
+    );
 }
 
 #[test]
