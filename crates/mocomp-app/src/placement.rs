@@ -24,6 +24,17 @@ pub struct TargetReach {
     pub refusal: Option<mocomp_control::Reason>,
 }
 
+/// The targets at the configured placement ([`Targets::at_configured`]).
+#[derive(Debug, Clone)]
+pub struct Configured {
+    /// The placement, base_from_head.
+    pub place: Isometry3<f64>,
+    /// The arm's rest there, rad.
+    pub rest: [f64; 6],
+    /// Each target.
+    pub reaches: Vec<TargetReach>,
+}
+
 /// The loops that would track each target: one per goal, made once and planned on copies.
 #[derive(Debug)]
 pub struct Targets {
@@ -60,6 +71,20 @@ impl Targets {
                 }
             })
             .collect()
+    }
+
+    /// Each target at the configured placement (`tracker.simulated.base_from_head`), the arm
+    /// at its rest there: the placement, the rest and the reaches. What `placement check` and
+    /// `targets add` report.
+    pub fn at_configured(&self, setup: &Setup) -> Result<Configured, AppError> {
+        let place = setup.file.tracker.simulated.base_from_head.iso();
+        let rest = setup.initial_joints_at(&place)?;
+        let reaches = self.check(&place, &rest);
+        Ok(Configured {
+            place,
+            rest,
+            reaches,
+        })
     }
 
     /// The placement's figure: the least of its targets' (0: one is refused).

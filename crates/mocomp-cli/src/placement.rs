@@ -115,9 +115,11 @@ impl PlacementCmd {
 
 fn check(w: &Which, out: &mut dyn Write) -> anyhow::Result<()> {
     let (setup, targets) = w.load()?;
-    let place = setup.file.tracker.simulated.base_from_head.iso();
-    let rest = setup.initial_joints_at(&place)?;
-    let reaches = targets.check(&place, &rest);
+    let mocomp_app::placement::Configured {
+        place,
+        rest,
+        reaches,
+    } = targets.at_configured(&setup)?;
     let refused = reaches.iter().filter(|r| r.refusal.is_some()).count();
     if w.json {
         writeln!(

@@ -249,15 +249,14 @@ fn reach_note(
     use mocomp_app::placement::Targets;
     let goal = mocomp_app::targets::head_from_coil(setup, target);
     let targets = Targets::new(setup, &[(name.to_string(), goal)])?;
-    let place = setup.file.tracker.simulated.base_from_head.iso();
-    let rest = match setup.initial_joints_at(&place) {
-        Ok(q) => q,
+    let configured = match targets.at_configured(setup) {
+        Ok(c) => c,
         Err(e) => {
             writeln!(out, "reach not checked: {e}")?;
             return Ok(());
         }
     };
-    for r in targets.check(&place, &rest) {
+    for r in &configured.reaches {
         writeln!(out, "at the configured placement: {r}")?;
         if r.refusal.is_some() {
             writeln!(
