@@ -10,6 +10,7 @@
 //! - [`proxy`]: a fault-injecting TCP relay between mocomp and a server (the controller, the
 //!   tracker server): delay, jitter, stalls, cuts, resets, corrupted and dropped bytes, on
 //!   command from the test.
+//! - [`nifti`]: NIfTI-1 volumes made byte by byte (phantoms for what reads an MRI).
 //! - [`mem`]: an in-memory robot (wherever it was commanded) and a scripted pose source, for the
 //!   loop's rules and filter without sockets.
 //! - [`TempDir`]: a scratch directory removed when dropped; [`listening_port`] (the port a child
@@ -26,6 +27,7 @@ pub mod anatomy;
 pub mod controller;
 pub mod fuzz;
 pub mod mem;
+pub mod nifti;
 pub mod proxy;
 
 use serde_json::Value;
