@@ -391,6 +391,16 @@ fn an_invalid_calibration_holds_with_its_offset_before_the_operators_hold_and_en
         "{:?}",
         end.coil_error
     );
+    // The coil on the head (what a pulse's record keeps) is the pose whose distance from the
+    // goal that error is: the same head, the same frames.
+    for x in [before, end] {
+        let coil = x.coil_now.unwrap();
+        let goal = x.head_from_coil_goal;
+        let d = (coil.translation.vector - goal.translation.vector).norm();
+        let a = coil.rotation.angle_to(&goal.rotation);
+        assert!((d - x.coil_error.0).abs() < 1e-9, "{d} {:?}", x.coil_error);
+        assert!((a - x.coil_error.1).abs() < 1e-9, "{a} {:?}", x.coil_error);
+    }
 }
 
 /// Gentle nods about the head's x axis and a sway along y (a seated patient's).

@@ -55,6 +55,10 @@ pub struct CycleRecord {
     /// and rad: what the on-target gate judges (the flange's [`Self::deviation`] differs by the
     /// angle error times the coil's offset from the flange). NaN without a head estimate.
     pub coil_error: (f64, f64),
+    /// The measured coil in the head marker's frame (`head_from_coil`) for the head as
+    /// estimated now: where a pulse at this cycle lands (the session's record). `None` without
+    /// a head estimate.
+    pub coil_now: Option<Isometry3<f64>>,
     /// The head marker now (`tracker_from_head` estimated for the cycle's time), when known:
     /// what teaching the goal while the loop runs averages.
     pub head_now: Option<Isometry3<f64>>,
@@ -98,6 +102,7 @@ impl CycleRecord {
             coasting: false,
             deviation: (f64::NAN, f64::NAN),
             coil_error: (f64::NAN, f64::NAN),
+            coil_now: None,
             head_now: None,
             head_at_target: None,
             contact_force_n: f64::NAN,

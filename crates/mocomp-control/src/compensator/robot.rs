@@ -121,8 +121,9 @@ impl Compensator {
         }
         if let Some(tracker_from_head) = self.head.predictor.predict(now) {
             rec.head_now = Some(tracker_from_head);
-            (rec.deviation, rec.coil_error) =
-                self.measured_errors(&state.actual_q, &tracker_from_head);
+            let m = self.measured(&state.actual_q, &tracker_from_head);
+            (rec.deviation, rec.coil_error, rec.coil_now) =
+                (m.deviation, m.coil_error, Some(m.head_from_coil));
         }
     }
 }

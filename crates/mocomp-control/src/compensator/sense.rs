@@ -12,6 +12,17 @@ use mocomp_geom::PoseSample;
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
 use mocomp_ur::RobotState;
 
+/// Where the arm's state puts the flange and the coil against the goal for a head estimate.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Measured {
+    /// The flange's distance from its goal, m and rad ([`CycleRecord::deviation`]).
+    pub deviation: (f64, f64),
+    /// The coil's, m and rad ([`CycleRecord::coil_error`]).
+    pub coil_error: (f64, f64),
+    /// The coil on the head ([`CycleRecord::coil_now`]).
+    pub head_from_coil: Isometry3<f64>,
+}
+
 /// The tracker's side: the samples taken and the head estimate they make.
 #[derive(Debug, Clone)]
 pub(super) struct HeadState {
@@ -287,7 +298,9 @@ impl Compensator {
         };
         if head_known && let Some(tracker_from_head) = head_now {
             rec.head_now = Some(tracker_from_head);
-            (rec.deviation, rec.coil_error) = self.measured_errors(q_actual, &tracker_from_head);
+            let m = self.measured(q_actual, &tracker_from_head);
+            (rec.deviation, rec.coil_error, rec.coil_now) =
+                (m.deviation, m.coil_error, Some(m.head_from_coil));
         }
         HeadEstimate {
             base_from_head,
@@ -297,12 +310,8 @@ impl Compensator {
     }
 
     /// The measured flange's and the measured coil's errors (m, rad) against the goal for the
-    /// head at `tracker_from_head`, with the arm at `q`.
-    pub(super) fn measured_errors(
-        &self,
-        q: &[f64; 6],
-        tracker_from_head: &Isometry3<f64>,
-    ) -> ((f64, f64), (f64, f64)) {
+    /// head at `tracker_from_head`, and the measured coil on that head, with the arm at `q`.
+    pub(super) fn measured(&self, q: &[f64; 6], tracker_from_head: &Isometry3<f64>) -> Measured {
         let goal_now = self.goal_for(tracker_from_head);
         let flange = self.arm.fk_flange(q);
         let angle = flange.rotation.angle_to(&goal_now.rotation);
@@ -310,16 +319,17 @@ impl Compensator {
             flange * self.cfg.flange_from_coil,
             goal_now * self.cfg.flange_from_coil,
         );
-        (
-            (
+        Measured {
+            deviation: (
                 (flange.translation.vector - goal_now.translation.vector).norm(),
                 angle,
             ),
-            (
+            coil_error: (
                 (coil.translation.vector - coil_goal.translation.vector).norm(),
                 angle,
             ),
-        )
+            head_from_coil: (self.cfg.base_from_tracker * tracker_from_head).inv_mul(&coil),
+        }
     }
 
     /// Whether contact mode holds the coil on the scalp now (following the goal).
