@@ -195,9 +195,14 @@ pub struct SessionSection {
     /// The target the loop starts on (a name in `targets`; default: `[goal]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub target: Option<String>,
-    /// Write one CSV row per pulse to this file.
+    /// Write one CSV row per pulse to this file (relative to this file): its UTC time, the
+    /// target, the coil's errors, its pose on the image and distance to the scalp, the output.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pulse_log: Option<String>,
+    /// The stimulator's output, % of its maximum, recorded with each pulse whose stimulator does
+    /// not say it (a pulse on a robot input says nothing; a STRING `pulse output=65` does).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stimulator_output_pct: Option<f64>,
     /// The robot's digital output that carries the gate (0-7 standard, 8-15 configurable).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gate_output: Option<u32>,
@@ -234,6 +239,10 @@ pub struct SessionSection {
 pub struct SimStimulatorSection {
     /// Pulses per second while the gate is open (0: no stimulator).
     pub rate_hz: f64,
+    /// The output it announces with each pulse over OpenIGTLink (`pulse output=…`, stamped
+    /// with its own clock), %; none: a plain `pulse`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub output_pct: Option<f64>,
 }
 
 impl SessionSection {
@@ -980,6 +989,20 @@ impl Config {
             50.0,
             false,
         )?;
+        for (key, v) in [
+            (
+                "session.stimulator_output_pct",
+                self.session.stimulator_output_pct,
+            ),
+            (
+                "session.simulated_stimulator.output_pct",
+                self.session.simulated_stimulator.output_pct,
+            ),
+        ] {
+            if let Some(v) = v {
+                Check::range(key, v, 0.0, 100.0, false)?;
+            }
+        }
         if self.session.target.is_some() && self.session.targets.is_none() {
             return Err(AppError::Config(
                 "session.target: needs session.targets (the file it is in)".into(),

@@ -122,8 +122,20 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
 }
 
 /// The session's notes waiting on the logger's thread: into its log, to the observer, into the
-/// summary.
-fn drain(session: &mut SessionLogSide, s: &mut Summary, observer: &mut dyn Observer) {
+/// summary. The log's pulses get their UTC time from the loop's `clock`, tied to the system's
+/// clock the first time it is known.
+fn drain(
+    session: &mut SessionLogSide,
+    s: &mut Summary,
+    observer: &mut dyn Observer,
+    clock: &OnceLock<Arc<dyn Clock>>,
+) {
+    if !session.log.has_utc_offset()
+        && let Some(c) = clock.get()
+        && let Ok(unix) = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH)
+    {
+        session.log.set_utc_offset(unix.as_secs_f64() - c.now_s());
+    }
     while let Ok(n) = session.notes.try_recv() {
         let t = note_time(&n);
         let line = session.log.take(&n);
@@ -214,7 +226,7 @@ pub(crate) fn logger(
             s.events.push((r.t, e));
             observer.event(r.t, &e);
         }
-        drain(session, &mut s, observer);
+        drain(session, &mut s, observer, clock);
         if let Some(w) = w.as_mut().filter(|_| log_error.is_none()) {
             let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
             let mut row = vec![
@@ -261,7 +273,7 @@ pub(crate) fn logger(
         }
     }
     // The loop has ended: the notes of its last cycles.
-    drain(session, &mut s, observer);
+    drain(session, &mut s, observer, clock);
     observer.finish();
     if let Some(w) = w.as_mut()
         && log_error.is_none()

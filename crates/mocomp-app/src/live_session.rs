@@ -14,7 +14,9 @@ use mocomp_geom::PoseSource;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_igtl::client::{Client, IgtlPoseSource};
 use mocomp_igtl::message::Body;
-use mocomp_session::{Drift, GateEvent, GateState, JointHistory, Session, Targets, shut_reason};
+use mocomp_session::{
+    Announced, Drift, GateEvent, GateState, JointHistory, Session, Targets, shut_reason,
+};
 use mocomp_ur::{Robot, UrRobot};
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError};
@@ -35,6 +37,9 @@ pub struct SessionSetup {
     pub igtl_device: Option<String>,
     /// The drift monitor's marker: its device and flange_from_marker.
     pub marker: Option<(String, Isometry3<f64>)>,
+    /// What a pulse's record is made with: the image, the head, the configured output (its
+    /// UTC offset is set once the loop's clock runs).
+    pub recorder: mocomp_session::Recorder,
 }
 
 impl SessionSetup {
@@ -70,13 +75,20 @@ impl SessionSetup {
             None => None,
             Some(device) => Some((device.clone(), flange_from_marker(setup)?)),
         };
+        let recorder = mocomp_session::Recorder {
+            utc_minus_loop_s: None,
+            head_from_image: setup.file.head.head_from_image.iso(),
+            head: setup.file.head_model()?,
+            output_pct: s.stimulator_output_pct,
+        };
         Ok(Self {
             targets,
             start,
             params: s.params(),
-            pulse_log: s.pulse_log.as_ref().map(PathBuf::from),
+            pulse_log: s.pulse_log.as_ref().map(|p| setup.dir.join(p)),
             igtl_device: s.igtl_device.clone(),
             marker,
+            recorder,
         })
     }
 
@@ -136,8 +148,8 @@ pub struct LoopSession {
     base_from_tracker: Isometry3<f64>,
     arm: mocomp_kin::Arm,
     history: JointHistory,
-    /// Pulse times announced over OpenIGTLink.
-    pulses: Option<Receiver<f64>>,
+    /// Pulses announced over OpenIGTLink.
+    pulses: Option<Receiver<Announced>>,
     gate_level: bool,
     /// Whether the gate's changes are reported ([`SessionSetup::active`]).
     report_gate: bool,
@@ -157,12 +169,12 @@ impl std::fmt::Debug for LoopSession {
 
 impl LoopSession {
     /// The session of `s`, telling `notes`; `marker`: the drift marker's source (from its own
-    /// OpenIGTLink client), `pulses`: pulse times taken from OpenIGTLink.
+    /// OpenIGTLink client), `pulses`: pulses announced over OpenIGTLink.
     pub fn new(
         s: &SessionSetup,
         setup: &Setup,
         marker: Option<IgtlPoseSource>,
-        pulses: Option<Receiver<f64>>,
+        pulses: Option<Receiver<Announced>>,
         notes: SyncSender<Note>,
     ) -> Self {
         Self {
@@ -231,8 +243,8 @@ impl LoopSession {
         if let Some(p) = step.pulse {
             self.note(Note::Pulse(p, self.target));
         }
-        while let Some(t) = self.pulses.as_ref().and_then(|r| r.try_recv().ok()) {
-            let p = self.session.pulse(t);
+        while let Some(a) = self.pulses.as_ref().and_then(|r| r.try_recv().ok()) {
+            let p = self.session.pulse(&a);
             self.note(Note::Pulse(p, self.target));
         }
         if step.gate_open != self.gate_level
@@ -255,22 +267,26 @@ impl LoopSession {
     }
 }
 
-/// Takes STRING `pulse` messages (any device, the text `pulse` in any case) from a client's
-/// message channel ([`Client::take_messages`]) and passes their reception times on, until `stop` (checked at least every
-/// 100 ms) or the channel closes.
+/// Takes STRING `pulse` messages (any device; `pulse`, optionally `output=<percent>`, in any
+/// case: [`Announced::parse`]) from a client's message channel ([`Client::take_messages`]) and
+/// passes them on with their reception times and the sender's timestamp (the stimulator's own
+/// time, when it set one), until `stop` (checked at least every 100 ms) or the channel closes.
 pub fn forward_pulses(
     rx: &Receiver<mocomp_igtl::client::Received>,
-    to: &SyncSender<f64>,
+    to: &SyncSender<Announced>,
     stop: &std::sync::atomic::AtomicBool,
 ) {
     while !stop.load(std::sync::atomic::Ordering::Relaxed) {
         match rx.recv_timeout(std::time::Duration::from_millis(100)) {
             Ok(r) => {
+                let stamp = r.message.timestamp;
                 if let Body::String { text, .. } = &r.message.body
-                    && String::from_utf8_lossy(text)
-                        .trim()
-                        .eq_ignore_ascii_case("pulse")
-                    && let Err(TrySendError::Disconnected(_)) = to.try_send(r.received_s)
+                    && let Some(a) = Announced::parse(
+                        &String::from_utf8_lossy(text),
+                        r.received_s,
+                        (!stamp.is_none()).then(|| stamp.to_secs_f64()),
+                    )
+                    && let Err(TrySendError::Disconnected(_)) = to.try_send(a)
                 {
                     return;
                 }
@@ -307,6 +323,7 @@ pub type Publisher = std::sync::Arc<std::sync::OnceLock<std::sync::Arc<Client>>>
 /// The logger thread's side: the pulse log, the gate over OpenIGTLink, the figures.
 pub struct SessionLog {
     names: Vec<String>,
+    recorder: mocomp_session::Recorder,
     log: Option<mocomp_session::PulseLog<std::fs::File>>,
     /// The client the gate is published on, once connected, and the device.
     publish: Option<(Publisher, String)>,
@@ -338,6 +355,7 @@ impl SessionLog {
         };
         Ok(Self {
             names: s.targets.iter().map(|t| t.0.clone()).collect(),
+            recorder: s.recorder.clone(),
             log,
             publish: s.igtl_device.clone().map(|d| (publish, d)),
             report: SessionReport {
@@ -345,6 +363,18 @@ impl SessionLog {
                 ..SessionReport::default()
             },
         })
+    }
+
+    /// Ties the loop's clock to UTC: `utc_minus_loop_s` is UTC (Unix seconds) less the loop's
+    /// time, taken once when the loop's clock is known; every pulse's UTC time is its loop time
+    /// plus it (both clocks run at the same rate for the length of a session).
+    pub fn set_utc_offset(&mut self, utc_minus_loop_s: f64) {
+        self.recorder.utc_minus_loop_s = Some(utc_minus_loop_s);
+    }
+
+    /// Whether the loop's clock is tied to UTC yet.
+    pub fn has_utc_offset(&self) -> bool {
+        self.recorder.utc_minus_loop_s.is_some()
     }
 
     fn name(&self, target: Option<usize>) -> &str {
@@ -364,7 +394,7 @@ impl SessionLog {
                 } else {
                     r.pulses_off_target += 1;
                 }
-                let row = mocomp_session::Pulse::named(&p, self.name(target));
+                let row = self.recorder.row(&p, self.name(target));
                 if let Some(log) = self.log.as_mut()
                     && let Err(e) = log.write(&row)
                 {

@@ -101,7 +101,7 @@ impl SessionStart {
         if let (Some(c), Some(_)) = (&client, &s.igtl_device) {
             self.publisher.set(Arc::clone(c)).ok();
         }
-        let (pulses_tx, pulses_rx) = sync_channel::<f64>(PULSES);
+        let (pulses_tx, pulses_rx) = sync_channel::<mocomp_session::Announced>(PULSES);
         let forwarding_done = Arc::new(AtomicBool::new(false));
         let forwarder = match (&client, messages) {
             (Some(_), Some(rx)) if s.params.pulse_input.is_none() => {

@@ -273,6 +273,12 @@ impl Stimulator {
     ) -> std::io::Result<Self> {
         let s = &setup.file.session;
         let (gate, input, rate) = (s.gate_output, s.pulse_input, s.simulated_stimulator.rate_hz);
+        // What a stimulator's bridge would say: `pulse`, with its output when configured.
+        let text = match s.simulated_stimulator.output_pct {
+            Some(v) => format!("pulse output={v}"),
+            None => "pulse".to_string(),
+        }
+        .into_bytes();
         // One source of pulses: the robot's input when there is one, else the message.
         let by_message = (s.igtl_device.is_some() && input.is_none())
             .then_some(tracker)
@@ -299,15 +305,17 @@ impl Stimulator {
                         continue;
                     }
                     if let Some(t) = &by_message
-                        && let Ok(m) = mocomp_igtl::Message::new(
+                        && let Ok(mut m) = mocomp_igtl::Message::new(
                             "STRING",
                             "Stimulator",
                             mocomp_igtl::message::Body::String {
                                 encoding: 3,
-                                text: b"pulse".to_vec(),
+                                text: text.clone(),
                             },
                         )
                     {
+                        // Stamped with its own clock (this machine's), as the record keeps it.
+                        m.timestamp = mocomp_igtl::Timestamp::now();
                         t.send(&m);
                     }
                     if let Some(b) = input {

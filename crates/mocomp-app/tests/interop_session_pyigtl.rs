@@ -1,7 +1,7 @@
 //! The session's OpenIGTLink side against pyigtl 0.3.4 (an independent Python implementation)
 //! as the server a navigation system or TMS software would run: its STRING `pulse` reaches the
-//! loop as a pulse (any other text does not), and the gate the session publishes reads back in
-//! pyigtl as the STRING `open` / `shut: why`.
+//! loop as a pulse with the sender's timestamp and the output it says (any other text does not),
+//! and the gate the session publishes reads back in pyigtl as the STRING `open` / `shut: why`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
@@ -44,13 +44,22 @@ fn pulses_from_pyigtl_reach_the_loop_and_the_gate_reads_back_in_pyigtl() {
         );
     };
     send(&mut py, "Stimulator", "pulse");
-    rx.recv_timeout(Duration::from_secs(10))
+    let a = rx
+        .recv_timeout(Duration::from_secs(10))
         .expect("the pulse reached the loop's channel");
-    // Other text is not a pulse; the text's case and spaces do not matter.
+    // pyigtl's header timestamp is the stimulator's own time of the pulse.
+    let own = a.stimulator_unix_s.expect("the sender's timestamp");
+    assert!((own - 1_700_000_000.0).abs() < 1e-6, "{a:?}");
+    assert_eq!(a.output_pct, None);
+    // Other text is not a pulse; the text's case and spaces do not matter; the output said is
+    // kept.
     send(&mut py, "Note", "hello");
-    send(&mut py, "Stimulator", " PULSE\n");
-    rx.recv_timeout(Duration::from_secs(10))
+    send(&mut py, "Stimulator", "pulse output=abc");
+    send(&mut py, "Stimulator", " PULSE output=65\n");
+    let a = rx
+        .recv_timeout(Duration::from_secs(10))
         .expect("the second pulse");
+    assert_eq!(a.output_pct, Some(65.0));
     assert!(
         rx.recv_timeout(Duration::from_millis(300)).is_err(),
         "one pulse each"
@@ -66,6 +75,12 @@ fn pulses_from_pyigtl_reach_the_loop_and_the_gate_reads_back_in_pyigtl() {
         pulse_log: None,
         igtl_device: Some("MocompGate".into()),
         marker: None,
+        recorder: mocomp_session::Recorder {
+            utc_minus_loop_s: None,
+            head_from_image: mocomp_geom::nalgebra::Isometry3::identity(),
+            head: mocomp_control::HeadModel::adult(),
+            output_pct: None,
+        },
     };
     let mut log = SessionLog::open(&setup, publisher).unwrap();
     let wait = |py: &mut PythonPeer| {

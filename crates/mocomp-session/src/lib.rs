@@ -11,7 +11,8 @@
 //!   monitor's latched verdict, together beside the loop.
 //! - [`history`]: the robot's recent joints, to compare a marker sample with the robot where it
 //!   was when the sample was acquired.
-//! - [`pulses`]: the pulse log, one CSV row per pulse with the coil's error and the gate.
+//! - [`pulses`]: the pulse log, one CSV row per pulse: its UTC time, the coil's error, its pose
+//!   on the image and distance to the scalp, the stimulator's output, the gate; read back.
 //!
 //! Pure logic: no robot, no socket, no clock (the targets file is parsed and printed, the pulse
 //! log written to a writer the caller gives).
@@ -31,6 +32,8 @@ pub use drift::{Drift, DriftMonitor, DriftParams};
 pub use gate::{Gate, GateEvent, GateInputs, GateParams, GateState, Shut};
 pub use grid::{GridError, GridParams, GridPoint, grid_around};
 pub use history::JointHistory;
-pub use pulses::{Pulse, PulseLog};
-pub use session::{PulseAt, Session, SessionParams, Step, shut_reason};
+pub use pulses::{
+    Pulse, PulseLog, PulseLogError, Recorder, iso8601, matsimnibs, parse_iso8601, read_log,
+};
+pub use session::{Announced, PulseAt, Session, SessionParams, Step, shut_reason};
 pub use targets::{Target, Targets, TargetsError};

@@ -94,6 +94,55 @@ pub struct PulseAt {
     pub head_speed: (f64, f64),
     /// The gate when the pulse came (the level the stimulator's trigger saw).
     pub gate: GateState,
+    /// The measured coil in the head marker's frame (`head_from_coil`), when the head was
+    /// known: where the pulse landed.
+    pub coil: Option<Isometry3<f64>>,
+    /// The stimulator's own time of the pulse (Unix seconds, UTC), when it gave one.
+    pub stimulator_unix_s: Option<f64>,
+    /// The stimulator's output, % of its maximum, when it said.
+    pub output_pct: Option<f64>,
+}
+
+/// A pulse a message announced (an OpenIGTLink STRING `pulse`): when it came, on the loop's
+/// clock, and what the stimulator said of it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Announced {
+    /// When it was received, loop time, s.
+    pub t_s: f64,
+    /// The stimulator's own time of the pulse (Unix seconds, UTC), when its message carried one.
+    pub stimulator_unix_s: Option<f64>,
+    /// Its output, % of the stimulator's maximum, when the message said.
+    pub output_pct: Option<f64>,
+}
+
+impl Announced {
+    /// The announcement in a STRING's `text`: `pulse`, then optionally `output=<percent>` (any
+    /// case, separated by spaces); `None` when the text is no pulse (another message on the
+    /// device, or an output that is no percentage, which must not pass as a pulse of unknown
+    /// strength).
+    pub fn parse(text: &str, t_s: f64, stimulator_unix_s: Option<f64>) -> Option<Self> {
+        let mut words = text.split_whitespace();
+        if !words.next()?.eq_ignore_ascii_case("pulse") {
+            return None;
+        }
+        let mut output_pct = None;
+        for w in words {
+            let (key, value) = w.split_once('=')?;
+            if !key.eq_ignore_ascii_case("output") {
+                return None;
+            }
+            let v: f64 = value.trim_end_matches('%').parse().ok()?;
+            if !(0.0..=100.0).contains(&v) {
+                return None;
+            }
+            output_pct = Some(v);
+        }
+        Some(Self {
+            t_s,
+            stimulator_unix_s,
+            output_pct,
+        })
+    }
 }
 
 /// What one cycle of the session produced.
@@ -122,6 +171,8 @@ pub struct Session {
     pulse_level: Option<bool>,
     /// The last cycle's time, coil error and head speed (an external pulse's record).
     last: (f64, (f64, f64), (f64, f64)),
+    /// The last cycle's measured coil on the head.
+    last_coil: Option<Isometry3<f64>>,
 }
 
 impl Session {
@@ -137,6 +188,7 @@ impl Session {
             invalid: None,
             pulse_level: None,
             last: (f64::NAN, (f64::NAN, f64::NAN), (0.0, 0.0)),
+            last_coil: None,
         }
     }
 
@@ -190,6 +242,7 @@ impl Session {
         let error = rec.coil_error.0.is_finite().then_some(rec.coil_error);
         let gate_event = self.gate.update(rec.t, &GateInputs { tracking, error });
         self.last = (rec.t, rec.coil_error, rec.head_speed);
+        self.last_coil = rec.coil_now;
         let level = match (self.params.pulse_input, digital_inputs) {
             (Some(bit), Some(bits)) => Some(bits & (1 << bit) != 0),
             _ => None,
@@ -199,17 +252,23 @@ impl Session {
         Step {
             gate_event,
             gate_open: self.gate.is_open(),
-            pulse: rising.then(|| self.pulse_with(rec.t, before)),
+            pulse: rising.then(|| self.pulse_with(rec.t, before, None, None)),
         }
     }
 
-    /// A pulse announced by a message (an OpenIGTLink STRING "pulse") at loop time `t_s`: the
-    /// coil as the last cycle measured it, the gate as it is.
-    pub fn pulse(&self, t_s: f64) -> PulseAt {
-        self.pulse_with(t_s, self.gate.state())
+    /// A pulse announced by a message (an OpenIGTLink STRING "pulse"): the coil as the last
+    /// cycle measured it, the gate as it is, what the stimulator said.
+    pub fn pulse(&self, a: &Announced) -> PulseAt {
+        self.pulse_with(a.t_s, self.gate.state(), a.stimulator_unix_s, a.output_pct)
     }
 
-    fn pulse_with(&self, t_s: f64, gate: GateState) -> PulseAt {
+    fn pulse_with(
+        &self,
+        t_s: f64,
+        gate: GateState,
+        stimulator_unix_s: Option<f64>,
+        output_pct: Option<f64>,
+    ) -> PulseAt {
         let (_, (d, a), speed) = self.last;
         PulseAt {
             t_s,
@@ -218,6 +277,9 @@ impl Session {
             angle_error_rad: a,
             head_speed: speed,
             gate,
+            coil: self.last_coil,
+            stimulator_unix_s,
+            output_pct,
         }
     }
 
@@ -260,6 +322,7 @@ mod tests {
         let mut r = CycleRecord::new(t, mode, [0.0; 6]);
         r.coil_error = (err, 0.0);
         r.head_speed = (0.01, 0.0);
+        r.coil_now = Some(Isometry3::translation(err, 0.0, 0.1));
         r
     }
 
@@ -287,6 +350,16 @@ mod tests {
         assert_eq!(pulses[0].gate, GateState::Open);
         assert!((pulses[0].t_s - 0.2).abs() < 1e-9);
         assert_eq!(pulses[0].position_error_m, 0.0005);
+        // Where it landed: the coil that cycle measured; a robot input says nothing of the
+        // stimulator's time or output.
+        assert_eq!(
+            pulses[0].coil,
+            Some(Isometry3::translation(0.0005, 0.0, 0.1))
+        );
+        assert_eq!(
+            (pulses[0].stimulator_unix_s, pulses[0].output_pct),
+            (None, None)
+        );
         // Another bit changes nothing; an unknown input level no edge.
         assert!(
             s.cycle(&rec(t, Mode::Tracking, 0.0), Some(1 << 2))
@@ -306,6 +379,44 @@ mod tests {
             .pulse
             .unwrap();
         assert_eq!(p.gate, GateState::Shut(Shut::PositionError(0.004)));
+    }
+
+    #[test]
+    fn an_announced_pulse_keeps_what_the_stimulator_said_and_the_last_coil() {
+        let mut s = Session::new(SessionParams::default(), (0.0, 0.0), 0);
+        s.cycle(&rec(1.0, Mode::Tracking, 0.002), None);
+        let a = Announced::parse("PULSE output=62.5", 1.01, Some(1.8e9)).unwrap();
+        let p = s.pulse(&a);
+        assert_eq!(p.t_s, 1.01);
+        assert_eq!(p.output_pct, Some(62.5));
+        assert_eq!(p.stimulator_unix_s, Some(1.8e9));
+        assert_eq!(p.coil, Some(Isometry3::translation(0.002, 0.0, 0.1)));
+        assert_eq!(p.position_error_m, 0.002);
+        // Plain "pulse", a percent sign, spaces around: pulses; anything else is not one.
+        assert_eq!(
+            Announced::parse("  pulse ", 0.0, None).unwrap().output_pct,
+            None
+        );
+        assert_eq!(
+            Announced::parse("pulse output=70%", 0.0, None)
+                .unwrap()
+                .output_pct,
+            Some(70.0)
+        );
+        for not in [
+            "",
+            "pulsed",
+            "gate open",
+            "pulse output=",
+            "pulse output=abc",
+            "pulse output=120",
+            "pulse output=-1",
+            "pulse output=NaN",
+            "pulse power=50",
+            "pulse 50",
+        ] {
+            assert_eq!(Announced::parse(not, 0.0, None), None, "{not:?}");
+        }
     }
 
     #[test]
