@@ -25,12 +25,14 @@ say "installing the Azure Kinect SDK and pyk4a (requirements-k4a.txt)"
 export MOCOMP_K4A_PYTHON="$PWD/.venv-k4a/bin/python"
 
 # 2. Debian packages: the C++ OpenIGTLink library and its example sources (interop peer), the
-#    browser the console's tests drive (Chromium and its WebDriver), and `ip` for the tests'
-#    network namespace.
+#    browser the console's tests drive (Chromium and its WebDriver), `ip` for the tests'
+#    network namespace, and npm.
 missing=()
 for p in libopenigtlink-dev openigtlink-examples g++ chromium chromium-driver iproute2; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
 done
+# npm, for the BIDS validator below (any npm will do: the lock file pins what it installs).
+command -v npm >/dev/null 2>&1 || missing+=(npm)
 if [ ${#missing[@]} -gt 0 ]; then
   say "installing Debian packages: ${missing[*]}"
   SUDO=""
@@ -39,7 +41,15 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}"
 fi
 
-# 3. Rust gates. The toolchain comes from rust-toolchain.toml. No incremental build: CI builds
+# 3. The BIDS validator (npm), pinned by interop/bids/package-lock.json, in its git-ignored
+#    node_modules: the session export's dataset is checked with it.
+if [ ! -x interop/bids/node_modules/.bin/bids-validator ]; then
+  say "installing bids-validator (interop/bids: npm ci)"
+  npm ci --prefix interop/bids --no-audit --no-fund --loglevel=error
+fi
+export MOCOMP_BIDS_VALIDATOR="$PWD/interop/bids/node_modules/.bin/bids-validator"
+
+# 4. Rust gates. The toolchain comes from rust-toolchain.toml. No incremental build: CI builds
 #    each crate once, and the incremental caches would double what the build leaves on disk.
 export CARGO_INCREMENTAL=0
 say "cargo fmt --check"

@@ -19,6 +19,7 @@ macro_rules! refuse {
 }
 
 pub mod affine_file;
+pub mod bids_export;
 pub mod blame;
 pub mod camera;
 pub mod camera_k4a;
@@ -37,6 +38,7 @@ pub mod listen;
 pub mod live;
 pub mod live_log;
 pub mod live_session;
+pub mod localite_export;
 pub mod navigation;
 pub mod navigator_files;
 pub mod placement;
@@ -50,6 +52,7 @@ pub mod registration_gate;
 pub mod rehearsal;
 pub mod ros2;
 pub mod servo_check;
+pub mod session_export;
 pub mod session_link;
 pub mod session_wiring;
 pub mod slicer;

@@ -173,7 +173,7 @@ fn simnibs(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
 }
 
 /// Localite's coil axes to SimNIBS's, multiplied on the right.
-fn localite_axes() -> Matrix4<f64> {
+pub(crate) fn localite_axes() -> Matrix4<f64> {
     Matrix4::new(
         0.0, 0.0, 1.0, 0.0, //
         0.0, -1.0, 0.0, 0.0, //
@@ -190,7 +190,15 @@ fn lps_ras() -> Matrix4<f64> {
 fn attributes(e: &BytesStart<'_>) -> std::collections::HashMap<String, String> {
     e.attributes()
         .filter_map(Result::ok)
-        .map(|a| (a.key.as_ref().to_string(), a.value.into_owned()))
+        .filter_map(|a| {
+            // Unescaped (`&amp;` is `&`), as XML means it; a broken entity drops the attribute,
+            // which the caller then names as missing.
+            let v = a
+                .normalized_value(quick_xml::XmlVersion::Implicit1_0)
+                .ok()?
+                .into_owned();
+            Some((a.key.as_ref().to_string(), v))
+        })
         .collect()
 }
 

@@ -22,6 +22,7 @@ mod register;
 mod robot;
 mod run;
 mod serve_poses;
+mod session;
 mod targets;
 mod teach_goal;
 mod track;
@@ -59,6 +60,7 @@ enum Command {
     Head(head::HeadCmd),
     Pointer(pointer::PointerCmd),
     Register(register::RegisterCmd),
+    Session(session::SessionCmd),
 }
 
 /// Exit code for bad input (arguments, files).
@@ -89,6 +91,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Head(c) => c.run(out)?,
         Command::Pointer(c) => c.run(out)?,
         Command::Register(c) => c.run(out)?,
+        Command::Session(c) => c.run(out)?,
     }
     out.flush()?;
     Ok(())

@@ -62,41 +62,74 @@ fn event_lines(v: &serde_json::Value) -> Vec<String> {
         .collect()
 }
 
-/// The pulse log's rows: (target, position error mm, gate).
-fn pulse_rows(path: &str) -> Vec<(String, f64, String)> {
-    let mut r = csv::Reader::from_path(path).unwrap();
+/// The pulse log's rows, read back as the exports read them.
+fn pulse_rows(path: &str) -> Vec<mocomp_session::Pulse> {
+    let text = std::fs::read_to_string(path).unwrap();
     assert_eq!(
-        r.headers().unwrap().iter().collect::<Vec<_>>(),
+        text.lines().next().unwrap().split(',').collect::<Vec<_>>(),
         mocomp_session::pulses::HEADER
     );
-    r.records()
-        .map(|row| {
-            let row = row.unwrap();
-            (
-                row[1].to_string(),
-                row[2].parse().unwrap(),
-                row[6].to_string(),
-            )
-        })
-        .collect()
+    mocomp_session::read_log(path, &text).unwrap()
 }
 
-fn check_pulses(v: &serde_json::Value, log: &str) {
+/// Unix seconds now (the test's own clock, to bound the log's UTC times).
+fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+}
+
+/// Checks the run `v`'s pulse log `log`, written between `started` and `ended` (Unix s), with
+/// the stimulator's output `output_pct`.
+fn check_pulses(v: &serde_json::Value, log: &str, (started, ended): (f64, f64), output_pct: f64) {
     let rows = pulse_rows(log);
     let ses = &v["session"];
     eprintln!("{ses}");
     // A 5 Hz stimulator gated by the output, over the seconds on target.
     assert!(rows.len() >= 10, "{} pulses: {v}", rows.len());
     assert_eq!(ses["pulses"].as_u64().unwrap(), rows.len() as u64, "{v}");
-    let open: Vec<_> = rows.iter().filter(|r| r.2 == "open").collect();
+    let open: Vec<_> = rows.iter().filter(|r| r.gate_open).collect();
     // A pulse the stimulator fired as the gate was shutting (it read the output a moment
     // before) is logged off target, as it was; such are rare.
     assert!(open.len() * 10 >= rows.len() * 9, "{rows:?}");
+    // The target, from the targets file beside the log.
+    let file = std::path::Path::new(log).with_file_name("targets.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let target = mocomp_session::Targets::parse("targets.toml", &text)
+        .unwrap()
+        .targets
+        .iter()
+        .find(|t| t.name == "hot-r0c1")
+        .unwrap()
+        .pose();
+    let mut last_utc = f64::NEG_INFINITY;
     for r in &rows {
-        assert_eq!(r.0, "hot-r0c1", "{r:?}");
+        assert_eq!(r.target, "hot-r0c1", "{r:?}");
+        // Clock time, in order, within the run; the output the stimulator fired at.
+        let utc = r.utc_unix_s.unwrap();
+        assert!(
+            utc > started && utc < ended && utc >= last_utc,
+            "{r:?} {started} {ended}"
+        );
+        last_utc = utc;
+        assert_eq!(r.output_pct, Some(output_pct), "{r:?}");
     }
     for r in open {
-        assert!(r.1 <= 2.0, "a pulse through an open gate {} mm off", r.1);
+        let mm = r.position_error_m * 1e3;
+        assert!(mm <= 2.0, "a pulse through an open gate {mm} mm off");
+        // On the image (here the head marker's frame: the example has no registration) where
+        // the target is, by the error the row gives; near the scalp the grid lies on.
+        let coil = r
+            .image_from_coil
+            .expect("an open gate's pulse has the coil's pose");
+        let d = (coil.translation.vector - target.translation.vector).norm();
+        assert!((d - r.position_error_m).abs() < 1e-5, "{d} {r:?}");
+        let a = coil.rotation.angle_to(&target.rotation);
+        assert!((a - r.angle_error_rad).abs() < 1e-4, "{a} {r:?}");
+        // The coil's face on the scalp's outside, as close as the grid's targets put it.
+        let mm = r.scalp_distance_m * 1e3;
+        assert!((-1.0..15.0).contains(&mm), "{mm} mm to the scalp: {r:?}");
     }
     assert!(ses["gate_openings"].as_u64().unwrap() >= 1, "{v}");
     let lines = event_lines(v);
@@ -111,6 +144,181 @@ fn check_pulses(v: &serde_json::Value, log: &str) {
     assert!(!ses["calibration_invalid"].as_bool().unwrap(), "{v}");
 }
 
+/// The example's ellipsoid head (semi-axes 75, 95, 110 mm about the head marker's origin, the
+/// example's image frame) as a T1: 64³ voxels of 4 mm, 150 inside, 0 outside.
+fn ellipsoid_t1(dir: &TempDir) -> String {
+    let n = mocomp_testkit::nifti::Nifti::cube(64, 4.0, |p| {
+        let r = (p[0] / 75.0).powi(2) + (p[1] / 95.0).powi(2) + (p[2] / 110.0).powi(2);
+        if r < 1.0 { 150 } else { 0 }
+    });
+    let path = dir.path("t1.nii");
+    std::fs::write(&path, n.bytes()).unwrap();
+    path
+}
+
+/// The session's log `log` exported as BIDS and as Localite: every pulse a row at its time, the
+/// NIBS files with the draft's columns, the BIDS core valid to the BIDS validator, the Localite
+/// file read back by mocomp's importer to the logged poses.
+fn export(dir: &TempDir, cfg: &str, log: &str) {
+    let pulses = pulse_rows(log);
+    let posed: Vec<_> = pulses.iter().filter_map(|p| p.image_from_coil).collect();
+    assert!(!posed.is_empty());
+    let bids = dir.path("bids");
+    let t1 = ellipsoid_t1(dir);
+    let out = mocomp(&[
+        "session",
+        "export",
+        "--config",
+        cfg,
+        "--bids",
+        &bids,
+        "--t1",
+        &t1,
+        "--subject",
+        "07",
+        "--session",
+        "2",
+        "--task",
+        "hotspot",
+    ]);
+    assert_success(&out);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.starts_with(&format!(
+            "{} pulses ({} with the coil's pose)",
+            pulses.len(),
+            posed.len()
+        )),
+        "{said}"
+    );
+    let table = |file: &str| -> (Vec<String>, Vec<Vec<String>>) {
+        let text = std::fs::read_to_string(format!(
+            "{bids}/sub-07/ses-2/nibs/sub-07_ses-2_stimsys-tms_{file}"
+        ))
+        .unwrap();
+        let mut lines = text.lines();
+        let head = lines
+            .next()
+            .unwrap()
+            .split('\t')
+            .map(String::from)
+            .collect();
+        (
+            head,
+            lines
+                .map(|l| l.split('\t').map(String::from).collect())
+                .collect(),
+        )
+    };
+    // The draft's columns (nibs-bids-v5+, "2. prefrontal-tms-eeg": *_nibs.tsv, *_markers.tsv).
+    let (head, rows) = table("task-hotspot_nibs.tsv");
+    for c in [
+        "CoilDriver",
+        "CoilID",
+        "StimulusMode",
+        "MarkerID",
+        "StimStepCount",
+        "FirstPulseAmplitude",
+        "StimValidation",
+        "Timestamp",
+    ] {
+        assert!(head.iter().any(|h| h == c), "{c} not in {head:?}");
+    }
+    let col = |h: &[String], n: &str| h.iter().position(|x| x == n).unwrap();
+    assert_eq!(rows.len(), pulses.len(), "every pulse a row");
+    for (r, p) in rows.iter().zip(&pulses) {
+        assert_eq!(r.len(), head.len(), "{r:?}");
+        assert_eq!(
+            r[col(&head, "Timestamp")],
+            mocomp_session::iso8601(p.utc_unix_s.unwrap())
+        );
+        assert_eq!(r[col(&head, "TargetName")], p.target);
+        assert_eq!(r[col(&head, "FirstPulseAmplitude")], "60.0");
+        assert_eq!(
+            r[col(&head, "StimValidation")],
+            if p.gate_open { "OK" } else { "OffTarget" }
+        );
+    }
+    let (mhead, markers) = table("task-hotspot_markers.tsv");
+    for c in [
+        "MarkerID",
+        "coil_x",
+        "coil_y",
+        "coil_z",
+        "normal_x",
+        "normal_y",
+        "normal_z",
+        "direction_x",
+        "direction_y",
+        "direction_z",
+        "Timestamp",
+    ] {
+        assert!(mhead.iter().any(|h| h == c), "{c} not in {mhead:?}");
+    }
+    assert_eq!(markers.len(), posed.len());
+    for (m, pose) in markers.iter().zip(&posed) {
+        let mm = pose.translation.vector * 1e3;
+        for (c, v) in ["coil_x", "coil_y", "coil_z"]
+            .iter()
+            .zip([mm.x, mm.y, mm.z])
+        {
+            let got: f64 = m[col(&mhead, c)].parse().unwrap();
+            assert!((got - v).abs() < 1e-3, "{c} {got} {v}");
+        }
+        // The normal is the coil's z, into the head.
+        let z = pose.rotation * mocomp_geom::nalgebra::Vector3::z();
+        let got: f64 = m[col(&mhead, "normal_z")].parse().unwrap();
+        assert!((got - z.z).abs() < 1e-5, "{got} {z}");
+    }
+    // The BIDS core, by the BIDS validator (npm's bids-validator; scripts/test.sh installs it).
+    let validator = std::env::var("MOCOMP_BIDS_VALIDATOR").unwrap_or_else(|_| {
+        panic!(
+            "MOCOMP_BIDS_VALIDATOR is not set: the BIDS validator (scripts/test.sh installs it \
+             with `npm ci --prefix interop/bids`)"
+        )
+    });
+    let checked = std::process::Command::new(&validator)
+        .args([bids.as_str(), "--json"])
+        .output()
+        .unwrap_or_else(|e| panic!("{validator}: {e} (scripts/test.sh installs it)"));
+    let report: serde_json::Value = serde_json::from_slice(&checked.stdout).unwrap_or_else(|e| {
+        panic!(
+            "{e}: {}{}",
+            String::from_utf8_lossy(&checked.stdout),
+            String::from_utf8_lossy(&checked.stderr)
+        )
+    });
+    assert_eq!(
+        report["issues"]["errors"],
+        serde_json::json!([]),
+        "{report}"
+    );
+    assert!(checked.status.success(), "{report}");
+    let summary = &report["summary"];
+    assert_eq!(summary["subjects"], serde_json::json!(["07"]), "{report}");
+    assert_eq!(summary["sessions"], serde_json::json!(["2"]), "{report}");
+    assert_eq!(summary["dataTypes"], serde_json::json!(["T1w"]), "{report}");
+    // Localite, read back by mocomp's own importer: the logged poses, in order.
+    let xml = dir.path("TriggerMarkers_Coil0_mocomp.xml");
+    let out = mocomp(&["session", "export", "--config", cfg, "--localite", &xml]);
+    assert_success(&out);
+    let text = std::fs::read_to_string(&xml).unwrap();
+    assert_eq!(text.matches("<TriggerMarker ").count(), pulses.len());
+    let back = mocomp_app::navigator_files::parse_poses(
+        mocomp_app::navigator_files::Navigator::Localite,
+        &xml,
+        &text,
+    )
+    .unwrap();
+    assert_eq!(back.len(), posed.len());
+    for (b, pose) in back.iter().zip(&posed) {
+        assert_eq!(b.name, "hot-r0c1");
+        let d = (b.image_from_coil.translation.vector - pose.translation.vector).norm();
+        assert!(d < 1e-9, "{d}");
+        assert!(b.image_from_coil.rotation.angle_to(&pose.rotation) < 1e-6);
+    }
+}
+
 #[test]
 fn a_session_starts_on_a_grid_target_and_logs_each_pulse_through_the_gate() {
     let dir = TempDir::new("mocomp-session");
@@ -118,15 +326,24 @@ fn a_session_starts_on_a_grid_target_and_logs_each_pulse_through_the_gate() {
     let session = format!(
         "\n[session]\ntargets = \"targets.toml\"\ntarget = \"hot-r0c1\"\npulse_log = \"{pulses}\"\n\
          gate_output = 7\npulse_input = 0\nmarker_device = \"MarkerToTracker\"\n\
-         [session.simulated_stimulator]\nrate_hz = 5.0\n"
+         stimulator_output_pct = 60.0\n[session.simulated_stimulator]\nrate_hz = 5.0\n"
     );
     let cfg = config(&dir, "127.0.0.73", &session, &[]);
     targets(&dir, &cfg);
+    let started = unix_now();
     let v = run(&cfg, "10");
+    let ended = unix_now();
     // The planned approach reached the target; the drift monitor on the flange marker saw an
     // exact calibration.
     assert!(event_lines(&v).iter().any(|l| l == "Reached"), "{v}");
-    check_pulses(&v, &pulses);
+    check_pulses(&v, &pulses, (started, ended), 60.0);
+    // A robot input says nothing of the stimulator's own time.
+    assert!(
+        pulse_rows(&pulses)
+            .iter()
+            .all(|r| r.stimulator_unix_s.is_none())
+    );
+    export(&dir, &cfg, &pulses);
 }
 
 #[test]
@@ -135,13 +352,24 @@ fn pulses_announced_over_openigtlink_are_logged_alike() {
     let pulses = dir.path("pulses.csv");
     let session = format!(
         "\n[session]\ntargets = \"targets.toml\"\ntarget = \"hot-r0c1\"\npulse_log = \"{pulses}\"\n\
-         gate_output = 7\nigtl_device = \"MocompGate\"\n\
-         [session.simulated_stimulator]\nrate_hz = 5.0\n"
+         gate_output = 7\nigtl_device = \"MocompGate\"\nstimulator_output_pct = 60.0\n\
+         [session.simulated_stimulator]\nrate_hz = 5.0\noutput_pct = 65.0\n"
     );
     let cfg = config(&dir, "127.0.0.74", &session, &[]);
     targets(&dir, &cfg);
+    let started = unix_now();
     let v = run(&cfg, "10");
-    check_pulses(&v, &pulses);
+    let ended = unix_now();
+    // The stimulator says its output in each message (over the configured one) and stamps it
+    // with its own clock, which is this machine's here: within the run, before it was received.
+    check_pulses(&v, &pulses, (started, ended), 65.0);
+    for r in pulse_rows(&pulses) {
+        let own = r.stimulator_unix_s.expect("the stimulator's time");
+        assert!(
+            own > started && own <= r.utc_unix_s.unwrap() + 0.05,
+            "{r:?}"
+        );
+    }
 }
 
 #[test]
