@@ -1,6 +1,6 @@
-//! `mocomp session export`: a session's pulse log (`[session] pulse_log`) written as a NIBS-BIDS
-//! dataset ([`crate::bids_export`]) or a Localite trigger-marker file
-//! ([`crate::localite_export`]). The configuration is read for where the log is, the image the
+//! `mocomp session export` and `session report`: a session's pulse log (`[session] pulse_log`)
+//! written as a NIBS-BIDS dataset ([`crate::bids_export`]), a Localite trigger-marker file
+//! ([`crate::localite_export`]) or a report (one HTML page, [`mocomp_report::session`]). The configuration is read for where the log is, the image the
 //! poses are in (its T1 goes into the dataset), its landmarks and registration, and the coil;
 //! the head is not built (a scan is not segmented to export a log).
 
@@ -175,6 +175,38 @@ pub fn localite(source: &ExportSource, file: &Path) -> Result<Exported, AppError
     let text = crate::localite_export::trigger_markers(&source.pulses)
         .what(|| format!("writing {}", file.display()))?;
     write(file, text.as_bytes())?;
+    Ok(exported(source, vec![file.to_path_buf()]))
+}
+
+/// Writes `source`'s report (HTML) to `file`.
+pub fn report(source: &ExportSource, file: &Path, config: &Path) -> Result<Exported, AppError> {
+    let registration = source.config.head.registered.as_ref().map(|(path, r)| {
+        mocomp_report::session::RegistrationView {
+            file: path.display().to_string(),
+            registered_at: r.registered_at.clone(),
+            fre_mm: r.fre_mm,
+            landmarks: r
+                .landmarks
+                .iter()
+                .map(|(n, l)| (n.clone(), l.error_mm))
+                .collect(),
+            surface: (r.surface_rms_mm, r.surface_points),
+        }
+    });
+    let gate = &source.config.session.gate;
+    let html = mocomp_report::session::html(&mocomp_report::session::SessionReport {
+        config: &config.display().to_string(),
+        log: &source.log.display().to_string(),
+        pulses: &source.pulses,
+        registration,
+        gate: (
+            gate.position_tolerance_m * 1e3,
+            gate.angle_tolerance_rad.to_degrees(),
+        ),
+        version: env!("CARGO_PKG_VERSION"),
+    })
+    .what(|| format!("drawing the report {}", file.display()))?;
+    write(file, html.as_bytes())?;
     Ok(exported(source, vec![file.to_path_buf()]))
 }
 

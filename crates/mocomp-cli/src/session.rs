@@ -1,5 +1,6 @@
-//! `mocomp session export --config FILE (--bids DIR | --localite FILE.xml)`: a session's pulse
-//! log for a lab's tools ([`mocomp_app::session_export`]).
+//! `mocomp session export --config FILE (--bids DIR | --localite FILE.xml)` and `session report
+//! --config FILE --out FILE.html`: a session's pulse log for a lab's tools and its files
+//! ([`mocomp_app::session_export`]).
 
 use clap::{Args, Subcommand};
 use mocomp_app::session_export::{BidsOptions, ExportSource, Exported};
@@ -19,6 +20,22 @@ enum SessionCommand {
     /// pulse in `nibs/*_nibs.tsv`, the coil's pose in `*_markers.tsv`, with the T1 the poses
     /// are in) or as a Localite trigger-marker file (`TriggerMarkers_Coil0_*.xml`).
     Export(ExportCmd),
+    /// The session's report: one HTML page (figures inline) with when it ran, the
+    /// registration, each target's pulses and errors, and every pulse.
+    Report(ReportCmd),
+}
+
+#[derive(Debug, Clone, Args)]
+struct ReportCmd {
+    /// The session's configuration.
+    #[arg(long, value_name = "FILE")]
+    config: PathBuf,
+    /// The pulse log (default: the configuration's `[session] pulse_log`).
+    #[arg(long, value_name = "FILE")]
+    log: Option<PathBuf>,
+    /// The report's file.
+    #[arg(long, value_name = "FILE.html")]
+    out: PathBuf,
 }
 
 #[derive(Debug, Clone, Args)]
@@ -56,6 +73,11 @@ impl SessionCmd {
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         match self.command {
             SessionCommand::Export(e) => e.run(out),
+            SessionCommand::Report(r) => {
+                let source = ExportSource::load(&r.config, r.log.as_deref())?;
+                let done = mocomp_app::session_export::report(&source, &r.out, &r.config)?;
+                said(out, &source, &done)
+            }
         }
     }
 }
@@ -82,16 +104,21 @@ impl ExportCmd {
                 );
             }
         };
-        writeln!(
-            out,
-            "{} pulses ({} with the coil's pose) from {}:",
-            done.pulses,
-            done.with_pose,
-            source.log.display()
-        )?;
-        for f in &done.files {
-            writeln!(out, "  {}", f.display())?;
-        }
-        Ok(())
+        said(out, &source, &done)
     }
+}
+
+/// What was written, from which log.
+fn said(out: &mut dyn Write, source: &ExportSource, done: &Exported) -> anyhow::Result<()> {
+    writeln!(
+        out,
+        "{} pulses ({} with the coil's pose) from {}:",
+        done.pulses,
+        done.with_pose,
+        source.log.display()
+    )?;
+    for f in &done.files {
+        writeln!(out, "  {}", f.display())?;
+    }
+    Ok(())
 }

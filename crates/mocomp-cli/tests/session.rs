@@ -317,6 +317,17 @@ fn export(dir: &TempDir, cfg: &str, log: &str) {
         assert!(d < 1e-9, "{d}");
         assert!(b.image_from_coil.rotation.angle_to(&pose.rotation) < 1e-6);
     }
+    // The report: a row per pulse, the shut ones marked, the two figures.
+    let html = dir.path("report.html");
+    let out = mocomp(&["session", "report", "--config", cfg, "--out", &html]);
+    assert_success(&out);
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert_eq!(page.matches("<tr class=\"pulse").count(), pulses.len());
+    assert_eq!(
+        page.matches("<tr class=\"pulse shut\">").count(),
+        pulses.iter().filter(|p| !p.gate_open).count()
+    );
+    assert_eq!(page.matches("<svg").count(), 2);
 }
 
 #[test]

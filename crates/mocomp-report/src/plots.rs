@@ -25,7 +25,7 @@ use std::sync::OnceLock;
 /// Figure size in pixels (PNG) and user units (SVG).
 const SIZE: (u32, u32) = (1100, 700);
 /// The font family the figures use.
-const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// A figure could not be drawn or written.
 #[derive(Debug, thiserror::Error)]
@@ -60,7 +60,7 @@ pub enum PlotError {
 }
 
 /// Registers the compiled-in font once.
-fn font() -> Result<(), PlotError> {
+pub(crate) fn font() -> Result<(), PlotError> {
     static LOADED: OnceLock<bool> = OnceLock::new();
     let ok = *LOADED.get_or_init(|| {
         plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok()
@@ -86,7 +86,7 @@ trait Figure {
 }
 
 /// Any drawing error as text.
-fn e<E: std::fmt::Display>(err: E) -> String {
+pub(crate) fn e<E: std::fmt::Display>(err: E) -> String {
     err.to_string()
 }
 
@@ -218,7 +218,7 @@ fn top(runs: &[Run], f: &dyn Fn(&Record) -> f64, floor: f64) -> f64 {
 }
 
 /// A chart with time (s) on x and `y` on y, its caption, axes and grid drawn.
-fn time_chart<'a, DB, Y>(
+pub(crate) fn time_chart<'a, DB, Y>(
     area: &'a DrawingArea<DB, Shift>,
     caption: &str,
     y_desc: &str,
