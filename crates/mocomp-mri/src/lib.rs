@@ -10,12 +10,14 @@
 //! - [`mask`]: the head's voxels, its largest piece, the closing and the fills;
 //! - [`surface`]: the isosurface and its smoothing;
 //! - [`decimate`]: the surface brought to the size asked, a closed manifold still;
-//! - [`segment`]: the steps in order, and what the scan cuts off.
+//! - [`segment`]: the steps in order, and what the scan cuts off;
+//! - [`slice`]: the volume's axial, coronal and sagittal planes through a point, for a screen.
 
 pub mod decimate;
 pub mod error;
 pub mod mask;
 pub mod segment;
+pub mod slice;
 pub mod surface;
 pub mod threshold;
 pub mod volume;
