@@ -1,7 +1,7 @@
 """Drives mocomp's operator console in a real headless Chromium (Debian's `chromium` and
 `chromium-driver`) through Selenium, and prints one JSON object with what it saw.
 
-usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR [loop|camera|calibrate|session]
+usage: console_browser.py URL_WITH_TOKEN SCREENSHOT_DIR [loop|camera|calibrate|session|register|head|mri]
 
 The console must serve a running `mocomp run` on the simulated world. With `loop` (the default)
 the script checks, in the
@@ -15,7 +15,9 @@ the mouse and a new threshold take effect in the pipeline, a bad depth range sho
 beside the field, and writes the IR screenshots (whole image, and the scan area drawn). With
 `calibrate` (a `calibrate collect --dashboard`) it starts the collection from the page's button
 after its confirmation and waits for the outcome. With `register` (a `register --dashboard`) it starts the registration from the page's
-button and waits for the three landmarks and the outcome. With `session` (a run with a `[session]` of
+button and waits for the three landmarks and the outcome. With `mri` (a run whose `[head] mesh` is a
+T1 phantom with a faint blob at the goal) it reads, in each of the three slices, where the blob is
+and where the page drew the target and the coil, and changes the window. With `session` (a run with a `[session]` of
 two targets, `hot` and `beside`, and the simulated stimulator) it checks the targets list shows,
 "Go to target" takes the coil to `beside` by a path and back to tracking, the pulses show in the
 events, and free-drive starts only from a hold and hands back. Any failure is an exception (exit 1).
@@ -377,9 +379,66 @@ def head_session(url, shots):
     return seen
 
 
+# In each slice the page shows: the bright blob's centroid (slice pixels: grey within `band`),
+# how many pixels it has, where the page drew the target and the coil, and the scale it drew at.
+MRI_BLOB = """
+const m = window.mocomp.mri, band = arguments[0], out = {};
+for (const plane of ['axial', 'coronal', 'sagittal']) {
+  const b = m.bitmaps[plane];
+  const c = document.createElement('canvas'); c.width = b.width; c.height = b.height;
+  const g = c.getContext('2d'); g.drawImage(b, 0, 0);
+  const px = g.getImageData(0, 0, b.width, b.height).data;
+  let su = 0, sv = 0, n = 0;
+  for (let v = 0; v < b.height; v++) for (let u = 0; u < b.width; u++) {
+    const x = px[4 * (v * b.width + u)];
+    if (x >= band[0] && x <= band[1]) { su += u; sv += v; n++; }
+  }
+  const d = m.drawn[plane];
+  // The canvas as drawn: green (the target's cross) on its arm, 7 px right of the centre.
+  const k = d.scale, cv = document.getElementById('mri-' + plane);
+  const at = cv.getContext('2d').getImageData(Math.floor((d.target_px[0] + 0.5) * k) + 7,
+    Math.floor((d.target_px[1] + 0.5) * k), 1, 1).data;
+  out[plane] = { blob: n ? [su / n, sv / n] : null, blob_pixels: n, target_px: d.target_px,
+    coil_px: d.coil_px, scale: k, size: [b.width, b.height], cross_rgb: [at[0], at[1], at[2]] };
+}
+return out;
+"""
+
+
+def mri_session(url, shots):
+    d = browser()
+    seen = {}
+    try:
+        d.get(url)
+        wait("tracking", lambda: text(d, "mode") == "tracking", 60)
+        wait("the MRI panel", lambda: d.find_element(By.ID, "mri-panel").is_displayed())
+        wait("the three slices with the target and the coil", lambda: d.execute_script(
+            "const m = window.mocomp.mri; return ['axial', 'coronal', 'sagittal'].every("
+            "p => m.drawn[p] && m.drawn[p].target_px && m.drawn[p].coil_px)"))
+        settle(d)
+        seen["meta"] = d.execute_script(
+            "const m = window.mocomp.mri.meta; return { step_mm: m.step_mm, window: m.window,"
+            " landmarks: m.landmarks.length, eeg: m.eeg.length, bounds_mm: m.bounds_mm };")
+        # The blob of 40 in a window of the volume's 1st to 99.5th percentile (0 to 150): grey 68.
+        seen["planes"] = d.execute_script(MRI_BLOB, [55, 85])
+        d.execute_script("document.getElementById('mri-panel').scrollIntoView()")
+        d.save_screenshot(os.path.join(shots, "console-mri.png"))
+        # A narrower window (0 to 40) makes the blob white.
+        set_field(d, "mri-lo", "0", "mri-window")
+        set_field(d, "mri-hi", "40", "mri-window")
+        wait("the slices in the new window", lambda: d.execute_script(
+            "return window.mocomp.mri.window[1] === 40 && !window.mocomp.mri.loading"))
+        seen["planes_window_40"] = wait("the blob white", lambda: (
+            lambda r: r if all(p["blob_pixels"] > 0 for p in r.values()) else None)(
+            d.execute_script(MRI_BLOB, [250, 255])))
+    finally:
+        d.quit()
+    return seen
+
+
 if __name__ == "__main__":
     which = sys.argv[3] if len(sys.argv) > 3 else "loop"
     run = {"camera": camera_session, "calibrate": calibrate_session,
            "session": session_session, "head": head_session,
-           "register": register_session}.get(which, loop_session)
+           "register": register_session, "mri": mri_session}.get(which, loop_session)
     print(json.dumps(run(sys.argv[1], sys.argv[2])))

@@ -16,14 +16,8 @@ use std::path::Path;
 /// The largest head file read, bytes: a 5 M-triangle binary STL is 250 MB; ASCII twice that.
 pub const MAX_FILE_BYTES: u64 = 600 << 20;
 
-/// Reads `path` (refusing a file over [`MAX_FILE_BYTES`] before reading it), decodes it in
-/// `unit` when its format has none, and mends it; a NIfTI volume's scalp is segmented as
-/// `segment` says.
-pub fn inspect_file(
-    path: &Path,
-    unit: Option<LengthUnit>,
-    segment: &SegmentOptions,
-) -> Result<(Mesh, Inspection), AppError> {
+/// The bytes of `path`, refusing a file over [`MAX_FILE_BYTES`] before reading it.
+fn read_capped(path: &Path) -> Result<Vec<u8>, AppError> {
     let name = path.display().to_string();
     let file = std::fs::File::open(path).what(|| format!("{name}: cannot open"))?;
     let size = file
@@ -35,10 +29,31 @@ pub fn inspect_file(
             "{name}: {size} bytes, more than the {MAX_FILE_BYTES} a head file may have"
         )));
     }
-    let mut bytes = Vec::with_capacity(size as usize);
+    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0));
     file.take(MAX_FILE_BYTES + 1)
         .read_to_end(&mut bytes)
         .what(|| format!("{name}: cannot read"))?;
+    Ok(bytes)
+}
+
+/// The T1 volume at `path` (NIfTI, its lengths in `unit` when its header states none), to
+/// show: the voxels and their RAS frame.
+pub fn read_image(path: &Path, unit: Option<LengthUnit>) -> Result<mocomp_mri::Volume, AppError> {
+    let bytes = read_capped(path)?;
+    mocomp_mri::read_volume(&path.display().to_string(), &bytes, unit)
+        .map_err(|e| AppError::failed(format!("reading the image {}", path.display()), e))
+}
+
+/// Reads `path` (refusing a file over [`MAX_FILE_BYTES`] before reading it), decodes it in
+/// `unit` when its format has none, and mends it; a NIfTI volume's scalp is segmented as
+/// `segment` says.
+pub fn inspect_file(
+    path: &Path,
+    unit: Option<LengthUnit>,
+    segment: &SegmentOptions,
+) -> Result<(Mesh, Inspection), AppError> {
+    let name = path.display().to_string();
+    let bytes = read_capped(path)?;
     if formats::Format::detect(&name, &bytes).ok() == Some(formats::Format::Nifti) {
         let (mesh, inspection, _) = mocomp_mri::inspect_volume(&name, &bytes, unit, segment)
             .map_err(|e| AppError::failed("segmenting the scalp", e))?;

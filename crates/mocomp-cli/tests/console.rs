@@ -691,3 +691,83 @@ fn the_page_draws_the_patients_scalp_in_a_real_browser() {
     let (ok, summary) = s.finish();
     assert!(ok, "{summary}");
 }
+
+#[test]
+fn the_page_shows_the_target_on_the_patients_mri_in_a_real_browser() {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    // A T1 phantom of the example's head (its ellipsoid, 150, in 64³ voxels of 4 mm, RAS the head
+    // marker's frame) with a faint blob (40, below the scalp's threshold, so not head) of 5 mm
+    // radius where the example's goal puts the coil's centre, 113 mm up: the slices through the
+    // target must show the blob where the page draws the target.
+    let dir = TempDir::new("mocomp-console-mri");
+    let t1 = mocomp_testkit::nifti::Nifti::cube(64, 4.0, |p| {
+        let blob = (p[0] * p[0] + p[1] * p[1] + (p[2] - 113.0).powi(2)).sqrt() < 5.0;
+        let head = (p[0] / 75.0).powi(2) + (p[1] / 95.0).powi(2) + (p[2] / 110.0).powi(2) < 1.0;
+        if head {
+            150
+        } else if blob {
+            40
+        } else {
+            0
+        }
+    });
+    std::fs::write(dir.path("t1.nii"), t1.bytes()).unwrap();
+    let path = write_example(&dir, "run-sim.toml", "127.0.0.126");
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        "radii_m = [0.075, 0.095, 0.11]",
+        "radii_m = [0.075, 0.095, 0.11]\nmesh = \"t1.nii\"",
+    );
+    assert!(text.contains("t1.nii"));
+    std::fs::write(&path, text).unwrap();
+    let s = Session::start_file(&path, 120, &[]);
+    // The API without a browser: a bad plane is refused by name.
+    let (code, body) = s.get("/api/mri/slice.png?plane=oblique&x=0&y=0&z=0");
+    assert_eq!(code, 400, "{body}");
+    let shots = dir.path("shots");
+    let seen = browse(&s, &shots, "mri");
+    let meta = &seen["meta"];
+    assert_eq!(meta["step_mm"], 4.0, "{seen}");
+    // The example's four landmarks, and the 10-20 system measured from them on the phantom's scalp.
+    assert_eq!(meta["landmarks"], 4, "{seen}");
+    assert_eq!(meta["eeg"], 21, "{seen}");
+    for (plane, p) in seen["planes"].as_object().unwrap() {
+        let blob = p["blob"].as_array().expect("the blob in the slice");
+        let target = p["target_px"].as_array().unwrap();
+        let coil = p["coil_px"].as_array().unwrap();
+        for a in 0..2 {
+            let (b, t, c) = (
+                blob[a].as_f64().unwrap(),
+                target[a].as_f64().unwrap(),
+                coil[a].as_f64().unwrap(),
+            );
+            // Where the blob is, within a third of a voxel (the blob's voxels straddle the
+            // target's z by a millimetre); the coil, tracking, within the gate's 2 mm of it.
+            assert!(
+                (b - t).abs() < 0.34,
+                "{plane}: blob {b}, target {t}: {seen}"
+            );
+            assert!((c - t).abs() < 0.5, "{plane}: coil {c}, target {t}: {seen}");
+        }
+        // The cross drawn there in green.
+        let rgb: Vec<u64> = p["cross_rgb"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect();
+        assert!(
+            rgb[1] > 150 && rgb[0] < 120 && rgb[2] < 150,
+            "{plane}: {rgb:?}"
+        );
+    }
+    // The window narrowed to 0-40: the blob, grey 68 before, white (the axial slice through the
+    // target has nothing else: the head's top is below it).
+    assert_eq!(seen["planes"]["axial"]["blob_pixels"], 4, "{seen}");
+    assert_eq!(seen["planes_window_40"]["axial"]["blob_pixels"], 4, "{seen}");
+    let shot = std::fs::metadata(Path::new(&shots).join("console-mri.png")).unwrap();
+    assert!(shot.len() > 20_000, "{} bytes", shot.len());
+    let (code, _) = s.post_auth("/api/stop", &json!({}));
+    assert_eq!(code, 200);
+    let (ok, summary) = s.finish();
+    assert!(ok, "{summary}");
+}

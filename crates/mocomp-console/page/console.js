@@ -81,6 +81,7 @@ function showStatus(s) {
   showCamera(s.camera);
   showCalibration(s.calibration);
   showNavigation(s.navigation);
+  showMri(s);
   drawPlot();
   drawScene();
 }
@@ -551,6 +552,130 @@ function showCamera(cam) {
     " · blobs " + cam.blobs;
 }
 
+// ---- MRI ------------------------------------------------------------------------------------
+// Three slices of the patient's T1 through the target, from the server (GET /api/mri/slice.png:
+// the image's voxels on its RAS axes, 1 px = step_mm); the target, the coil, the landmarks and
+// the 10-20 positions drawn over them. A slice's pixel (u, v) has its centre at RAS
+// bounds[right][0] + u·step along its right axis and bounds[up][1] − v·step along its up axis
+// (crates/mocomp-mri/src/slice.rs).
+
+const MRI_PLANES = { axial: [0, 1, 2], coronal: [0, 2, 1], sagittal: [1, 2, 0] }; // right, up, fixed
+const MRI_NEAR_MM = 4;
+const mri = { meta: null, at: null, window: null, bitmaps: {}, loading: false, pending: null, drawn: {} };
+state.mri = mri;
+
+// RAS (mm) to the slice's pixel (u, v) in `plane`, and the point's distance from the plane.
+function mriPixel(plane, p) {
+  const [r, u, f] = MRI_PLANES[plane], b = mri.meta.bounds_mm, s = mri.meta.step_mm;
+  return [(p[r] - b[r][0]) / s, (b[u][1] - p[u]) / s, Math.abs(p[f] - mri.at[f])];
+}
+
+async function loadMri() {
+  const m = await api("GET", "/api/mri");
+  if (!m.ok || !m.data.available) { $("mri-panel").hidden = true; return; }
+  mri.meta = m.data;
+  mri.window = m.data.window.slice();
+  $("mri-lo").value = mri.window[0];
+  $("mri-hi").value = mri.window[1];
+  $("mri-panel").hidden = false;
+  $("mri-window").addEventListener("click", () => {
+    const lo = parseFloat($("mri-lo").value), hi = parseFloat($("mri-hi").value);
+    if (Number.isFinite(lo) && Number.isFinite(hi) && hi > lo) { mri.window = [lo, hi]; refreshSlices(mri.at); }
+  });
+}
+
+async function refreshSlices(at) {
+  if (!mri.meta || !at) return;
+  // One request at a time; the newest asked for while one runs follows it.
+  if (mri.loading) { mri.pending = at; return; }
+  mri.loading = true;
+  try {
+    const got = {};
+    for (const plane of Object.keys(MRI_PLANES)) {
+      const q = "plane=" + plane + "&x=" + at[0] + "&y=" + at[1] + "&z=" + at[2] +
+        "&lo=" + mri.window[0] + "&hi=" + mri.window[1];
+      const r = await fetch("/api/mri/slice.png?" + q, { credentials: "same-origin", cache: "no-store" });
+      if (!r.ok) return;
+      got[plane] = await createImageBitmap(await r.blob());
+    }
+    mri.bitmaps = got;
+    mri.at = at.slice();
+    $("mri-at").textContent = "through " + at.map((v) => fmt(v, 1)).join(", ") + " mm (RAS)";
+    drawMri();
+  } catch (_) { /* the next status tries again */ } finally {
+    mri.loading = false;
+    if (mri.pending) { const p = mri.pending; mri.pending = null; refreshSlices(p); }
+  }
+}
+
+function drawMri() {
+  if (!mri.meta || !mri.at) return;
+  const image = state.status && state.status.scene && state.status.scene.image;
+  for (const plane of Object.keys(MRI_PLANES)) {
+    const c = $("mri-" + plane), b = mri.bitmaps[plane];
+    if (!b) continue;
+    // Each slice pixel a k × k block, sharp: the overlays are drawn at the canvas's resolution.
+    const k = Math.max(1, Math.floor(480 / Math.max(b.width, b.height)));
+    if (c.width !== b.width * k || c.height !== b.height * k) { c.width = b.width * k; c.height = b.height * k; }
+    const g = c.getContext("2d");
+    g.imageSmoothingEnabled = false;
+    g.drawImage(b, 0, 0, c.width, c.height);
+    const at = (p) => { const [u, v, d] = mriPixel(plane, p); return [(u + 0.5) * k, (v + 0.5) * k, d]; };
+    g.font = "11px system-ui, sans-serif";
+    const label = (x, y, text, color) => { g.fillStyle = color; g.fillText(text, x + 5, y - 4); };
+    for (const e of mri.meta.eeg) {
+      const [x, y, d] = at(e.p_mm);
+      if (d > MRI_NEAR_MM) continue;
+      g.fillStyle = "#3cd6e6"; g.beginPath(); g.arc(x, y, 3, 0, 2 * Math.PI); g.fill();
+      label(x, y, e.name, "#3cd6e6");
+    }
+    for (const l of mri.meta.landmarks) {
+      const [x, y, d] = at(l.p_mm);
+      if (d > MRI_NEAR_MM) continue;
+      g.fillStyle = "#ffd400"; g.fillRect(x - 3, y - 3, 6, 6);
+      label(x, y, l.name, "#ffd400");
+    }
+    const axis = (pose, color, width, dash) => {
+      const [x, y] = at(pose.p_mm);
+      const tip = pose.p_mm.map((v, i) => v + 40 * pose.axis[i]);
+      const [tx, ty] = at(tip);
+      g.strokeStyle = color; g.lineWidth = width; g.setLineDash(dash);
+      g.beginPath(); g.moveTo(x, y); g.lineTo(tx, ty); g.stroke(); g.setLineDash([]);
+      return [x, y];
+    };
+    const drawn = {};
+    if (image && image.coil) {
+      const [x, y] = axis(image.coil, "#ff8c1a", 2.5, []);
+      g.strokeStyle = "#ff8c1a"; g.lineWidth = 2; g.beginPath(); g.arc(x, y, 6, 0, 2 * Math.PI); g.stroke();
+      const [u, v] = mriPixel(plane, image.coil.p_mm);
+      drawn.coil_px = [u, v];
+    }
+    // The target last: over the coil that sits on it.
+    const goal = image ? image.goal : null;
+    if (goal) {
+      const [x, y] = axis(goal, "#22c55e", 1.5, [5, 4]);
+      g.strokeStyle = "#22c55e"; g.lineWidth = 2; g.beginPath();
+      g.moveTo(x - 9, y); g.lineTo(x + 9, y); g.moveTo(x, y - 9); g.lineTo(x, y + 9); g.stroke();
+      const [u, v] = mriPixel(plane, goal.p_mm);
+      drawn.target_px = [u, v];
+    }
+    g.lineWidth = 1;
+    drawn.scale = k;
+    mri.drawn[plane] = drawn;
+  }
+}
+
+function showMri(s) {
+  if (!mri.meta) return;
+  const image = s.scene && s.scene.image;
+  const goal = image && image.goal && image.goal.p_mm;
+  // Through the target: new slices when it moved (another target) by more than a pixel.
+  if (goal && (!mri.at || Math.hypot(...goal.map((v, i) => v - mri.at[i])) > mri.meta.step_mm)) {
+    refreshSlices(goal);
+  }
+  drawMri();
+}
+
 // ---- start ----------------------------------------------------------------------------------
 
 async function start() {
@@ -565,6 +690,7 @@ async function start() {
   const h = await api("GET", "/api/history");
   if (h.ok) state.history = h.data;
   await loadConfig();
+  await loadMri();
   const s = await api("GET", "/api/status");
   if (s.ok) showStatus(s.data);
   await pollEvents();

@@ -17,6 +17,8 @@
 //! | `POST /api/freedrive`, `/api/handback` | yes | while held: free-drive (the arm yields to a hand); hand back to the loop from where the hand left it |
 //! | `POST /api/teach` | yes | while held: the coil's pose on the head becomes the goal (and is written to the configuration file); 409 with why when refused |
 //! | `GET /api/frame.png` | reading | the camera's newest IR frame with the pipeline's overlays (404 without a camera) |
+//! | `GET /api/mri` | reading | the patient's MRI: whether there is one (`[head] mesh` a NIfTI), its extent and window, the landmarks, 10-20 positions and targets in it ([`crate::mri`]) |
+//! | `GET /api/mri/slice.png?plane=axial\|coronal\|sagittal&x=&y=&z=[&lo=&hi=]` | reading | one slice through the point (RAS, mm), grey from `lo` to `hi` (default: the MRI's window); 404 without an MRI, 400 naming a bad parameter |
 //! | `GET /ws` | reading | the status, 25 times a second, as JSON text messages |
 //!
 //! "Reading" needs the token unless the console listens on loopback ([`crate::auth`]). Every
@@ -74,6 +76,8 @@ pub fn router(api: Api) -> Router {
         .route("/api/scene", get(scene))
         .route("/api/config", get(config))
         .route("/api/frame.png", get(frame_png))
+        .route("/api/mri", get(mri))
+        .route("/api/mri/slice.png", get(mri_slice))
         .route("/api/params", post(params))
         .route("/api/hold", post(hold))
         .route("/api/resume", post(resume))
@@ -190,6 +194,84 @@ async fn scene(State(api): State<Api>, headers: HeaderMap) -> Response {
     match api.may_read(&headers) {
         Ok(()) => axum::Json(api.shared.scene()).into_response(),
         Err(r) => r,
+    }
+}
+
+async fn mri(State(api): State<Api>, headers: HeaderMap) -> Response {
+    match api.may_read(&headers) {
+        Ok(()) => axum::Json(&api.shared.mri.json).into_response(),
+        Err(r) => r,
+    }
+}
+
+/// `GET /api/mri/slice.png`'s parameters.
+#[derive(Debug, serde::Deserialize)]
+struct SliceQuery {
+    plane: String,
+    x: f64,
+    y: f64,
+    z: f64,
+    lo: Option<f32>,
+    hi: Option<f32>,
+}
+
+async fn mri_slice(
+    State(api): State<Api>,
+    headers: HeaderMap,
+    query: Result<Query<SliceQuery>, axum::extract::rejection::QueryRejection>,
+) -> Response {
+    if let Err(r) = api.may_read(&headers) {
+        return r;
+    }
+    let Ok(Query(q)) = query else {
+        return refuse(
+            StatusCode::BAD_REQUEST,
+            "plane (axial, coronal, sagittal), x, y, z (mm) and optionally lo, hi",
+        );
+    };
+    let plane: mocomp_mri::slice::Plane = match q.plane.parse() {
+        Ok(p) => p,
+        Err(e) => return refuse(StatusCode::BAD_REQUEST, &e),
+    };
+    let m = &api.shared.mri.json;
+    if !m.available {
+        return refuse(StatusCode::NOT_FOUND, m.why.as_deref().unwrap_or("no MRI"));
+    }
+    let (lo, hi) = (q.lo.unwrap_or(m.window[0]), q.hi.unwrap_or(m.window[1]));
+    for (key, v) in [
+        ("x", q.x),
+        ("y", q.y),
+        ("z", q.z),
+        ("lo", f64::from(lo)),
+        ("hi", f64::from(hi)),
+    ] {
+        if !v.is_finite() {
+            return refuse(
+                StatusCode::BAD_REQUEST,
+                &format!("{key}: not a finite number"),
+            );
+        }
+    }
+    if hi <= lo {
+        return refuse(StatusCode::BAD_REQUEST, "hi must be above lo");
+    }
+    let shared = Arc::clone(&api.shared);
+    // Sampling and encoding take milliseconds: off the server's thread.
+    match tokio::task::spawn_blocking(move || {
+        shared.mri.slice_png(plane, [q.x, q.y, q.z], (lo, hi))
+    })
+    .await
+    {
+        Ok(Ok(png)) => (
+            [(CONTENT_TYPE, "image/png"), (CACHE_CONTROL, "no-store")],
+            png,
+        )
+            .into_response(),
+        Ok(Err(e)) => refuse(StatusCode::NOT_FOUND, &e),
+        Err(_) => refuse(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "the slice could not be drawn",
+        ),
     }
 }
 

@@ -58,6 +58,17 @@ pub struct SceneNow {
     pub goal: Option<PoseJson>,
     /// The head the loop predicts (its marker's frame).
     pub head: Option<PoseJson>,
+    /// The coil and its goal on the patient's image, for the MRI's slices.
+    pub image: Option<ImageNow>,
+}
+
+/// The coil and its goal in the image's frame (RAS, mm), as the MRI's slices draw them.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ImageNow {
+    /// The measured coil, when the head is known.
+    pub coil: Option<crate::mri::CoilInImage>,
+    /// The goal: the selected target.
+    pub goal: crate::mri::CoilInImage,
 }
 
 /// The camera pipeline's newest frame, for a session on the simulated camera.
@@ -216,6 +227,7 @@ impl StatusJson {
                 coil: None,
                 goal: None,
                 head: None,
+                image: None,
             },
         }
     }
@@ -351,6 +363,8 @@ pub struct Shared {
     pub setup: Setup,
     /// The fixed scene (replaced when an experiment's run places its own).
     scene: Mutex<SceneJson>,
+    /// The patient's MRI, when `[head] mesh` is one.
+    pub mri: crate::mri::MriView,
     store: Mutex<Store>,
     status_tx: watch::Sender<Published>,
     /// When the console started (the calibration's events are timed from it).
@@ -386,6 +400,7 @@ impl Shared {
         };
         Arc::new(Self {
             controls,
+            mri: crate::mri::MriView::of(setup),
             setup: setup.clone(),
             scene: Mutex::new(SceneJson {
                 version: 0,
@@ -619,6 +634,8 @@ pub struct Frames {
     arm: Arm,
     flange_from_coil: Isometry3<f64>,
     coil_from_head: Isometry3<f64>,
+    /// The head marker's frame to the image's (its MRI's slices).
+    image_from_head: Isometry3<f64>,
 }
 
 impl Frames {
@@ -628,6 +645,7 @@ impl Frames {
             arm,
             flange_from_coil: loop_cfg.flange_from_coil,
             coil_from_head: loop_cfg.head_from_coil_goal.inverse(),
+            image_from_head: Isometry3::identity(),
         }
     }
 
@@ -644,6 +662,7 @@ impl Frames {
             arm: setup.arm,
             flange_from_coil,
             coil_from_head: head_from_coil.inverse(),
+            image_from_head: setup.file.head.head_from_image.iso().inverse(),
         })
     }
 }
@@ -751,6 +770,15 @@ impl ConsoleObserver {
                 coil,
                 goal: goal_coil.map(|g| PoseJson::from_iso(&g)),
                 head: goal_coil.map(|g| PoseJson::from_iso(&(g * self.frames.coil_from_head))),
+                image: Some(ImageNow {
+                    coil: r.coil_now.map(|c| {
+                        crate::mri::coil_in_image("coil", &(self.frames.image_from_head * c))
+                    }),
+                    goal: crate::mri::coil_in_image(
+                        "goal",
+                        &(self.frames.image_from_head * r.head_from_coil_goal),
+                    ),
+                }),
             },
         }
     }
