@@ -321,6 +321,13 @@ def session_session(url, shots):
         wait("the selection in the events", lambda: any("target beside selected" in r for r in rows()))
         pulse = wait("a pulse in the events", lambda: next((r for r in rows() if "pulse on beside" in r), None))
         seen["pulse_row"] = pulse
+        # The tiles: the gate open, the pulses counted with the last one's error.
+        wait("the gate tile open", lambda: text(d, "gate") == "open")
+        seen["pulses_tile"] = wait("pulses counted", lambda: int(text(d, "pulses") or 0))
+        seen["pulse_last"] = text(d, "pulse-last")
+        # The plot: tracking's tenths of a millimetre drawn well above the axis although the
+        # paths' hundreds are in the same 30 s.
+        seen["plot"] = d.execute_script("return window.mocomp.plot")
         d.find_element(By.ID, "hold").click()
         wait("holding", lambda: text(d, "mode") == "holding" and text(d, "reason") == "held by the operator")
         wait("free-drive offered", lambda: not d.find_element(By.ID, "freedrive").get_attribute("disabled"))

@@ -139,6 +139,7 @@ fn drain(
     while let Ok(n) = session.notes.try_recv() {
         let t = note_time(&n);
         let line = session.log.take(&n);
+        observer.note(&n);
         observer.session(t, &line);
         s.session_lines
             .push((t, line, matches!(n, crate::frontend::Note::Pulse(..))));

@@ -482,6 +482,24 @@ fn the_session_in_a_real_browser_switches_targets_shows_pulses_and_hands_the_arm
             .is_some_and(|r| r.contains("gate open")),
         "{seen}"
     );
+    // The gate and pulse tiles; the plot's logarithmic deviation (tracking's hundredths of a
+    // millimetre well up the plot, with the paths' tens and hundreds on the same axis; linear,
+    // they were under a pixel).
+    assert!(seen["pulses_tile"].as_u64().unwrap() >= 1, "{seen}");
+    assert!(
+        seen["pulse_last"]
+            .as_str()
+            .is_some_and(|t| t.starts_with("last ") && t.contains(" mm, ")),
+        "{seen}"
+    );
+    let plot = &seen["plot"];
+    let (max, last, height) = (
+        plot["dev_max"].as_f64().unwrap(),
+        plot["last_dev"].as_f64().unwrap(),
+        plot["last_dev_height"].as_f64().unwrap(),
+    );
+    assert!(max >= 20.0 && last < 2.0, "{seen}");
+    assert!(height > 0.06 || last < 0.02, "{seen}");
     let len = std::fs::metadata(Path::new(&shots).join("console-session.png"))
         .unwrap()
         .len();
@@ -763,7 +781,10 @@ fn the_page_shows_the_target_on_the_patients_mri_in_a_real_browser() {
     // The window narrowed to 0-40: the blob, grey 68 before, white (the axial slice through the
     // target has nothing else: the head's top is below it).
     assert_eq!(seen["planes"]["axial"]["blob_pixels"], 4, "{seen}");
-    assert_eq!(seen["planes_window_40"]["axial"]["blob_pixels"], 4, "{seen}");
+    assert_eq!(
+        seen["planes_window_40"]["axial"]["blob_pixels"], 4,
+        "{seen}"
+    );
     let shot = std::fs::metadata(Path::new(&shots).join("console-mri.png")).unwrap();
     assert!(shot.len() > 20_000, "{} bytes", shot.len());
     let (code, _) = s.post_auth("/api/stop", &json!({}));

@@ -82,6 +82,7 @@ function showStatus(s) {
   showCalibration(s.calibration);
   showNavigation(s.navigation);
   showMri(s);
+  showSession(s.session);
   drawPlot();
   drawScene();
 }
@@ -94,6 +95,20 @@ function connect() {
     $("link").textContent = "disconnected"; $("link").className = "link down";
     setTimeout(connect, 1000);
   };
+}
+
+// The session's gate (open, or shut and why) and its pulses (how many, the last one's error).
+function showSession(ses) {
+  $("gate-tile").hidden = !ses;
+  $("pulses-tile").hidden = !ses;
+  if (!ses) return;
+  $("gate").textContent = ses.gate_open ? "open" : "shut";
+  $("gate-why").textContent = ses.gate_open ? "" : ses.gate_why;
+  $("gate-tile").className = "tile " + (ses.gate_open ? "open" : "shut");
+  $("pulses").textContent = ses.pulses;
+  const last = ses.last_pulse;
+  $("pulse-last").textContent = (ses.pulses_off_target ? ses.pulses_off_target + " off target · " : "") +
+    (last ? "last " + fmt(last[0], 2) + " mm, " + fmt(last[1], 2) + "°" + (last[2] ? "" : " (gate shut)") : "");
 }
 
 // ---- plot -----------------------------------------------------------------------------------
@@ -112,19 +127,24 @@ function drawPlot() {
   const h = state.history;
   const tEnd = h.length ? h[h.length - 1][0] : HISTORY_S;
   const t0 = tEnd - HISTORY_S;
-  // The deviation's scale follows its 95th percentile, so a far approach does not flatten the
-  // millimetres that matter while tracking; larger values run off the top.
-  const devs = h.map((p) => p[1]).filter(Number.isFinite).sort((a, b) => a - b);
-  const devMax = niceMax(Math.max(1, 1.2 * (devs.length ? devs[Math.floor(0.95 * (devs.length - 1))] : 0)));
+  // The deviation on a logarithmic axis, from 0.01 mm to the largest shown (at least 1 mm): the
+  // approach's hundreds of millimetres and tracking's tenths are both read off it.
+  const devs = h.map((p) => p[1]).filter(Number.isFinite);
+  const devMax = niceMax(Math.max(1, ...devs));
+  const DEV_MIN = 0.01, decades = Math.log10(devMax / DEV_MIN);
   const spdMax = niceMax(Math.max(10, ...h.map((p) => (Number.isFinite(p[2]) ? p[2] : 0))));
   const x = (t) => L + ((t - t0) / HISTORY_S) * (W - L - R);
-  const yDev = (v) => H - B - (v / devMax) * (H - T - B);
+  const yDev = (v) => H - B - (Math.log10(Math.max(v, DEV_MIN) / DEV_MIN) / decades) * (H - T - B);
   const ySpd = (v) => H - B - (v / spdMax) * (H - T - B);
   g.strokeStyle = "#e3e6ea"; g.fillStyle = "#66707a"; g.font = "11px system-ui, sans-serif";
+  // Grid and deviation labels at the decades; the head speed's at quarters on the right.
+  for (let d = DEV_MIN; d <= devMax * 1.0001; d *= 10) {
+    const y = yDev(d);
+    g.beginPath(); g.moveTo(L, y); g.lineTo(W - R, y); g.stroke();
+    g.textAlign = "right"; g.fillText(d < 0.1 ? d.toFixed(2) : d < 1 ? d.toFixed(1) : d.toFixed(0), L - 6, y + 4);
+  }
   for (let k = 0; k <= 4; k++) {
     const y = T + (k / 4) * (H - T - B);
-    g.beginPath(); g.moveTo(L, y); g.lineTo(W - R, y); g.stroke();
-    g.textAlign = "right"; g.fillText(fmt(devMax * (1 - k / 4), devMax < 5 ? 1 : 0), L - 6, y + 4);
     g.textAlign = "left"; g.fillText(fmt(spdMax * (1 - k / 4), 0), W - R + 6, y + 4);
   }
   g.textAlign = "center";
@@ -143,6 +163,9 @@ function drawPlot() {
   line(2, ySpd, "#e08a3c", 1.2);
   line(1, yDev, "#1f6fd1", 2);
   g.restore();
+  // Where the newest deviation was drawn, for tests: its height above the axis, of the plot's.
+  const lastDev = devs.length ? devs[devs.length - 1] : NaN;
+  state.plot = { dev_max: devMax, last_dev: lastDev, last_dev_height: (H - B - yDev(lastDev)) / (H - T - B) };
   g.textAlign = "left"; g.fillStyle = "#1f6fd1"; g.fillText("deviation mm", L + 6, T + 12);
   g.fillStyle = "#e08a3c"; g.fillText("head speed mm/s", L + 96, T + 12);
 }

@@ -5,11 +5,12 @@
 //! console's display units, named in every field.
 
 use mocomp_app::config::{Config, Setup};
-use mocomp_app::frontend::{Controls, Observer, Status, mode_name};
+use mocomp_app::frontend::{Controls, Note, Observer, Status, mode_name};
 use mocomp_control::{CycleRecord, Event, HeadModel, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_head::{Head, Mesh};
 use mocomp_kin::Arm;
+use mocomp_session::{GateEvent, GateState, shut_reason};
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -192,6 +193,23 @@ pub struct StatusJson {
     pub scene_version: u64,
     /// Where things are.
     pub scene: SceneNow,
+    /// The session's gate and pulses, once it has reported either.
+    pub session: Option<SessionNow>,
+}
+
+/// The session's gate and pulses, for the page's tiles.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SessionNow {
+    /// Whether the gate is open (pulses allowed).
+    pub gate_open: bool,
+    /// Why it is shut, in words (empty when open or not yet judged).
+    pub gate_why: String,
+    /// Pulses so far.
+    pub pulses: u64,
+    /// Of them, with the gate shut.
+    pub pulses_off_target: u64,
+    /// The last pulse: its position and angle error (mm, °) and whether the gate was open.
+    pub last_pulse: Option<(f64, f64, bool)>,
 }
 
 impl StatusJson {
@@ -229,6 +247,7 @@ impl StatusJson {
                 head: None,
                 image: None,
             },
+            session: None,
         }
     }
 }
@@ -680,6 +699,8 @@ pub struct ConsoleObserver {
     /// Loop time of the last published status, and cycles since.
     published_t: f64,
     cycles: u64,
+    /// The session's gate and pulses, from its notes.
+    session: Option<SessionNow>,
 }
 
 impl ConsoleObserver {
@@ -693,6 +714,7 @@ impl ConsoleObserver {
             last: None,
             published_t: f64::NEG_INFINITY,
             cycles: 0,
+            session: None,
         }
     }
 
@@ -780,6 +802,7 @@ impl ConsoleObserver {
                     ),
                 }),
             },
+            session: self.session.clone(),
         }
     }
 }
@@ -790,6 +813,41 @@ impl Observer for ConsoleObserver {
     }
 
     fn status(&mut self, _: &Status) {}
+
+    fn note(&mut self, note: &Note) {
+        // Only the gate and the pulses show (other notes are in the events).
+        if !matches!(note, Note::Gate(..) | Note::Pulse(..)) {
+            return;
+        }
+        let s = self.session.get_or_insert(SessionNow {
+            gate_open: false,
+            gate_why: String::new(),
+            pulses: 0,
+            pulses_off_target: 0,
+            last_pulse: None,
+        });
+        match note {
+            Note::Gate(_, GateEvent::Opened, _) => {
+                s.gate_open = true;
+                s.gate_why.clear();
+            }
+            Note::Gate(_, GateEvent::Shut(why), _) => {
+                s.gate_open = false;
+                s.gate_why = shut_reason(why);
+            }
+            Note::Pulse(p, _) => {
+                let open = p.gate == GateState::Open;
+                s.pulses += 1;
+                s.pulses_off_target += u64::from(!open);
+                s.last_pulse = Some((
+                    p.position_error_m * 1e3,
+                    p.angle_error_rad.to_degrees(),
+                    open,
+                ));
+            }
+            _ => {}
+        }
+    }
 
     fn session(&mut self, t: f64, text: &str) {
         self.shared.push_event(EventJson {

@@ -87,6 +87,9 @@ pub trait Observer: Send {
     fn cycle(&mut self, _record: &CycleRecord, _age_s: f64) {}
     /// What the session did at loop time `t` (a pulse, the gate, the drift monitor), in words.
     fn session(&mut self, _t: f64, _text: &str) {}
+    /// The same note as it is (before [`Self::session`]'s words): for what counts or shows it
+    /// (the console's gate and pulse tiles).
+    fn note(&mut self, _note: &Note) {}
     /// The loop has ended: the last call (a recording is closed here).
     fn finish(&mut self) {}
 }
@@ -112,6 +115,10 @@ impl<A: Observer, B: Observer> Observer for Both<A, B> {
         self.0.session(t, text);
         self.1.session(t, text);
     }
+    fn note(&mut self, note: &Note) {
+        self.0.note(note);
+        self.1.note(note);
+    }
     fn finish(&mut self) {
         self.0.finish();
         self.1.finish();
@@ -130,6 +137,9 @@ impl<O: Observer + ?Sized> Observer for Box<O> {
     }
     fn session(&mut self, t: f64, text: &str) {
         (**self).session(t, text);
+    }
+    fn note(&mut self, note: &Note) {
+        (**self).note(note);
     }
     fn finish(&mut self) {
         (**self).finish();
