@@ -571,6 +571,9 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
         cfg.loop_params.link_radius_m,
         cfg.loop_params.link_clearance_m,
     );
+    // Only whether each point clears: the exact distance (a descent through a 100 k-triangle
+    // scalp's hierarchy) only where a bound cannot say so (most points are far from the head).
+    let cutoff = link_radius + clearance + 1e-3;
     let links_clear = |base: &Isometry3<f64>, q: &[f64; 6], world_from_head: &Isometry3<f64>| {
         let head_from_base = world_from_head.inverse() * base;
         let f = arm1.link_frames(q);
@@ -579,7 +582,7 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
                 let a = f[i - 1].translation.vector;
                 let b = f[i].translation.vector;
                 let p = mocomp_geom::nalgebra::Point3::from(a + (b - a) * (f64::from(k) / 4.0));
-                head_model.distance(&(head_from_base * p)) - link_radius > clearance
+                head_model.distance_below(&(head_from_base * p), cutoff) - link_radius > clearance
             })
         })
     };
