@@ -339,6 +339,76 @@ impl std::fmt::Display for TargetReach {
     }
 }
 
+/// The placements drawn ([`mocomp_report::placement`]): the head's outline from `setup`'s head
+/// model, `goals` at the `configured` placement and, after a search, at the `found` one, each
+/// marked by its reach there.
+pub fn view(
+    setup: &Setup,
+    goals: &[(String, Isometry3<f64>)],
+    configured: (&Isometry3<f64>, &[TargetReach]),
+    found: Option<(&Isometry3<f64>, &[TargetReach])>,
+) -> Result<mocomp_report::placement::PlacementView, AppError> {
+    use mocomp_report::placement::{Place, PlacementView};
+    let head = setup.file.head_model()?;
+    let place = |(at, reaches): (&Isometry3<f64>, &[TargetReach])| Place {
+        base_from_head: *at,
+        targets: goals
+            .iter()
+            .map(|(name, goal)| {
+                let reached = reaches
+                    .iter()
+                    .any(|r| &r.name == name && r.refusal.is_none());
+                (name.clone(), *goal, reached)
+            })
+            .collect(),
+    };
+    let g = setup.arm.geometry();
+    Ok(PlacementView {
+        robot: setup.model.to_string(),
+        reach_m: g.a2.abs() + g.a3.abs(),
+        outline: outline(&head),
+        face: setup.file.head.head_from_image.iso().rotation * Vector3::y(),
+        configured: place(configured),
+        found: found.map(place),
+    })
+}
+
+/// The head seen from above: for each of 72 directions about its centre, its farthest point
+/// that way (the scalp's vertices, or the ellipsoid's equator), in the head's frame.
+fn outline(head: &mocomp_control::HeadModel) -> Vec<mocomp_geom::nalgebra::Point3<f64>> {
+    use mocomp_geom::nalgebra::Point3;
+    let points: Vec<Point3<f64>> = match head.shape() {
+        mocomp_head::Head::Mesh(m) => m.vertices().to_vec(),
+        mocomp_head::Head::Ellipsoid(e) => {
+            let r = e.radii();
+            (0..144)
+                .map(|k| {
+                    let a = std::f64::consts::TAU * f64::from(k) / 144.0;
+                    e.head_from_ellipsoid() * Point3::new(r.x * a.cos(), r.y * a.sin(), 0.0)
+                })
+                .collect()
+        }
+    };
+    if points.is_empty() {
+        return points;
+    }
+    let centre = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / points.len() as f64;
+    (0..72)
+        .filter_map(|k| {
+            let a = std::f64::consts::TAU * f64::from(k) / 72.0;
+            let d = Vector3::new(a.cos(), a.sin(), 0.0);
+            points
+                .iter()
+                .max_by(|p, q| {
+                    (p.coords - centre)
+                        .dot(&d)
+                        .total_cmp(&(q.coords - centre).dot(&d))
+                })
+                .copied()
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code

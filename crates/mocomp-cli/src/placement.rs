@@ -43,6 +43,10 @@ struct Which {
     /// One JSON object instead of text.
     #[arg(long)]
     json: bool,
+    /// Draw the placement from above into this PNG: the robot's base and reach, the head (as
+    /// configured, and where the search puts it), each target marked reached or not.
+    #[arg(long, value_name = "FILE.png")]
+    png: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Args)]
@@ -95,13 +99,37 @@ fn json_of(reaches: &[TargetReach]) -> serde_json::Value {
 }
 
 impl Which {
-    fn load(&self) -> anyhow::Result<(Setup, Targets)> {
+    fn load(&self) -> anyhow::Result<(Setup, Goals, Targets)> {
         let setup = Setup::load(&self.config)?;
         let goals = mocomp_app::placement::goals(&setup, self.targets.as_deref(), &self.target)?;
         let targets = Targets::new(&setup, &goals)?;
-        Ok((setup, targets))
+        Ok((setup, goals, targets))
+    }
+
+    /// Draws the placements when `--png` asks.
+    fn draw(
+        &self,
+        setup: &Setup,
+        goals: &Goals,
+        configured: (&Isometry3<f64>, &[TargetReach]),
+        found: Option<(&Isometry3<f64>, &[TargetReach])>,
+        out: &mut dyn Write,
+    ) -> anyhow::Result<()> {
+        let Some(path) = &self.png else {
+            return Ok(());
+        };
+        let view = mocomp_app::placement::view(setup, goals, configured, found)?;
+        let png = mocomp_report::placement::png(&view)?;
+        std::fs::write(path, png).map_err(|e| anyhow::anyhow!("--png {}: {e}", path.display()))?;
+        if !self.json {
+            writeln!(out, "drew the placement into {}", path.display())?;
+        }
+        Ok(())
     }
 }
+
+/// The targets' names and goals.
+type Goals = Vec<(String, Isometry3<f64>)>;
 
 impl PlacementCmd {
     /// Runs it.
@@ -114,13 +142,14 @@ impl PlacementCmd {
 }
 
 fn check(w: &Which, out: &mut dyn Write) -> anyhow::Result<()> {
-    let (setup, targets) = w.load()?;
+    let (setup, goals, targets) = w.load()?;
     let mocomp_app::placement::Configured {
         place,
         rest,
         reaches,
     } = targets.at_configured(&setup)?;
     let refused = reaches.iter().filter(|r| r.refusal.is_some()).count();
+    w.draw(&setup, &goals, (&place, &reaches), None, out)?;
     if w.json {
         writeln!(
             out,
@@ -158,7 +187,7 @@ fn fmt_pose(p: &Isometry3<f64>) -> String {
 }
 
 fn search(s: &SearchCmd, out: &mut dyn Write) -> anyhow::Result<()> {
-    let (setup, targets) = s.which.load()?;
+    let (setup, goals, targets) = s.which.load()?;
     let region = Region {
         half_m: s.region_mm.map(|v| v * 1e-3),
         step_m: s.step_mm * 1e-3,
@@ -183,6 +212,14 @@ fn search(s: &SearchCmd, out: &mut dyn Write) -> anyhow::Result<()> {
             s.yaw_deg
         );
     };
+    let configured = targets.at_configured(&setup)?;
+    s.which.draw(
+        &setup,
+        &goals,
+        (&configured.place, &configured.reaches),
+        Some((place, reaches)),
+        out,
+    )?;
     let shift = (place.translation.vector - centre.translation.vector) * 1e3;
     let turn = (place.rotation * centre.rotation.inverse())
         .euler_angles()

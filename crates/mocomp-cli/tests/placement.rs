@@ -56,10 +56,22 @@ fn a_head_out_of_reach_is_said_searched_for_and_a_run_there_fails_naming_the_rul
         "--yaw-deg",
         "0",
         "--json",
+        "--png",
+        &dir.path("placement.png"),
     ]);
     assert_success(&out);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(j["tried"], 7, "{j}");
+    // Drawn: both heads, the found one green (mocomp_report::placement's colour), the refused
+    // target at the configured place red.
+    let img = image::open(dir.path("placement.png")).unwrap().to_rgb8();
+    let near = |c: [u8; 3]| {
+        img.pixels()
+            .filter(|p| (0..3).all(|k| (i32::from(p[k]) - i32::from(c[k])).abs() < 30))
+            .count()
+    };
+    assert!(near([27, 138, 58]) > 300, "green: {}", near([27, 138, 58]));
+    assert!(near([198, 40, 40]) > 50, "red: {}", near([198, 40, 40]));
     assert!(j["reaching"].as_u64().unwrap() >= 1, "{j}");
     assert_eq!(j["targets"][0]["reachable"], true, "{j}");
     let moved = j["moved_mm"][0].as_f64().unwrap();
