@@ -251,14 +251,19 @@ impl Cell {
             return false;
         }
         let (_, ev) = self.session.get("/api/events");
-        let texts: Vec<&str> = ev
-            .as_array()
-            .map(|a| a.iter().filter_map(|e| e["text"].as_str()).collect())
-            .unwrap_or_default();
-        let acted = texts.iter().filter(|t| t.starts_with("re-arm")).count();
+        let events: &[Value] = ev.as_array().map_or(&[], Vec::as_slice);
+        // The console's events: the session's re-arm notes by their words, the loop's holds by
+        // their rule's code (their text is in words).
+        let rearm = |e: &Value| e["text"].as_str().is_some_and(|t| t.starts_with("re-arm"));
+        let acted = events.iter().filter(|e| rearm(e)).count();
         // A fault after the last recovery (a recovery that failed is no new stop).
-        let last_rearm = texts.iter().rposition(|t| t.starts_with("re-arm"));
-        let last_fault = texts.iter().rposition(|t| t.starts_with("Hold(Robot("));
+        let last_rearm = events.iter().rposition(rearm);
+        let last_fault = events.iter().rposition(|e| {
+            e["kind"] == "hold"
+                && e["reason"]
+                    .as_str()
+                    .is_some_and(|r| r.starts_with("Robot("))
+        });
         // The controller stopped the arm (a stale state alone resumes by itself).
         let stopped = status["reason"]
             .as_str()
