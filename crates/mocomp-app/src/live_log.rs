@@ -60,6 +60,8 @@ pub(crate) struct Summary {
     pub(crate) dropped: u64,
     first_t: Option<f64>,
     last_t: f64,
+    /// The controller's time of the last cycle's state (NaN: none).
+    last_robot_s: f64,
     missed: u64,
     period_ms: Vec<f64>,
     compute_us: Vec<f64>,
@@ -146,6 +148,23 @@ fn drain(
     }
 }
 
+/// Controller cycles between two consecutive cycles of the loop that it did not answer: by the
+/// controller's times of the states they answered (`robot_s`, previous and this), else by the
+/// loop's own (`t`). The loop's clock alone overcounts: states a controller sends late and then
+/// in a burst leave a gap in when the loop ran although it answered every one of them.
+fn unanswered(robot_s: (f64, f64), t: (f64, f64), period: f64) -> u64 {
+    let gap = if robot_s.0.is_finite() && robot_s.1.is_finite() {
+        robot_s.1 - robot_s.0
+    } else {
+        t.1 - t.0
+    };
+    if gap > 1.5 * period {
+        (gap / period).round() as u64 - 1
+    } else {
+        0
+    }
+}
+
 pub(crate) fn logger(
     rx: Receiver<CycleRecord>,
     period: f64,
@@ -204,11 +223,10 @@ pub(crate) fn logger(
             s.first_t = Some(r.t);
         } else {
             s.period_ms.push((r.t - s.last_t) * 1e3);
-            if r.t - s.last_t > 1.5 * period {
-                s.missed += ((r.t - s.last_t) / period).round() as u64 - 1;
-            }
+            s.missed += unanswered((s.last_robot_s, r.robot_s), (s.last_t, r.t), period);
         }
         s.last_t = r.t;
+        s.last_robot_s = r.robot_s;
         s.count_mode(&r.mode);
         s.compute_us.push(r.compute_ns as f64 / 1e3);
         s.delay_ms.push(r.command_delay_s * 1e3);
@@ -347,7 +365,8 @@ pub struct RunReport {
     pub seconds: f64,
     /// Cycles per second.
     pub rate_hz: f64,
-    /// Robot periods without a cycle.
+    /// Controller cycles the loop did not answer (counted on the controller's clock, so a state
+    /// that came late and was answered is not one).
     pub missed_cycles: u64,
     /// Of all periods.
     pub missed_percent: f64,
@@ -798,7 +817,7 @@ impl std::fmt::Display for NotReached {
 
 #[cfg(test)]
 mod tests {
-    use super::{Event, Reason, RunReport, StopOutcome, Summary, protective_stops};
+    use super::{Event, Reason, RunReport, StopOutcome, Summary, protective_stops, unanswered};
     use crate::live_session::SessionReport;
     use mocomp_control::Mode;
 
@@ -815,6 +834,32 @@ mod tests {
         };
         let r = RunReport::new(&mut some, None, &mode, stop(), SessionReport::default());
         assert!((r.deviation_rms_mm - 12.5f64.sqrt()).abs() < 1e-12);
+    }
+
+    /// States that came late and then in a burst were all answered: the controller's clock
+    /// says so, however the loop's own clock bunched them. A state skipped is counted.
+    #[test]
+    fn missed_cycles_are_the_controllers_cycles_the_loop_did_not_answer() {
+        let p = 0.002;
+        // The controller's states 2 ms apart, the loop answering them 3.8 ms and 0.2 ms apart.
+        let states = [0.100, 0.102, 0.104, 0.106, 0.108];
+        let loop_t = [1.000, 1.0038, 1.0040, 1.0078, 1.0080];
+        let counted = |robot: &[f64], t: &[f64]| -> u64 {
+            (1..robot.len())
+                .map(|k| unanswered((robot[k - 1], robot[k]), (t[k - 1], t[k]), p))
+                .sum()
+        };
+        assert_eq!(counted(&states, &loop_t), 0);
+        // Without the controller's clock, the loop's gaps are all there is to count.
+        let none = [f64::NAN; 5];
+        assert_eq!(counted(&none, &loop_t), 2);
+        // The state at 0.104 never answered; the one at 0.106 answered twice (no state came).
+        assert_eq!(
+            counted(&[0.100, 0.102, 0.106, 0.106], &[1.0, 1.002, 1.006, 1.008]),
+            1
+        );
+        // A controller restarted from zero is no gap.
+        assert_eq!(unanswered((5.0, 0.002), (1.0, 1.002), p), 0);
     }
 
     #[test]

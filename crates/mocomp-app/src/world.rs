@@ -241,6 +241,10 @@ pub struct SimulatorFigures {
     pub setpoint_peak_share: f64,
     /// When that came, controller time (s).
     pub setpoint_peak_s: f64,
+    /// Cycles its clock gave up (it was stopped for more than 25 ms, as a busy PC can stop a
+    /// simulator and a real controller is never stopped): never run, so never answered, and not
+    /// among the loop's missed cycles.
+    pub cycles_given_up: u64,
 }
 
 /// [`SimulatorFigures`] of `sim` (`None`: a real robot, whose log is on its teach pendant).
@@ -251,6 +255,7 @@ pub(crate) fn simulator_figures(sim: Option<&Sim>) -> Option<SimulatorFigures> {
             events: events.into_iter().map(|e| (e.time_s, e.text)).collect(),
             setpoint_peak_share: share,
             setpoint_peak_s: at,
+            cycles_given_up: sim.stats().cycles_given_up,
         }
     })
 }

@@ -134,6 +134,7 @@ impl Controller for PaperPipeline {
         }
         let mode = fault.map_or(Mode::Tracking, |f| Mode::Faulted(Reason::Robot(f)));
         let mut rec = CycleRecord::new(now, mode, sent_q);
+        rec.robot_s = robot.state().map_or(f64::NAN, |s| s.controller_s);
         if let Some(f) = fault
             && !self.was_faulted
         {

@@ -146,6 +146,9 @@ pub struct SimStats {
     /// Real-time wake-ups that came a period or more late (the cycles missed were made up, up
     /// to 25 ms of them).
     pub overruns: u64,
+    /// Cycles its clock gave up, more than 25 ms late (a stopped process): never run, never
+    /// sent. A real controller gives up none; a client can answer none of them.
+    pub cycles_given_up: u64,
     /// Cycles at which the RTDE watchdog would have stopped the program while the client's
     /// packages waited unread on the simulator's socket (its own reader late, not the client
     /// silent), so it did not.
@@ -176,6 +179,7 @@ struct Counters {
     skipped: AtomicU64,
     bad: AtomicU64,
     overruns: AtomicU64,
+    given_up: AtomicU64,
     watchdog_deferred: AtomicU64,
 }
 
@@ -382,6 +386,7 @@ impl Sim {
             outputs_skipped: c.skipped.load(Ordering::Relaxed),
             bad_packages: c.bad.load(Ordering::Relaxed),
             overruns: c.overruns.load(Ordering::Relaxed),
+            cycles_given_up: c.given_up.load(Ordering::Relaxed),
             watchdog_deferred: c.watchdog_deferred.load(Ordering::Relaxed),
         }
     }
@@ -454,6 +459,10 @@ fn tick_loop(shared: Arc<Shared>) {
         if due > 1 {
             shared.counters.overruns.fetch_add(1, Ordering::Relaxed);
         }
+        shared
+            .counters
+            .given_up
+            .store(ticker.missed(), Ordering::Relaxed);
         for _ in 0..due {
             tick(&shared);
         }

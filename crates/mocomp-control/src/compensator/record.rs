@@ -74,6 +74,10 @@ pub struct CycleRecord {
     pub press_m: f64,
     /// Compute time of the cycle, ns (filled by the caller that owns a clock for it).
     pub compute_ns: u64,
+    /// The controller's time of the robot state this cycle answered, s (NaN without one): a
+    /// gap of more than a period between cycles is a controller cycle the loop did not answer,
+    /// whatever the loop's own clock says of when it ran.
+    pub robot_s: f64,
 }
 
 impl CycleRecord {
@@ -109,6 +113,7 @@ impl CycleRecord {
             contact_axial_n: f64::NAN,
             press_m: 0.0,
             compute_ns: 0,
+            robot_s: f64::NAN,
         }
     }
 }

@@ -43,6 +43,7 @@ impl Compensator {
         if let Some(s) = state {
             rec.q_actual = s.actual_q;
             rec.qd_actual = s.actual_qd;
+            rec.robot_s = s.controller_s;
             self.cmd.delay.measure(s.acked_seq, s.received_s);
             self.cmd.held.acknowledge(s.acked_seq, s.controller_s);
         }
