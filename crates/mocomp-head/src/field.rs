@@ -94,6 +94,27 @@ pub(crate) fn closest_on_triangle(
     (a + ab * v + ac * w, Feature::Face)
 }
 
+/// Which field this code builds of a mesh: part of the key a field is kept on disk under
+/// (`mocomp-app`'s head cache), so a field built by other code is never read back as this
+/// code's. Raise it with any change to what [`DistanceField::new`] computes for the same mesh.
+pub const FIELD_REVISION: u32 = 1;
+
+/// What the field's sweeps computed: the grid and each node's triangle and value. Kept, it builds
+/// the same field again without sweeping ([`DistanceField::with_grid`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FieldGrid {
+    /// The grid's first node, m.
+    pub origin: [f64; 3],
+    /// Nodes along x, y and z.
+    pub dims: [usize; 3],
+    /// Per node (x fastest): its triangle, or `u32::MAX` for none.
+    pub nearest: Vec<u32>,
+    /// Per node: its signed distance held to ±[`EXACT_BAND_M`], m.
+    pub values: Vec<f32>,
+    /// See [`DistanceField::lipschitz`].
+    pub lipschitz: f64,
+}
+
 /// The mesh's distance field.
 #[derive(Debug, Clone)]
 pub struct DistanceField {
@@ -122,6 +143,58 @@ impl DistanceField {
     /// The field of `mesh` (closed, outward, one shell: a repaired mesh), built on the threads
     /// this machine has.
     pub fn new(vertices: &[Point3<f64>], triangles: &[[u32; 3]]) -> Self {
+        let mut field = Self::unswept(vertices, triangles);
+        field.seed();
+        field.sweep();
+        field.values = field.node_values();
+        field.lipschitz = field.measured_lipschitz();
+        field
+    }
+
+    /// The field of the mesh with its grid as an earlier [`Self::new`] of the same mesh computed
+    /// it (kept: [`Self::grid`]); `None` when the grid is not one of this mesh (another box, a
+    /// node count that does not match, a triangle it does not have, a value out of the band or
+    /// not a number), for the caller to build the field anew.
+    pub fn with_grid(
+        vertices: &[Point3<f64>],
+        triangles: &[[u32; 3]],
+        grid: FieldGrid,
+    ) -> Option<Self> {
+        let mut field = Self::unswept(vertices, triangles);
+        let band = EXACT_BAND_M as f32;
+        let fits = grid.origin == <[f64; 3]>::from(field.origin.coords)
+            && grid.dims == field.dims
+            && grid.nearest.len() == field.nearest.len()
+            && grid.values.len() == field.nearest.len()
+            && grid
+                .nearest
+                .iter()
+                .all(|&t| t == NONE || (t as usize) < triangles.len())
+            && grid.values.iter().all(|v| v.abs() <= band)
+            && !grid.lipschitz.is_nan()
+            && grid.lipschitz > 0.0;
+        if !fits {
+            return None;
+        }
+        field.nearest = grid.nearest;
+        field.values = grid.values;
+        field.lipschitz = grid.lipschitz;
+        Some(field)
+    }
+
+    /// What the sweeps computed, to keep.
+    pub fn grid(&self) -> FieldGrid {
+        FieldGrid {
+            origin: self.origin.coords.into(),
+            dims: self.dims,
+            nearest: self.nearest.clone(),
+            values: self.values.clone(),
+            lipschitz: self.lipschitz,
+        }
+    }
+
+    /// The field's mesh, normals, adjacency and grid laid out, its nodes not yet swept.
+    fn unswept(vertices: &[Point3<f64>], triangles: &[[u32; 3]]) -> Self {
         let mesh = &Surface {
             vertices,
             triangles,
@@ -136,7 +209,7 @@ impl DistanceField {
         let size = b.max - b.min + Vector3::repeat(2.0 * margin);
         let dims = [0, 1, 2].map(|k| (size[k] / SPACING_M).ceil() as usize + 1);
         let across = adjacency(mesh);
-        let mut field = Self {
+        Self {
             across,
             vertices: vertices.to_vec(),
             triangles: triangles.to_vec(),
@@ -148,12 +221,7 @@ impl DistanceField {
             nearest: vec![NONE; dims[0] * dims[1] * dims[2]],
             values: Vec::new(),
             lipschitz: f64::INFINITY,
-        };
-        field.seed();
-        field.sweep();
-        field.values = field.node_values();
-        field.lipschitz = field.measured_lipschitz();
-        field
+        }
     }
 
     /// The steepest the interpolated value gets: within a cell, its slope along an axis is a

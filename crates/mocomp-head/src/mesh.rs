@@ -11,7 +11,7 @@
 
 use crate::cut::ScanCut;
 use crate::error::HeadError;
-use crate::field::DistanceField;
+use crate::field::{DistanceField, FieldGrid};
 use crate::radial::RadialMap;
 use crate::shape::{Aabb, CoilSolid, HeadShape, Known, RayHit, SurfacePoint};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Unit, Vector3};
@@ -189,12 +189,35 @@ impl std::fmt::Debug for MeshHead {
 impl MeshHead {
     /// The head of `mesh` (head frame, metres), read from `file`.
     pub fn new(mesh: Mesh, file: &str) -> Result<Self, HeadError> {
+        Self::build(mesh, file, None).map(|(head, _)| head)
+    }
+
+    /// [`Self::new`] with its distance field's grid as an earlier build of the same mesh left
+    /// it ([`Self::field_grid`], kept by the caller), which spares the field's sweeps (most of
+    /// the start-up); the field is built anew when the grid is not this mesh's. Whether the
+    /// grid was taken.
+    pub fn with_field_grid(
+        mesh: Mesh,
+        file: &str,
+        grid: FieldGrid,
+    ) -> Result<(Self, bool), HeadError> {
+        Self::build(mesh, file, Some(grid))
+    }
+
+    /// The grid its distance field computed, to keep.
+    pub fn field_grid(&self) -> FieldGrid {
+        self.field.grid()
+    }
+
+    fn build(mesh: Mesh, file: &str, grid: Option<FieldGrid>) -> Result<(Self, bool), HeadError> {
         let bounds = mesh.bounds().ok_or_else(|| HeadError::Empty {
             file: file.into(),
             what: "no vertices".into(),
         })?;
         let triangles = mesh.triangles.len();
-        let field = DistanceField::new(&mesh.vertices, &mesh.triangles);
+        let kept = grid.and_then(|g| DistanceField::with_grid(&mesh.vertices, &mesh.triangles, g));
+        let taken = kept.is_some();
+        let field = kept.unwrap_or_else(|| DistanceField::new(&mesh.vertices, &mesh.triangles));
         let mesh = TriMesh::with_flags(mesh.vertices, mesh.triangles, TriMeshFlags::ORIENTED)
             .map_err(|e| HeadError::Shape {
                 file: file.into(),
@@ -208,15 +231,18 @@ impl MeshHead {
             let ray = Ray::new(centre + d * far, -d);
             mesh.cast_local_ray(&ray, far, false).map(|t| far - t)
         });
-        Ok(Self {
-            mesh,
-            field,
-            radial,
-            bounds,
-            triangles,
-            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
-            cuts: Vec::new(),
-        })
+        Ok((
+            Self {
+                mesh,
+                field,
+                radial,
+                bounds,
+                triangles,
+                id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+                cuts: Vec::new(),
+            },
+            taken,
+        ))
     }
 
     /// The same head, knowing where the scan it came from ends inside it (head frame).
@@ -370,19 +396,37 @@ impl HeadShape for MeshHead {
         self.radial.radius_along(d)
     }
 
-    /// The coil's clearance, exact: parry's cylinder against the mesh through its hierarchy
-    /// (a millisecond at 100 k triangles: for measuring, not for the loop, which asks
+    /// The coil's clearance, exact: the least of parry's GJK distances between the cylinder
+    /// and the triangles (only those that can be nearest: see the `clearance` module; for
+    /// measuring and planning, not for the loop, which asks
     /// [`MeshHead::coil_clearance_sampled`]); cutting in, as deep as its deepest face or rim
     /// point.
     fn coil_clearance(&self, head_from_coil: &Isometry3<f64>, coil: &CoilSolid) -> f64 {
-        let deepest = coil
+        let (deepest, nearest) = coil
             .sample_points(head_from_coil)
             .iter()
-            .map(|p| self.distance_below(p, 0.0))
-            .fold(f64::INFINITY, f64::min);
+            .map(|p| (self.distance_below(p, 0.0), *p))
+            .fold((f64::INFINITY, Point3::origin()), |a, b| {
+                if b.0 < a.0 { b } else { a }
+            });
         if deepest <= 0.0 {
             return deepest;
         }
+        // The nearest sample's own distance: no nearer than the coil, so a bound to beat.
+        let at_most = self.signed_distance(&nearest);
+        crate::clearance::least_distance(&self.mesh, coil, head_from_coil, at_most)
+            .unwrap_or_else(|| self.coil_clearance_by_parry(head_from_coil, coil))
+    }
+}
+
+impl MeshHead {
+    /// The coil's clearance by parry's own cylinder-against-mesh query (outside the head):
+    /// what [`HeadShape::coil_clearance`] is measured against.
+    pub fn coil_clearance_by_parry(
+        &self,
+        head_from_coil: &Isometry3<f64>,
+        coil: &CoilSolid,
+    ) -> f64 {
         parry3d_f64::query::distance(
             &coil.head_from_cylinder(head_from_coil),
             &coil.cylinder(),
@@ -436,6 +480,45 @@ pub(crate) mod tests {
             v.coords = v.coords.normalize().component_mul(radii);
         }
         m
+    }
+
+    /// A field's grid kept and given back builds the same field, and one that is not this
+    /// mesh's (another box, a triangle it lacks, a value beyond the band) is built anew.
+    #[test]
+    fn a_kept_field_grid_is_taken_only_for_its_own_mesh() {
+        let radii = Vector3::new(0.075, 0.095, 0.11);
+        let mesh = ellipsoid_mesh(&radii, 4);
+        let fresh = MeshHead::new(mesh.clone(), "e").unwrap();
+        let grid = fresh.field_grid();
+        let (kept, taken) = MeshHead::with_field_grid(mesh.clone(), "e", grid.clone()).unwrap();
+        assert!(taken);
+        for p in [[0.0, 0.0, 0.12], [0.05, 0.02, -0.03], [0.0, 0.0, 0.0]] {
+            let p = Point3::from(p);
+            assert_eq!(fresh.signed_distance(&p), kept.signed_distance(&p));
+            assert_eq!(fresh.field_value(&p), kept.field_value(&p));
+        }
+        let moved = mesh
+            .clone()
+            .transformed(&Isometry3::translation(0.001, 0.0, 0.0));
+        let mut no_triangle = grid.clone();
+        no_triangle.nearest[7] = mesh.triangles.len() as u32;
+        let mut beyond = grid.clone();
+        beyond.values[3] = 0.5;
+        let mut short = grid.clone();
+        short.values.pop();
+        for (m, g) in [
+            (moved, grid),
+            (mesh.clone(), no_triangle),
+            (mesh.clone(), beyond),
+            (mesh, short),
+        ] {
+            let (head, taken) = MeshHead::with_field_grid(m.clone(), "e", g).unwrap();
+            assert!(!taken);
+            assert_eq!(
+                head.field_grid(),
+                MeshHead::new(m, "e").unwrap().field_grid()
+            );
+        }
     }
 
     /// The mesh of an ellipsoid answers as the ellipsoid does, within the mesh's own
