@@ -59,6 +59,12 @@ cargo clippy --workspace --all-targets --locked -- -D warnings
 say "no import circle among any crate's modules; no function in mocomp-control over 120 lines"
 python3 scripts/module_cycles.py
 python3 scripts/fn_lengths.py
+# Scalps segmented from a T1 and scalps' distance fields are kept between commands (mocomp-app's
+# cache_files): the tests keep theirs in a fresh folder, shared by the run, so that they neither
+# read nor fill the user's.
+MOCOMP_CACHE_DIR="$(mktemp -d)"
+export MOCOMP_CACHE_DIR
+trap 'rm -rf "$MOCOMP_CACHE_DIR"' EXIT
 say "cargo test (workspace): build"
 cargo test --workspace --locked --no-run
 # The tests run in a network namespace of their own with only loopback: the ROS 2 tests speak

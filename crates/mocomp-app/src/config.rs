@@ -612,6 +612,10 @@ pub struct HeadSection {
     /// The mesh as read, mended and built ([`Config::load_head`]); not part of the file.
     #[serde(skip)]
     pub loaded: Option<HeadModel>,
+    /// Where the loaded mesh's scalp came from (a T1's segmented now or kept from before);
+    /// not part of the file.
+    #[serde(skip)]
+    pub scalp_from: Option<crate::head_file::ScalpFrom>,
 }
 
 impl Default for HeadSection {
@@ -630,6 +634,7 @@ impl Default for HeadSection {
             max_tre_mm: 3.0,
             registered: None,
             loaded: None,
+            scalp_from: None,
         }
     }
 }
@@ -1117,7 +1122,9 @@ impl Config {
 
     /// A warning when the scalp of `[head] mesh` was segmented from a scan that ends inside
     /// the head anywhere but at the neck: the model is flat there while the real head (an ear,
-    /// the brow) goes on, and goals near those faces are refused.
+    /// the brow) goes on, and goals near those faces are refused. In full when the scan was
+    /// segmented now; a line when its scalp was kept from before (the user has read it, and a
+    /// goal refused there says why itself).
     pub fn head_note(&self) -> Option<String> {
         let head = self.head.loaded.as_ref()?;
         let sides: Vec<&str> = head
@@ -1126,7 +1133,16 @@ impl Config {
             .map(|c| c.side)
             .filter(|s| *s != "inferior")
             .collect();
+        let kept = self.head.scalp_from == Some(crate::head_file::ScalpFrom::Kept);
         (!sides.is_empty()).then(|| {
+            if kept {
+                return format!(
+                    "the scan of [head] mesh ends inside the head at its {} face{} (segmented \
+                     before; goals near them are refused)",
+                    sides.join(", "),
+                    if sides.len() == 1 { "" } else { "s" },
+                );
+            }
             format!(
                 "the scan of [head] mesh ends inside the head at its {} face{}: the model is the \
                  scan's flat face there, not the patient, and a goal whose coil comes within {:.0} \
@@ -1248,8 +1264,9 @@ impl Config {
             ),
         };
         let segment = self.segment_options()?;
-        let head =
+        let (head, from) =
             crate::head_file::load_head(&path, units, &segment, &self.head.head_from_image.iso())?;
+        self.head.scalp_from = Some(from);
         // Absolute from now on, so a printed configuration reads the same file wherever it is.
         self.head.mesh = Some(std::fs::canonicalize(&path).unwrap_or(path));
         self.head.loaded = Some(head);

@@ -21,6 +21,7 @@ macro_rules! refuse {
 pub mod affine_file;
 pub mod bids_export;
 pub mod blame;
+pub mod cache_files;
 pub mod camera;
 pub mod camera_k4a;
 pub mod camera_sim;
@@ -30,6 +31,7 @@ pub mod config_file;
 pub mod demo_options;
 pub mod demo_record;
 pub mod experiment_config;
+pub mod field_cache;
 pub mod frames;
 pub mod head_file;
 pub mod k4a;
@@ -51,6 +53,7 @@ pub mod registration_file;
 pub mod registration_gate;
 pub mod rehearsal;
 pub mod ros2;
+pub mod scalp_cache;
 pub mod servo_check;
 pub mod session_export;
 pub mod session_link;
@@ -60,6 +63,7 @@ pub mod target_import;
 pub mod targets;
 pub mod teach;
 pub mod tuning;
+pub mod whole_file;
 pub mod world;
 
 /// The experiment, the driver and the calibration procedure, from their own crate (the live

@@ -134,7 +134,7 @@ pub fn save(path: &Path, pointer: &Pointer) -> Result<(), AppError> {
         pointer: pointer.clone(),
     })
     .map_err(|e| AppError::failed("writing the pointer file", e))?;
-    std::fs::write(path, text).what(|| format!("writing the pointer file {}", path.display()))
+    crate::whole_file::write_whole(path, text.as_bytes(), "the pointer file")
 }
 
 /// Reads a pointer file.

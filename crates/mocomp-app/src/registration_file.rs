@@ -250,9 +250,5 @@ pub fn load(path: &Path) -> Result<RegistrationFile, AppError> {
 pub fn save(path: &Path, file: &RegistrationFile) -> Result<(), AppError> {
     let text =
         toml::to_string(file).map_err(|e| AppError::failed("writing the registration", e))?;
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = std::path::PathBuf::from(tmp);
-    std::fs::write(&tmp, text).what(|| format!("writing the registration {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).what(|| format!("writing the registration {}", path.display()))
+    crate::whole_file::write_whole(path, text.as_bytes(), "the registration")
 }

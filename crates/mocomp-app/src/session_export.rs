@@ -62,21 +62,9 @@ impl ExportSource {
                 .head
                 .mesh
                 .as_ref()
-                .filter(|m| nifti_extension(m).is_some())
+                .filter(|m| crate::head_file::nifti_extension(m).is_some())
                 .map(|m| self.dir.join(m)),
         }
-    }
-}
-
-/// `nii` or `nii.gz` for a NIfTI's path.
-fn nifti_extension(p: &Path) -> Option<&'static str> {
-    let name = p.file_name()?.to_str()?.to_ascii_lowercase();
-    if name.ends_with(".nii.gz") {
-        Some("nii.gz")
-    } else if name.ends_with(".nii") {
-        Some("nii")
-    } else {
-        None
     }
 }
 
@@ -116,7 +104,7 @@ pub fn bids(source: &ExportSource, dir: &Path, o: &BidsOptions) -> Result<Export
     }
     let t1 = source.t1(o.t1.as_deref());
     let t1_ext = match &t1 {
-        Some(p) => Some(nifti_extension(p).ok_or_else(|| {
+        Some(p) => Some(crate::head_file::nifti_extension(p).ok_or_else(|| {
             AppError::Config(format!(
                 "--t1 {}: not a NIfTI (.nii or .nii.gz)",
                 p.display()
@@ -222,16 +210,7 @@ fn exported(source: &ExportSource, files: Vec<PathBuf>) -> Exported {
     }
 }
 
-/// Writes `bytes` to `path` whole (through a temporary file and a rename), making its folder.
+/// Writes `bytes` to `path` whole, making its folder.
 fn write(path: &Path, bytes: &[u8]) -> Result<(), AppError> {
-    if let Some(parent) = path.parent()
-        && !parent.as_os_str().is_empty()
-    {
-        std::fs::create_dir_all(parent).what(|| format!("making {}", parent.display()))?;
-    }
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, bytes).what(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).what(|| format!("writing {}", path.display()))
+    crate::whole_file::write_whole_making_folder(path, bytes, "the record's file")
 }

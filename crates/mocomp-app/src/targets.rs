@@ -20,12 +20,7 @@ pub fn load(path: &Path) -> Result<Targets, AppError> {
 
 /// Writes `targets` to `path`, whole.
 pub fn save(path: &Path, targets: &Targets) -> Result<(), AppError> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = std::path::PathBuf::from(tmp);
-    std::fs::write(&tmp, targets.to_toml())
-        .what(|| format!("writing the targets file {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).what(|| format!("writing the targets file {}", path.display()))
+    crate::whole_file::write_whole(path, targets.to_toml().as_bytes(), "the targets file")
 }
 
 /// Now, as a target's `taught_at`: an HTTP date (UTC).

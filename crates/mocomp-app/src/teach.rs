@@ -266,11 +266,7 @@ pub fn write_goal(path: &Path, taught: &Taught) -> Result<(), AppError> {
         &text,
         &mocomp_geom::ur_pose_from_iso(&taught.head_from_coil),
     )?;
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = std::path::PathBuf::from(tmp);
-    std::fs::write(&tmp, edited).what(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).what(|| format!("replacing {}", path.display()))
+    crate::whole_file::write_whole(path, edited.as_bytes(), "the configuration")
 }
 
 #[cfg(test)]

@@ -204,10 +204,5 @@ impl MriView {
 }
 
 fn is_nifti(p: &Path) -> bool {
-    let name = p
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or_default()
-        .to_ascii_lowercase();
-    name.ends_with(".nii") || name.ends_with(".nii.gz")
+    mocomp_app::head_file::nifti_extension(p).is_some()
 }

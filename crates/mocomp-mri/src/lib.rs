@@ -47,6 +47,12 @@ pub struct SegmentOptions {
 /// measured with (a 100 k-triangle scalp builds in under 2 s).
 pub const DEFAULT_MAX_TRIANGLES: usize = 100_000;
 
+/// Which scalp this code makes of a volume: part of the key a segmented scalp is kept on disk
+/// under (`mocomp-app`'s scalp cache), so a scalp made by other code is never read back as
+/// this code's. Raise it with any change to what [`segment`] or the mending after it
+/// (`mocomp_head::repair`) make of the same bytes.
+pub const SCALP_REVISION: u32 = 1;
+
 /// The fewest triangles a scalp may be asked for.
 pub const MIN_TRIANGLES: usize = 1_000;
 
