@@ -60,17 +60,53 @@ impl Targets {
 
     /// Each target with the head at `base_from_head` and the arm resting at `rest`.
     pub fn check(&self, base_from_head: &Isometry3<f64>, rest: &[f64; 6]) -> Vec<TargetReach> {
-        self.loops
-            .iter()
-            .map(|(name, c)| {
-                let reach = c.reach(rest, base_from_head);
-                TargetReach {
-                    name: name.clone(),
-                    refusal: reach.refusal(self.slow),
-                    reach,
-                }
-            })
+        (0..self.loops.len())
+            .map(|k| self.check_one(k, base_from_head, rest))
             .collect()
+    }
+
+    /// Target `k` with the head at `base_from_head` and the arm resting at `rest`.
+    fn check_one(&self, k: usize, base_from_head: &Isometry3<f64>, rest: &[f64; 6]) -> TargetReach {
+        let (name, c) = &self.loops[k];
+        let reach = c.reach(rest, base_from_head);
+        TargetReach {
+            name: name.clone(),
+            refusal: reach.refusal(self.slow),
+            reach,
+        }
+    }
+
+    /// Whether target `k` is surely refused with the head at `base_from_head`: no joint
+    /// solution at it on any branch (one IK solve; `check` would plan a way first).
+    fn surely_refused(&self, k: usize, base_from_head: &Isometry3<f64>) -> bool {
+        !self.loops[k].1.goal_has_solution(base_from_head)
+    }
+
+    /// The targets at a placement as [`Self::check`] gives them when every one is reached;
+    /// `None` as soon as one is refused. Targets are tried in `order`, and the one refused is
+    /// moved to its front: neighbouring placements tend to fail on the same target, so most
+    /// are turned down by one check, and first by its IK alone where that suffices.
+    fn all_reached(
+        &self,
+        order: &mut [usize],
+        base_from_head: &Isometry3<f64>,
+        rest: &[f64; 6],
+    ) -> Option<Vec<TargetReach>> {
+        let mut reaches: Vec<Option<TargetReach>> = vec![None; self.loops.len()];
+        for i in 0..order.len() {
+            let k = order[i];
+            let refused = self.surely_refused(k, base_from_head) || {
+                let r = self.check_one(k, base_from_head, rest);
+                let refused = r.reach.score(self.slow) <= 0.0;
+                reaches[k] = Some(r);
+                refused
+            };
+            if refused {
+                order[..=i].rotate_right(1);
+                return None;
+            }
+        }
+        reaches.into_iter().collect()
     }
 
     /// Each target at the configured placement (`tracker.simulated.base_from_head`), the arm
@@ -226,10 +262,15 @@ pub fn search(
         tried: 0,
         reaching: 0,
     };
+    let mut order: Vec<usize> = (0..targets.loops.len()).collect();
     for place in region.candidates(centre) {
         found.tried += 1;
         let Some(q) = rest(&place) else { continue };
-        let reaches = targets.check(&place, &q);
+        // A placement with a target refused scores 0 ([`Targets::score`]): it is not one that
+        // reaches, whichever target it fails first.
+        let Some(reaches) = targets.all_reached(&mut order, &place, &q) else {
+            continue;
+        };
         let score = targets.score(&reaches);
         if score <= 0.0 {
             continue;
@@ -465,6 +506,55 @@ mod tests {
         assert!(best.translation.x < centre.translation.x - 0.05, "{best}");
         assert!(t.check(&best, &rest)[0].refusal.is_none());
         assert!(found.reaching >= 1 && found.reaching < found.tried);
+    }
+
+    /// The search turns placements down on their first refused target (by IK alone where it
+    /// can): it finds what checking every target at every placement finds, the same best
+    /// placement, score and count.
+    #[test]
+    fn the_search_finds_what_checking_everything_finds() {
+        let s = setup("[0.62, -0.12, -0.02, 0.0, 0.0, 0.3]");
+        let goals = vec![
+            ("top".to_string(), s.file.head_from_coil().unwrap()),
+            // Turned about its own axis: the same spot, another wrist.
+            (
+                "turned".to_string(),
+                s.file.head_from_coil().unwrap() * Isometry3::rotation(Vector3::new(0.0, 0.0, 1.2)),
+            ),
+        ];
+        let t = Targets::new(&s, &goals).unwrap();
+        let centre = s.file.tracker.simulated.base_from_head.iso();
+        let rest = [0.0, -1.3, 1.6, -1.87, -1.57, 0.0];
+        let region = Region {
+            half_m: [0.3, 0.2, 0.1],
+            step_m: 0.1,
+            yaw_half_rad: 0.6,
+            yaw_step_rad: 0.3,
+        };
+        let found = search(&t, &centre, &region, |_| Some(rest));
+        let (mut best, mut reaching) = (None::<(Isometry3<f64>, f64)>, 0);
+        for place in region.candidates(&centre) {
+            let score = t.score(&t.check(&place, &rest));
+            if score > 0.0 {
+                reaching += 1;
+                if best.is_none_or(|b| score > b.1 + 1e-9) {
+                    best = Some((place, score));
+                }
+            }
+        }
+        assert_eq!(found.reaching, reaching);
+        assert!(
+            reaching > 0 && reaching < found.tried,
+            "{reaching} of {}",
+            found.tried
+        );
+        let (place, score, reaches) = found.best.unwrap();
+        assert_eq!(Some((place, score)), best);
+        assert_eq!(reaches.len(), 2);
+        assert_eq!(
+            (reaches[0].name.as_str(), reaches[1].name.as_str()),
+            ("top", "turned")
+        );
     }
 
     #[test]

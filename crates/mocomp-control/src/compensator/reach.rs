@@ -7,7 +7,7 @@
 use super::{Compensator, Plan};
 use crate::supervisor::Reason;
 use mocomp_geom::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use mocomp_kin::{Branch, Selection};
+use mocomp_kin::{Branch, BranchPolicy, Selection};
 
 /// How far the head may move from its place while the coil follows: rotations about the head
 /// marker's three axes and translations along them, each way. A seated patient's nods and
@@ -139,6 +139,19 @@ impl Compensator {
         }
     }
 
+    /// Whether the arm has a joint solution at the goal for the head at `base_from_head` on
+    /// any branch within the joint margin. Without one, [`Self::reach`] finds no arm at the goal
+    /// whatever way it plans (it asks for one on a single branch), so a search over placements
+    /// asks this first: one IK solve where `reach` plans a path.
+    pub fn goal_has_solution(&self, base_from_head: &Isometry3<f64>) -> bool {
+        let select = Selection {
+            branch: BranchPolicy::Any,
+            ..Selection::tracking(self.cfg.params.joint_margin_rad)
+        };
+        let flange = base_from_head * self.cfg.head_from_coil_goal * self.coil_from_flange;
+        self.arm.ik_closest(&flange, &self.cmd.q, &select).is_ok()
+    }
+
     /// The arm at the goal on `from`'s branch, and the room it leaves.
     fn at_goal(&self, from: &[f64; 6], base_from_head: &Isometry3<f64>) -> Option<AtGoal> {
         let p = &self.cfg.params;
@@ -216,6 +229,26 @@ mod tests {
         assert!(why.is_placement(), "{why:?}");
         assert!(r.at_goal.is_none(), "{r:?}");
         assert_eq!(r.score(slow), 0.0);
+    }
+
+    /// A goal with no joint solution on any branch is one `reach` finds no arm at, and one
+    /// with a solution is asked no further by it.
+    #[test]
+    fn no_solution_at_the_goal_means_no_arm_there_whatever_the_way() {
+        let (c, _) = fixture();
+        let rest = at_goal(&c, 0.15);
+        for k in 0..12 {
+            let head = Isometry3::translation(0.06 * k as f64, 0.0, -0.02 * k as f64) * head_rest();
+            let quick = c.goal_has_solution(&head);
+            let r = c.reach(&rest, &head);
+            if !quick {
+                assert!(r.at_goal.is_none(), "{k}: {r:?}");
+            }
+            if k == 0 {
+                assert!(quick && r.at_goal.is_some(), "{r:?}");
+            }
+        }
+        assert!(!c.goal_has_solution(&(Isometry3::translation(2.0, 0.0, 0.0) * head_rest())));
     }
 
     #[test]
