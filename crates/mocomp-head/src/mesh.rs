@@ -3,11 +3,12 @@
 //!
 //! Two structures, measured against each other (`cargo bench -p mocomp-head`): parry's BVH is
 //! exact everywhere but its point query grows with the mesh (2 µs at 4 k triangles, 19 µs at
-//! 260 k) and its cylinder-against-mesh distance is far too slow for the loop (milliseconds);
-//! the [`DistanceField`] answers anywhere in its grid in one to two microseconds whatever the
-//! mesh's size, and its interpolated values rank the coil's sampled points in nanoseconds
-//! ([`crate::sampled`]). The BVH stays for ray casts, the exact coil clearance (to measure by)
-//! and points beyond the grid.
+//! 260 k) and its own cylinder-against-mesh distance is far too slow for the loop (milliseconds;
+//! the exact clearance here, on the triangles that can be nearest, is tens of microseconds:
+//! still for measuring); the [`DistanceField`] answers anywhere in its grid in one to two
+//! microseconds whatever the mesh's size, and its interpolated values rank the coil's sampled
+//! points in nanoseconds ([`crate::sampled`]). The BVH stays for ray casts, the exact coil
+//! clearance (to measure by) and points beyond the grid.
 
 use crate::cut::ScanCut;
 use crate::error::HeadError;

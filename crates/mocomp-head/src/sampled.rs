@@ -2,11 +2,12 @@
 //! distance over points spread on the coil's surface (its face every few millimetres, its side
 //! and its back rim), ranked by the distance field's interpolated values (nanoseconds each) and
 //! the nearest few refined exactly. The exact clearance ([`crate::HeadShape::coil_clearance`],
-//! GJK over the triangles) costs a hundred times more; between the samples it can be less than
-//! this one by what the scalp bulges between them (measured against it on real anatomy in the
-//! crate's tests, and stated in the README), which the loop's least distance covers. Each of the
-//! loop's call sites keeps a [`ClearanceMemory`] from one cycle to the next, which spares the
-//! samples that cannot have become the nearest since (the same answer, a fraction of the work).
+//! GJK on the triangles that can be nearest) costs several times more, and the more the larger
+//! the mesh; between the samples it can be less than this one by what the scalp bulges between
+//! them (measured against it on real anatomy in the crate's tests, and stated in the README),
+//! which the loop's least distance covers. Each of the loop's call sites keeps a
+//! [`ClearanceMemory`] from one cycle to the next, which spares the samples that cannot have
+//! become the nearest since (the same answer, a fraction of the work).
 
 use crate::field::{EXACT_BAND_M, INTERPOLATION_SLACK_M};
 use crate::mesh::MeshHead;
