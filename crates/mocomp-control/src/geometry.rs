@@ -126,8 +126,9 @@ impl CoilModel {
     }
 
     /// The distance a report measures the true coil by: against a scalp, the exact clearance of
-    /// the coil's cylinder (parry's, a fraction of a millisecond at 4 k triangles: not for the
-    /// loop); against the ellipsoid, [`Self::distance`], as reports always measured it.
+    /// the coil's cylinder (GJK on the triangles that can be nearest: tens of microseconds at
+    /// 100 k triangles, not for the loop); against the ellipsoid, [`Self::distance`], as reports
+    /// always measured it.
     pub fn measured_distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
         match (&head.shape, CoilSolid::new(self.radius, self.thickness)) {
             (Head::Mesh(m), Ok(solid)) => m.coil_clearance(head_from_coil, &solid),
