@@ -78,9 +78,11 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
     // are outcomes.
     if let Some(e) = e.downcast_ref::<ExperimentError>() {
         return Some(match e {
-            ExperimentError::Config(_) | ExperimentError::Goal(_) | ExperimentError::Scene(_) => {
-                Blame::Input
-            }
+            // A goal whose target gets no field: the configuration's coil, target or head.
+            ExperimentError::Config(_)
+            | ExperimentError::Goal(_)
+            | ExperimentError::Scene(_)
+            | ExperimentError::Dose { .. } => Blame::Input,
             ExperimentError::Io { .. }
             | ExperimentError::Timeout(_)
             | ExperimentError::Calibration { .. } => Blame::Run,

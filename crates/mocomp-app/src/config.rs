@@ -647,6 +647,19 @@ pub struct CoilSection {
     pub radius_m: f64,
     /// Thickness behind the face, m.
     pub thickness_m: f64,
+    /// The coil's field model: a SimNIBS `.ccd` file of magnetic dipoles in the coil's frame
+    /// (relative to the configuration's directory; absolute once read). With it, the dose.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<PathBuf>,
+    /// The stimulator's dI/dt, A/µs (or `output_pct` of the model's `dIdtmax`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub didt_a_per_us: Option<f64>,
+    /// The stimulator's output, % of the model's `dIdtmax` (its full output).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub output_pct: Option<f64>,
+    /// A target given as a coil pose alone: the dose is taken this far under the scalp on the
+    /// coil's axis, m.
+    pub target_depth_m: f64,
 }
 
 impl Default for CoilSection {
@@ -654,6 +667,10 @@ impl Default for CoilSection {
         Self {
             radius_m: 0.04,
             thickness_m: 0.03,
+            model: None,
+            didt_a_per_us: None,
+            output_pct: None,
+            target_depth_m: 0.015,
         }
     }
 }
@@ -1030,6 +1047,7 @@ impl Config {
         }
         Check::positive("coil.radius_m", self.coil.radius_m)?;
         Check::positive("coil.thickness_m", self.coil.thickness_m)?;
+        crate::coil_config::check(&self.coil)?;
         Check::range(
             "servo.lookahead_s",
             self.servo.lookahead_s,
@@ -1245,9 +1263,12 @@ impl Config {
 
     /// Reads, mends and builds `[head] mesh` (relative to `dir`) once, in the head marker's
     /// frame (through `[head] registration`'s head_from_image when there is one, read first);
-    /// the path becomes the one read. Nothing to do without a mesh or once loaded.
+    /// the path becomes the one read. Nothing to do without a mesh or once loaded. `[coil]
+    /// model`'s path is made absolute here too (the files a configuration names are found
+    /// where it is).
     pub fn load_head(&mut self, dir: &Path) -> Result<(), AppError> {
         self.load_registration(dir)?;
+        crate::coil_config::resolve(&mut self.coil, dir)?;
         self.load_landmarks(dir)?;
         let Some(mesh) = &self.head.mesh else {
             return Ok(());

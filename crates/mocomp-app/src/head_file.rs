@@ -10,7 +10,6 @@ use mocomp_head::inspect::Inspection;
 use mocomp_head::render::{Picture, three_views};
 use mocomp_head::{Head, Mesh, MeshHead, formats};
 use mocomp_mri::SegmentOptions;
-use std::io::Read;
 use std::path::Path;
 
 /// The largest head file read, bytes: a 5 M-triangle binary STL is 250 MB; ASCII twice that.
@@ -18,22 +17,7 @@ pub const MAX_FILE_BYTES: u64 = 600 << 20;
 
 /// The bytes of `path`, refusing a file over [`MAX_FILE_BYTES`] before reading it.
 fn read_capped(path: &Path) -> Result<Vec<u8>, AppError> {
-    let name = path.display().to_string();
-    let file = std::fs::File::open(path).what(|| format!("{name}: cannot open"))?;
-    let size = file
-        .metadata()
-        .what(|| format!("{name}: cannot read its size"))?
-        .len();
-    if size > MAX_FILE_BYTES {
-        return Err(AppError::Config(format!(
-            "{name}: {size} bytes, more than the {MAX_FILE_BYTES} a head file may have"
-        )));
-    }
-    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0));
-    file.take(MAX_FILE_BYTES + 1)
-        .read_to_end(&mut bytes)
-        .what(|| format!("{name}: cannot read"))?;
-    Ok(bytes)
+    crate::capped_file::read_capped(path, MAX_FILE_BYTES, "a head file")
 }
 
 /// `nii` or `nii.gz` for a NIfTI's path, by its name (the one place that says what a NIfTI is

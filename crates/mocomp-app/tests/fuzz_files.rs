@@ -5,7 +5,8 @@
 //!
 //! Readers: NIfTI-1 volumes (mocomp-mri), surface meshes in binary and ASCII STL, OBJ and PLY
 //! (mocomp-head), navigator files (SimNIBS matsimnibs and fiducials, Localite, Brainsight, 3D
-//! Slicer markups), the configuration, targets, motion traces, hand-eye pairs, affines.
+//! Slicer markups), the configuration, targets, motion traces, hand-eye pairs, affines, coil
+//! models (SimNIBS `.ccd`) and the field calculator's points.
 
 #![allow(
     clippy::unwrap_used,
@@ -336,6 +337,24 @@ fn configuration_targets_traces_pairs_affines() {
     let affine = ["# image_from_mni\n1 0 0 -1.5\n0 1 0 2\n0 0 1 -3\n0 0 0 1\n".to_string()];
     text_campaign("affine", 0x4146_4649, 5000, &affine, &mut |t| {
         named(mocomp_app::affine_file::parse_affine("a.txt", t))
+    });
+}
+
+#[test]
+fn coil_models_and_points() {
+    // SimNIBS's D70, its header and first dozen dipoles (the count made to match).
+    let d70: Vec<String> = read("crates/mocomp-efield/tests/data/coils/MagStim_D70.ccd")
+        .lines()
+        .take(15)
+        .map(str::to_string)
+        .collect();
+    let ccd = format!("{}\n12\n{}\n", d70[0], d70[2..].join("\n"));
+    text_campaign("ccd", 0x4343_4430, 5000, &[ccd], &mut |t| {
+        named(mocomp_efield::parse_ccd("c.ccd", t))
+    });
+    let points = ["x_mm,y_mm,z_mm\n-41.8,-34.1,73.6\n12,0.5,60\n".to_string()];
+    text_campaign("points", 0x504f_494e, 5000, &points, &mut |t| {
+        named(mocomp_app::efield_calc::parse_points("p.csv", t))
     });
 }
 

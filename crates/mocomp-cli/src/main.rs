@@ -9,6 +9,7 @@ mod calibrate;
 mod config;
 mod dashboard;
 mod demo;
+mod efield;
 mod fk;
 mod head;
 mod ik;
@@ -43,6 +44,7 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     Fk(fk::FkCmd),
+    Efield(efield::EfieldCmd),
     Ik(ik::IkCmd),
     Models(models::ModelsCmd),
     Listen(listen::ListenCmd),
@@ -74,6 +76,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     let out: &mut dyn Write = &mut lock;
     match cli.command {
         Command::Fk(c) => c.run(out)?,
+        Command::Efield(c) => c.run(out)?,
         Command::Ik(c) => c.run(out)?,
         Command::Models(c) => c.run(out)?,
         Command::Listen(c) => c.run(out)?,

@@ -70,6 +70,16 @@ pub enum ExperimentError {
     /// A configuration value out of range.
     #[error("{0}")]
     Config(String),
+    /// The dose cannot be planned for a goal (its target gets no field, or lies outside the
+    /// head under the coil).
+    #[error("the dose at {what}")]
+    Dose {
+        /// Which goal.
+        what: String,
+        /// Why.
+        #[source]
+        source: mocomp_efield::EfieldError,
+    },
     /// The paper's goal matrix is not a rigid transform.
     #[error("the goal E2_T_E1,g: {0}")]
     Goal(String),
@@ -204,6 +214,9 @@ pub struct ExperimentConfig {
     /// A clinical session during each `mocomp` run: targets walked, the on-target gate on the
     /// coil robot's output, a stimulator pulsing its input (see [`SessionPlan`]).
     pub session: Option<SessionPlan>,
+    /// The coil's field model: each tick's dose at the target against the planned one
+    /// ([`Record::dose_pct`]), scored per controller ([`Run::dose_error_pct`]).
+    pub dose: Option<mocomp_efield::DoseModel>,
 }
 
 /// The paper's goal between the end-effectors, `E2_T_E1,g` (translation in mm).
@@ -693,6 +706,9 @@ pub struct Record {
     /// standoff it asked for, and this cycle's move back), m: part of the execution's share,
     /// on purpose.
     pub standoff_m: f64,
+    /// The dose the true coil gives at the selected target, % of the planned (NaN without a
+    /// coil model).
+    pub dose_pct: f64,
 }
 
 /// A pulse the session logged, with the truth at its time.
@@ -773,6 +789,9 @@ pub struct Run {
     pub prediction_mm: Stats,
     /// The execution's share, mm, over the same ticks ([`Record::execution_m`]).
     pub execution_mm: Stats,
+    /// With a coil model: the dose's error against the planned, |dose − planned| in % of the
+    /// planned, over the ticks ([`Record::dose_pct`]).
+    pub dose_error_pct: Option<Stats>,
 }
 
 impl Run {
@@ -786,7 +805,9 @@ impl Run {
                 .filter(|x| x.is_finite())
                 .collect::<Vec<f64>>()
         };
+        let dose = finite(&|r| (r.dose_pct - 100.0).abs());
         Self {
+            dose_error_pct: (!dose.is_empty()).then(|| Stats::of(&dose)),
             prediction_mm: Stats::of(&finite(&|r| r.prediction_m * 1e3)),
             execution_mm: Stats::of(&finite(&|r| r.execution_m * 1e3)),
             min_clearance_m: records
@@ -1644,7 +1665,18 @@ impl Rig {
             (Controller::Paper, _) => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
         };
         let n = (cfg.duration_s / self.period).round() as usize;
+        let dose = cfg
+            .dose
+            .as_ref()
+            .map(|model| {
+                let targets: Vec<Isometry3<f64>> = plan
+                    .map(|p| p.targets.iter().map(|t| t.1).collect())
+                    .unwrap_or_default();
+                crate::dose::DoseWatch::new(model, cfg.head.shape(), &goal_head_from_coil, &targets)
+            })
+            .transpose()?;
         let mut pace = Lockstep {
+            dose,
             player: self.head_player(cfg),
             loop_frames,
             oracle_source,
@@ -1760,6 +1792,8 @@ struct Lockstep<'a, 'p> {
     gate_level: bool,
     pulses: Vec<LoggedPulse>,
     withheld: usize,
+    /// The dose each tick, with a coil model.
+    dose: Option<crate::dose::DoseWatch>,
 }
 
 impl Lockstep<'_, '_> {
@@ -1967,6 +2001,9 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             prediction_m: f64::NAN,
             execution_m: f64::NAN,
             standoff_m: rec.standoff_m + rec.filtered_m,
+            dose_pct: self.dose.as_mut().map_or(f64::NAN, |d| {
+                d.pct(self.plan.map(|_| target), &head_from_coil)
+            }),
         });
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);

@@ -57,6 +57,16 @@ pub struct Row {
     pub execution_mm: Option<ShareStats>,
     /// d less the oracle's, when the oracle ran: what any better controller could still win.
     pub excess_over_oracle: Option<Excess>,
+    /// With a coil model: the dose at the target against the planned, |error| in % of the
+    /// planned, RMS over the run (absent without a model).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dose_error_pct_rms: Option<f64>,
+    /// The same, 95th percentile.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dose_error_pct_p95: Option<f64>,
+    /// The same, largest.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dose_error_pct_max: Option<f64>,
 }
 
 /// A share of the error: RMS and 95th percentile, mm.
@@ -149,6 +159,9 @@ pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
                 prediction_mm: share(&r.prediction_mm),
                 execution_mm: share(&r.execution_mm),
                 excess_over_oracle: None,
+                dose_error_pct_rms: r.dose_error_pct.map(|d| d.rms),
+                dose_error_pct_p95: r.dose_error_pct.map(|d| d.p95),
+                dose_error_pct_max: r.dose_error_pct.map(|d| d.max),
             }
         })
         .collect();
@@ -265,6 +278,7 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
         ));
     }
     t.push('\n');
+    t.push_str(&dose_table(s, cfg));
     if let (Some(a), Some(b)) = (s.ratio_d_rms, s.ratio_d_max) {
         t.push_str(&format!("paper ÷ mocomp: d RMS {a:.1}×, d max {b:.1}×.\n"));
     }
@@ -336,11 +350,42 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
     t
 }
 
+/// The dose's table, when the experiment had a coil model (else nothing).
+fn dose_table(s: &Summary, cfg: &ExperimentConfig) -> String {
+    let Some(model) = &cfg.dose else {
+        return String::new();
+    };
+    let mut t = format!(
+        "The dose: the field the coil ({}, {} dipoles, {:.1} A/µs) gives at the target ({:.0} mm under the scalp on the goal's axis, in the sphere fitted to the scalp there), along the field the goal gives, against the goal's; |error| in % of it.\n\n| controller | dose error RMS (%) | p95 | max |\n|---|---|---|---|\n",
+        model.coil.name.as_deref().unwrap_or("model"),
+        model.coil.len(),
+        model.didt_a_per_s * 1e-6,
+        m_to_mm(model.depth_m),
+    );
+    for r in &s.controllers {
+        let f = |v: Option<f64>| v.map_or("–".to_string(), |x| format!("{x:.2}"));
+        t.push_str(&format!(
+            "| {} | {} | {} | {} |\n",
+            r.controller,
+            f(r.dose_error_pct_rms),
+            f(r.dose_error_pct_p95),
+            f(r.dose_error_pct_max)
+        ));
+    }
+    t.push('\n');
+    t
+}
+
 /// The CSV of every tick of every controller (`demo.csv`), on the `csv` crate: a mode or event
 /// whose text holds a comma is quoted.
 pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record([
+    // The dose's column only with a coil model: without one the file is as it always was.
+    let dose = o
+        .runs
+        .iter()
+        .any(|r| r.records.iter().any(|x| x.dose_pct.is_finite()));
+    let mut header = vec![
         "controller",
         "t_s",
         "d",
@@ -358,10 +403,14 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
         "prediction_mm",
         "execution_mm",
         "standoff_mm",
-    ])?;
+    ];
+    if dose {
+        header.push("dose_pct");
+    }
+    w.write_record(&header)?;
     for r in &o.runs {
         for x in &r.records {
-            w.write_record([
+            let mut row = vec![
                 r.controller.name().to_string(),
                 format!("{:.4}", x.t),
                 format!("{:.5}", x.d),
@@ -379,7 +428,11 @@ pub fn ticks_csv(o: &Outcome) -> Result<Vec<u8>, csv::Error> {
                 format!("{:.4}", x.prediction_m * 1e3),
                 format!("{:.4}", x.execution_m * 1e3),
                 format!("{:.4}", x.standoff_m * 1e3),
-            ])?;
+            ];
+            if dose {
+                row.push(format!("{:.4}", x.dose_pct));
+            }
+            w.write_record(&row)?;
         }
     }
     w.into_inner().map_err(|e| e.into_error().into())

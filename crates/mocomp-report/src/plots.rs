@@ -194,6 +194,29 @@ pub fn write_all(runs: &[Run], duration_s: f64, dir: &Path) -> Result<Vec<PathBu
         },
         dir,
     )?);
+    if runs
+        .iter()
+        .any(|r| r.records.iter().any(|x| x.dose_pct.is_finite()))
+    {
+        files.extend(write(
+            &Panels {
+                name: "dose",
+                runs,
+                t: t.clone(),
+                panels: [
+                    (
+                        "the field at the target along the planned direction, % of the planned",
+                        "%",
+                        |r| r.dose_pct,
+                    ),
+                    ("its error, |dose − planned|", "% of the planned", |r| {
+                        (r.dose_pct - 100.0).abs()
+                    }),
+                ],
+            },
+            dir,
+        )?);
+    }
     files.extend(write(&Events { runs, t }, dir)?);
     Ok(files)
 }
