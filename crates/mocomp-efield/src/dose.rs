@@ -158,27 +158,9 @@ impl DoseMeter {
 mod tests {
     #![allow(clippy::unwrap_used)] // test code
     use super::*;
+    use crate::test_coil::eight;
     use mocomp_geom::nalgebra::{Translation3, UnitQuaternion};
     use mocomp_head::Ellipsoid;
-
-    /// Two rings of dipoles, a figure-of-eight's wings.
-    fn eight() -> DipoleCoil {
-        let mut positions = Vec::new();
-        let mut moments = Vec::new();
-        for (cx, sign) in [(-0.025, 1.0), (0.025, -1.0)] {
-            for k in 0..12 {
-                let a = std::f64::consts::TAU * k as f64 / 12.0;
-                positions.push(Vector3::new(cx + 0.015 * a.cos(), 0.015 * a.sin(), -0.01));
-                moments.push(Vector3::new(0.0, 0.0, sign * 5e-4));
-            }
-        }
-        DipoleCoil {
-            name: None,
-            didt_max_a_per_s: None,
-            positions,
-            moments,
-        }
-    }
 
     fn setup() -> (DoseMeter, Ellipsoid, Isometry3<f64>) {
         let head = Ellipsoid::new(Isometry3::identity(), Vector3::new(0.1, 0.08, 0.09)).unwrap();

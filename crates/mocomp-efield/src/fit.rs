@@ -73,13 +73,8 @@ mod tests {
 
     /// Points on a cap of a sphere (within `half_angle` of its top), jittered by `noise`.
     fn cap(centre: Vector3<f64>, r: f64, half_angle: f64, noise: f64) -> Vec<Point3<f64>> {
-        let mut s = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = mocomp_testkit::SplitMix64(0x2545_f491_4f6c_dd1d);
+        let mut next = move || rng.next_f64();
         (0..400)
             .map(|_| {
                 let theta = half_angle * next().sqrt();

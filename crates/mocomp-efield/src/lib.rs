@@ -22,6 +22,8 @@ pub mod error;
 pub mod fit;
 pub mod local;
 pub mod sphere;
+#[cfg(test)]
+mod test_coil;
 
 pub use ccd::{DipoleCoil, parse_ccd};
 pub use dose::{Along, DoseMeter, DoseModel, PlannedDose};
