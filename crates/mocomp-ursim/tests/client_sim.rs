@@ -17,8 +17,15 @@ fn sim(model: Model, clock: SimClock) -> Sim {
     Sim::start(c).unwrap()
 }
 
+/// The client's configuration for `sim`, its program's watchdog allowing 500 ms of silence
+/// (2 Hz). These tests keep the program alive from the test's own thread, an ordinary one that
+/// a loaded machine (or, in a root run, the real-time threads beside it) may not schedule for
+/// the default's 50 ms: the move test timed out so beside `stress-ng`, its program stopped
+/// under it. The watchdog's own tests set theirs.
 fn config_for(sim: &Sim) -> UrConfig {
-    sim.ur_config()
+    let mut cfg = sim.ur_config();
+    cfg.watchdog_hz = 2.0;
+    cfg
 }
 
 fn connect(sim: &Sim) -> UrRobot {
@@ -402,8 +409,16 @@ fn movej_speedj_and_stopj_move_the_joints_as_commanded() {
     goal[0] += 0.3;
     goal[2] -= 0.2;
     let seq = robot.move_joints(&goal, 1.0, 4.0).unwrap();
+    // A program that stopped under a wait is said with the controller's events, not left to
+    // time out.
+    let running = |sim: &Sim| {
+        if sim.with(|c| c.runtime_state()) == RuntimeState::Stopped {
+            panic!("the program stopped: {:?}", sim.with(|c| c.event_texts()));
+        }
+    };
     wait_until("the move", || {
         robot.keep_alive().unwrap();
+        running(&sim);
         std::thread::sleep(Duration::from_millis(5));
         robot.state().unwrap().move_done_seq == seq
     });
@@ -416,6 +431,7 @@ fn movej_speedj_and_stopj_move_the_joints_as_commanded() {
         .unwrap();
     wait_until("speed", || {
         robot.keep_alive().unwrap();
+        running(&sim);
         std::thread::sleep(Duration::from_millis(5));
         (robot.state().unwrap().actual_qd[5] - 0.5).abs() < 1e-9
     });

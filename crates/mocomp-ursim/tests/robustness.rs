@@ -73,7 +73,11 @@ fn garbage_on_every_port_leaves_the_simulator_serving() {
     );
     wait_until("the bad packages counted", || sim.stats().bad_packages >= 8);
     // The simulator still serves a well-behaved client, and nothing moved the arm.
-    let mut robot = UrRobot::connect(sim.ur_config(), Arc::new(MonotonicClock::new())).unwrap();
+    // Its watchdog at 2 Hz: the test's ordinary thread keeps the program alive, and a loaded
+    // machine may not schedule it for the default's 50 ms (a stopped program is a fault).
+    let mut cfg = sim.ur_config();
+    cfg.watchdog_hz = 2.0;
+    let mut robot = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())).unwrap();
     let n = robot.state_count();
     wait_until("states", || {
         robot.keep_alive().unwrap();
