@@ -93,6 +93,8 @@ impl PlacedCoil {
         head_from_coil: &Isometry3<f64>,
         sphere: &Sphere,
     ) -> Result<(), EfieldError> {
+        let n = coil.len();
+        let padded = n.next_multiple_of(LANES);
         for v in [
             &mut self.x,
             &mut self.y,
@@ -103,36 +105,33 @@ impl PlacedCoil {
             &mut self.norm,
         ] {
             v.clear();
+            v.resize(padded, 0.0);
         }
         let mut nearest = f64::INFINITY;
-        // A pose or coil that is not finite places no dipole anywhere: refused below.
-        let mut finite = true;
-        for (p, m) in coil.positions.iter().zip(&coil.moments) {
-            let r0 = head_from_coil * Point3::from(*p) - sphere.centre;
-            let m = head_from_coil.rotation * m;
-            let n = r0.norm();
-            nearest = nearest.min(n);
-            finite &= n.is_finite() && m.iter().all(|c| c.is_finite());
-            self.x.push(r0.x);
-            self.y.push(r0.y);
-            self.z.push(r0.z);
-            self.mx.push(m.x);
-            self.my.push(m.y);
-            self.mz.push(m.z);
-            self.norm.push(n);
+        // A pose or coil that is not finite places no dipole anywhere: a NaN or infinity
+        // anywhere makes this sum so, and the placement is refused below.
+        let mut check = 0.0;
+        // The rotation as a matrix once: a quaternion per dipole costs twice as much.
+        let rot = head_from_coil.rotation.to_rotation_matrix();
+        let shift = head_from_coil.translation.vector - sphere.centre.coords;
+        for (k, (p, m)) in coil.positions.iter().zip(&coil.moments).enumerate() {
+            let r0 = rot * p + shift;
+            let m = rot * m;
+            let d = r0.norm();
+            nearest = nearest.min(d);
+            check += d + m.x + m.y + m.z;
+            (self.x[k], self.y[k], self.z[k]) = (r0.x, r0.y, r0.z);
+            (self.mx[k], self.my[k], self.mz[k]) = (m.x, m.y, m.z);
+            self.norm[k] = d;
         }
-        // Pad to whole chunks with the last dipole's place and no moment: its terms are zero.
-        while !self.x.is_empty() && !self.x.len().is_multiple_of(LANES) {
-            let last = self.x.len() - 1;
-            let (x, y, z, n) = (self.x[last], self.y[last], self.z[last], self.norm[last]);
-            self.x.push(x);
-            self.y.push(y);
-            self.z.push(z);
-            self.norm.push(n);
-            self.mx.push(0.0);
-            self.my.push(0.0);
-            self.mz.push(0.0);
+        // The padding: the last dipole's place with no moment, whose terms are zero.
+        if let Some(last) = n.checked_sub(1) {
+            for k in n..padded {
+                (self.x[k], self.y[k], self.z[k]) = (self.x[last], self.y[last], self.z[last]);
+                self.norm[k] = self.norm[last];
+            }
         }
+        let finite = check.is_finite();
         self.dipoles = coil.len();
         self.nearest = nearest;
         self.sphere = Some(*sphere);
@@ -289,6 +288,9 @@ mod tests {
         assert!(e.to_string().contains("inside its radius"), "{e}");
         // And nothing is computed from a refused placement.
         assert!(placed.e_field(&Point3::new(0.0, 0.0, 0.05), 1e8).is_err());
+        let lost = Isometry3::translation(f64::NAN, 0.0, 0.0) * over_top(0.0);
+        let e = placed.place(&coil, &lost, &sphere()).unwrap_err();
+        assert!(e.to_string().contains("not finite"), "{e}");
         assert!(Sphere::new(Point3::origin(), 0.0).is_err());
         assert!(Sphere::new(Point3::new(f64::NAN, 0.0, 0.0), 0.09).is_err());
     }
