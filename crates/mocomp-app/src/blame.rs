@@ -82,7 +82,7 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
             ExperimentError::Config(_)
             | ExperimentError::Goal(_)
             | ExperimentError::Scene(_)
-            | ExperimentError::Dose { .. } => Blame::Input,
+            | ExperimentError::Dose(_) => Blame::Input,
             ExperimentError::Io { .. }
             | ExperimentError::Timeout(_)
             | ExperimentError::Calibration { .. } => Blame::Run,

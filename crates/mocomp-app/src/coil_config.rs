@@ -1,12 +1,49 @@
-//! `[coil]`'s field model: the `.ccd` file, the stimulator's dI/dt and the default target
-//! depth, checked and read into a [`DoseModel`].
+//! `[coil]`: the coil's solid for the clearance and its field model (the `.ccd` file, the
+//! stimulator's dI/dt and the default target depth), checked and read into a [`DoseModel`].
 
 use crate::AppError;
 use crate::capped_file::read_capped_text;
-use crate::config::{Check, CoilSection, Config};
+use crate::config_check::Check;
 use mocomp_efield::{DipoleCoil, DoseModel, parse_ccd};
-use std::path::Path;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// `[coil]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CoilSection {
+    /// Radius seen from the head, m.
+    pub radius_m: f64,
+    /// Thickness behind the face, m.
+    pub thickness_m: f64,
+    /// The coil's field model: a SimNIBS `.ccd` file of magnetic dipoles in the coil's frame
+    /// (relative to the configuration's directory; absolute once read). With it, the dose.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<PathBuf>,
+    /// The stimulator's dI/dt, A/µs (or `output_pct` of the model's `dIdtmax`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub didt_a_per_us: Option<f64>,
+    /// The stimulator's output, % of the model's `dIdtmax` (its full output).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub output_pct: Option<f64>,
+    /// A target given as a coil pose alone: the dose is taken this far under the scalp on the
+    /// coil's axis, m.
+    pub target_depth_m: f64,
+}
+
+impl Default for CoilSection {
+    fn default() -> Self {
+        Self {
+            radius_m: 0.04,
+            thickness_m: 0.03,
+            model: None,
+            didt_a_per_us: None,
+            output_pct: None,
+            target_depth_m: 0.015,
+        }
+    }
+}
 
 /// The largest coil file read, bytes (SimNIBS's largest `.ccd` models are a few megabytes).
 pub const MAX_COIL_BYTES: u64 = 64 << 20;
@@ -53,12 +90,12 @@ pub fn read_coil(path: &Path) -> Result<DipoleCoil, AppError> {
     parse_ccd(&path.display().to_string(), &text).map_err(|e| AppError::Config(e.to_string()))
 }
 
-impl Config {
-    /// `[coil]`'s field model, read (`None` without `model`). The dI/dt: `didt_a_per_us`, or
+impl CoilSection {
+    /// The field model, read (`None` without `model`). The dI/dt: `didt_a_per_us`, or
     /// `output_pct` (default 100) of the file's `dIdtmax`; a file without `dIdtmax` needs
     /// `didt_a_per_us`.
     pub fn dose_model(&self) -> Result<Option<DoseModel>, AppError> {
-        let c = &self.coil;
+        let c = self;
         let Some(path) = &c.model else {
             return Ok(None);
         };
@@ -86,28 +123,30 @@ mod tests {
     #![allow(clippy::unwrap_used)] // test code
     use super::*;
 
-    fn coils() -> std::path::PathBuf {
+    fn coils() -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../mocomp-efield/tests/data/coils")
     }
 
     #[test]
     fn a_coil_model_reads_with_its_stimulator_and_bad_keys_are_named() {
         let dir = coils();
-        let mut c = Config::default();
-        c.coil.model = Some("MagStim_D70.ccd".into());
-        c.coil.output_pct = Some(60.0);
-        check(&c.coil).unwrap();
-        resolve(&mut c.coil, &dir).unwrap();
-        assert!(c.coil.model.as_ref().unwrap().is_absolute());
+        let mut c = CoilSection {
+            model: Some("MagStim_D70.ccd".into()),
+            output_pct: Some(60.0),
+            ..CoilSection::default()
+        };
+        check(&c).unwrap();
+        resolve(&mut c, &dir).unwrap();
+        assert!(c.model.as_ref().unwrap().is_absolute());
         let m = c.dose_model().unwrap().unwrap();
         assert_eq!(m.coil.len(), 964);
         assert!((m.didt_a_per_s - 0.6 * 114.73e6).abs() < 1.0);
         // The legacy coil has no dIdtmax.
-        c.coil.model = Some(dir.join("Magstim_70mm_Fig8.ccd"));
-        c.coil.output_pct = None;
+        c.model = Some(dir.join("Magstim_70mm_Fig8.ccd"));
+        c.output_pct = None;
         let e = c.dose_model().unwrap_err().to_string();
         assert!(e.contains("give coil.didt_a_per_us"), "{e}");
-        c.coil.didt_a_per_us = Some(80.0);
+        c.didt_a_per_us = Some(80.0);
         assert!((c.dose_model().unwrap().unwrap().didt_a_per_s - 80e6).abs() < 1e-3);
         for (edit, key) in [
             (
@@ -124,7 +163,7 @@ mod tests {
             ),
             (&|c: &mut CoilSection| c.output_pct = Some(50.0), "one way"),
         ] {
-            let mut bad = c.coil.clone();
+            let mut bad = c.clone();
             edit(&mut bad);
             let e = check(&bad).unwrap_err().to_string();
             assert!(e.contains(key), "{key}: {e}");

@@ -12,6 +12,8 @@
 //! Unknown keys and bad values are refused naming the key's path (and, where the TOML itself is
 //! at fault, its line). Choices are enums; poses are [`Pose`]; ranges go through [`Check`].
 
+pub use crate::coil_config::CoilSection;
+pub use crate::config_check::Check;
 use crate::{AppError, Context};
 use mocomp_control::baseline::PaperController;
 use mocomp_control::{CoilModel, HeadModel, LoopConfig, LoopParams, PredictorConfig};
@@ -639,42 +641,6 @@ impl Default for HeadSection {
     }
 }
 
-/// `[coil]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct CoilSection {
-    /// Radius seen from the head, m.
-    pub radius_m: f64,
-    /// Thickness behind the face, m.
-    pub thickness_m: f64,
-    /// The coil's field model: a SimNIBS `.ccd` file of magnetic dipoles in the coil's frame
-    /// (relative to the configuration's directory; absolute once read). With it, the dose.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub model: Option<PathBuf>,
-    /// The stimulator's dI/dt, A/µs (or `output_pct` of the model's `dIdtmax`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub didt_a_per_us: Option<f64>,
-    /// The stimulator's output, % of the model's `dIdtmax` (its full output).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub output_pct: Option<f64>,
-    /// A target given as a coil pose alone: the dose is taken this far under the scalp on the
-    /// coil's axis, m.
-    pub target_depth_m: f64,
-}
-
-impl Default for CoilSection {
-    fn default() -> Self {
-        Self {
-            radius_m: 0.04,
-            thickness_m: 0.03,
-            model: None,
-            didt_a_per_us: None,
-            output_pct: None,
-            target_depth_m: 0.015,
-        }
-    }
-}
-
 /// `[servo]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -853,56 +819,6 @@ impl Default for ExperimentSection {
 /// The paper's goal between the end-effectors, `E2_T_E1,g` (translation in mm): the
 /// experiment's.
 pub use mocomp_experiment::experiment::PAPER_GOAL_E2_FROM_E1_MM;
-
-/// The range checks: one mechanism, each error naming the key.
-#[derive(Debug, Clone, Copy)]
-pub struct Check;
-
-impl Check {
-    /// `v` finite and within `[lo, hi]`; with `open_lo`, above `lo` rather than at least.
-    pub fn range(key: &str, v: f64, lo: f64, hi: f64, open_lo: bool) -> Result<(), AppError> {
-        let ok = v.is_finite() && (if open_lo { v > lo } else { v >= lo }) && v <= hi;
-        if ok {
-            return Ok(());
-        }
-        let left = if open_lo { "(" } else { "[" };
-        let (lo_s, hi_s) = (fmt_bound(lo), fmt_bound(hi));
-        Err(AppError::Config(format!(
-            "{key} = {v}: must be in {left}{lo_s}, {hi_s}]"
-        )))
-    }
-
-    /// `v` finite and above 0.
-    pub fn positive(key: &str, v: f64) -> Result<(), AppError> {
-        Self::range(key, v, 0.0, f64::INFINITY, true)
-    }
-
-    /// `v` finite and at least 0.
-    pub fn non_negative(key: &str, v: f64) -> Result<(), AppError> {
-        Self::range(key, v, 0.0, f64::INFINITY, false)
-    }
-
-    /// A whole number at least `lo`.
-    pub fn at_least(key: &str, v: usize, lo: usize) -> Result<(), AppError> {
-        if v >= lo {
-            Ok(())
-        } else {
-            Err(AppError::Config(format!(
-                "{key} = {v}: must be at least {lo}"
-            )))
-        }
-    }
-}
-
-fn fmt_bound(v: f64) -> String {
-    if v == f64::INFINITY {
-        "∞".into()
-    } else if (v - std::f64::consts::PI).abs() < 1e-15 {
-        "π".into()
-    } else {
-        v.to_string()
-    }
-}
 
 impl Config {
     /// Parses and checks a configuration's text; errors name `path` and the key. Relative paths

@@ -64,7 +64,7 @@ pub fn from_config(cfg: &Config) -> Result<ExperimentConfig, AppError> {
         on_scalp: x.contact,
         tracker_bump: None,
         session: None,
-        dose: cfg.dose_model()?,
+        dose: cfg.coil.dose_model()?,
     };
     place_on_head(cfg, &mut e)?;
     if e.on_scalp {

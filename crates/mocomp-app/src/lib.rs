@@ -29,6 +29,7 @@ pub mod capped_file;
 pub mod coil_config;
 pub mod collect;
 pub mod config;
+pub mod config_check;
 pub mod config_file;
 pub mod demo_options;
 pub mod demo_record;

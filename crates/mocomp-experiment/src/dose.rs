@@ -2,10 +2,21 @@
 //! its goal gives ([`mocomp_efield`]). Planned once per goal before the run (the sphere under
 //! the coil there, the target, the planned field), measured each tick allocating nothing.
 
-use crate::experiment::ExperimentError;
-use mocomp_efield::{Along, DoseMeter, DoseModel, PlannedDose};
+use mocomp_efield::{Along, DoseMeter, DoseModel, EfieldError, PlannedDose};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_head::HeadShape;
+
+/// A goal whose dose cannot be planned (its target gets no field, or lies outside the head
+/// under the coil).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the dose at {what}")]
+pub struct DosePlanError {
+    /// Which goal.
+    pub what: String,
+    /// Why.
+    #[source]
+    pub source: EfieldError,
+}
 
 /// The run's dose plans and its meter.
 #[derive(Debug, Clone)]
@@ -25,11 +36,11 @@ impl DoseWatch {
         scalp: &dyn HeadShape,
         goal: &Isometry3<f64>,
         targets: &[Isometry3<f64>],
-    ) -> Result<Self, ExperimentError> {
+    ) -> Result<Self, DosePlanError> {
         let mut meter = DoseMeter::new(model.clone());
         let mut plan = |what: String, pose: &Isometry3<f64>| {
             PlannedDose::new(&mut meter, scalp, pose, None, Along::Planned)
-                .map_err(|source| ExperimentError::Dose { what, source })
+                .map_err(|source| DosePlanError { what, source })
         };
         let goal = plan("the run's goal".into(), goal)?;
         let targets = targets

@@ -70,16 +70,9 @@ pub enum ExperimentError {
     /// A configuration value out of range.
     #[error("{0}")]
     Config(String),
-    /// The dose cannot be planned for a goal (its target gets no field, or lies outside the
-    /// head under the coil).
-    #[error("the dose at {what}")]
-    Dose {
-        /// Which goal.
-        what: String,
-        /// Why.
-        #[source]
-        source: mocomp_efield::EfieldError,
-    },
+    /// The dose cannot be planned for a goal.
+    #[error(transparent)]
+    Dose(#[from] crate::dose::DosePlanError),
     /// The paper's goal matrix is not a rigid transform.
     #[error("the goal E2_T_E1,g: {0}")]
     Goal(String),
