@@ -47,7 +47,12 @@ fn poses_flow_from_server_to_pose_source() {
         );
         s.send(&Message::transform("StylusToTracker", &pose(-1.0), Timestamp::now()).unwrap());
     }
-    wait_until("50 poses", || c.counters().poses == 50);
+    // The reader counts a message's pose before the message itself, and the other device's
+    // last transform comes after the 50th pose: wait for every one of them.
+    wait_until("50 poses among 100 transforms", || {
+        let n = c.counters();
+        n.poses == 50 && n.transforms == 100
+    });
     let sample = src.latest().unwrap();
     assert!(sample.valid);
     assert!(
