@@ -10,7 +10,7 @@
 
 mod common;
 use common::session::Session;
-use common::{example_changed, mocomp, run_args};
+use common::{example_changed, mocomp, reached, run_args};
 use mocomp_testkit::controller::ChildController;
 use mocomp_testkit::{SplitMix64, TempDir};
 use std::f64::consts::FRAC_PI_2;
@@ -91,7 +91,7 @@ fn assert_reached_without_protective_stop(
 ) {
     let events = v["event_log"].as_array().unwrap();
     assert!(
-        events.iter().any(|e| e[1] == "Reached"),
+        reached(v),
         "{what}: never reached the goal: {events:?}\nthe controller printed:\n{log}"
     );
     assert!(
@@ -174,8 +174,8 @@ fn a_controller_that_stalls_never_gets_a_setpoint_it_refuses() {
     assert_eq!(v["protective_stops"], 0, "{v}");
     let events = v["event_log"].as_array().unwrap();
     assert!(
-        events.iter().any(|e| e[1] == "Reached"),
-        "{events:?}\nthe controller printed:\n{log}"
+        reached(&v),
+        "never reached the goal: {events:?}\nthe controller printed:\n{log}"
     );
     assert_eq!(
         v["stop"]["outcome"], "standstill",

@@ -26,7 +26,7 @@ fn the_example_config_compensates_on_the_simulated_robot() {
     // CPU the host pauses for 30 ms makes the state really stale, and holding then is right;
     // `scripts/stress.sh` measures how often that happens.
     let events = v["event_log"].as_array().unwrap();
-    assert!(events.iter().any(|e| e[1] == "Reached"), "{events:?}");
+    assert!(common::reached(&v), "{events:?}");
     // Late cycles, however late, never make a step the controller refuses; the simulated
     // controller says how near its setpoints came and what it did. However they landed, no
     // setpoint implied more than the joint's maximum speed: 1/1.2 of the speed the simulated

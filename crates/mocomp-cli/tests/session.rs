@@ -346,7 +346,7 @@ fn a_session_starts_on_a_grid_target_and_logs_each_pulse_through_the_gate() {
     let ended = unix_now();
     // The planned approach reached the target; the drift monitor on the flange marker saw an
     // exact calibration.
-    assert!(event_lines(&v).iter().any(|l| l == "Reached"), "{v}");
+    assert!(common::reached(&v), "{v}");
     check_pulses(&v, &pulses, (started, ended), 60.0);
     // A robot input says nothing of the stimulator's own time.
     assert!(

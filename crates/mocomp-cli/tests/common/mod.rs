@@ -43,6 +43,14 @@ pub fn assert_success(out: &Output) {
     );
 }
 
+/// Whether a run's JSON summary `v` says the loop reached its goal: it tracked, as the run's own
+/// judge (`NotReached`) counts it. Not the `Reached` event alone: an approach that a hold
+/// interrupts (a state gone stale while a busy host paused the controller's virtual CPU) and
+/// that resumes on the goal says `Resume`, and the coil is on its goal all the same.
+pub fn reached(v: &serde_json::Value) -> bool {
+    v["tracking_percent"].as_f64().is_some_and(|p| p > 0.0)
+}
+
 /// The arguments of `mocomp run --config CONFIG --seconds SECONDS --quiet --json`, then `extra`.
 pub fn run_args<'a>(config: &'a str, seconds: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec![
