@@ -1,6 +1,6 @@
 //! Targets and landmarks from the navigators users already have, read from their files' text
 //! (no I/O here), every pose brought into SimNIBS's coil convention in the image's RAS frame
-//! (+z into the head, +y along the handle; mocomp's own):
+//! (+z into the head, +y pointing away from the handle; mocomp's own):
 //! - **SimNIBS**: `matsimnibs` 4×4 matrices in mm as text (`numpy.savetxt`; several, each after
 //!   a `# name` line); fiducials from its CSV (`Fiducial,x,y,z,name`).
 //! - **Localite** TMS Navigator: `InstrumentMarkerList`/`TriggerMarker` XML, `Matrix4D` in its

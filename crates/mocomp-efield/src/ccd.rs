@@ -2,7 +2,7 @@
 //! Drakaki et al. 2022 models give `dIdtmax` in A/µs at full output, `coilname`, `stimulator`,
 //! `brand`), the number of dipoles, a `#` comment, then one dipole a line: its position (m)
 //! and moment (A·m² per ampere of coil current), in the coil's frame (SimNIBS's: origin under
-//! the centre of the coil's bottom, +z into the head, +y along the handle).
+//! the centre of the coil's bottom, +z into the head, +y pointing away from the handle).
 //!
 //! Read strictly: a count that does not match the rows, a row without six finite numbers, or
 //! more dipoles than any coil model has is refused with the line that says so.

@@ -1,6 +1,8 @@
 //! A target in the image turned into the coil's pose over it, in SimNIBS's convention: the coil
 //! frame's origin at the centre of its face, +z into the head along the scalp's inward normal,
-//! +y along the handle, x = y × z.
+//! +y pointing *away from* the handle, x = y × z. (SimNIBS's axes figure,
+//! `docs/data/coil_axesorientation.pdf`, has the handle at −y, and so has its Magstim D70
+//! casing: its handle's root reaches y = −79 mm, its other side +60 mm.)
 //!
 //! The coil goes over the **scalp point nearest the target** (what SimNIBS and InVesalius do):
 //! for a brain target that is the shortest way in, the least coil-to-target distance. (The
@@ -107,8 +109,11 @@ fn over(
     let normal = scalp.nearest(at).normal.into_inner();
     let z = -normal;
     let along = handle.toward - z * handle.toward.dot(&z);
-    let y0 = direction(&along).ok_or(NavError::HandleAlongNormal)?;
-    let y = UnitQuaternion::from_axis_angle(&Unit::new_unchecked(normal), handle.turn_rad) * y0;
+    let toward = direction(&along).ok_or(NavError::HandleAlongNormal)?;
+    let handle_dir =
+        UnitQuaternion::from_axis_angle(&Unit::new_unchecked(normal), handle.turn_rad) * toward;
+    // SimNIBS's +y points away from the handle.
+    let y = -handle_dir;
     let x = y.cross(&z);
     let rotation =
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[x, y, z]));
@@ -177,7 +182,7 @@ mod tests {
     }
 
     #[test]
-    fn a_deep_target_gets_the_coil_over_the_nearest_scalp_z_in_y_along_the_handle() {
+    fn a_deep_target_gets_the_coil_over_the_nearest_scalp_z_in_y_away_from_the_handle() {
         let head = Ellipsoid::adult();
         let target = Point3::new(-0.03, 0.0, 0.06);
         let p = place_coil(&head, &coil(), &target, 0.004, &Handle::default()).unwrap();
@@ -190,7 +195,8 @@ mod tests {
             z.angle(&-near.normal.into_inner()) < 1e-9,
             "z into the head"
         );
-        assert!(y.y < -0.9, "handle posterior: {y}");
+        // The handle posterior: the coil's +y (away from the handle) anterior.
+        assert!(y.y > 0.9, "handle posterior, +y anterior: {y}");
         assert!((x - y.cross(&z)).norm() < 1e-12);
         let centre = p.image_from_coil.translation.vector;
         assert!(((centre - p.scalp_point.coords).norm() - 0.004 - p.lift_m).abs() < 1e-9);
