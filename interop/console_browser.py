@@ -68,6 +68,14 @@ def settle(d, statuses=15):
     wait("more statuses", lambda: d.execute_script("return window.mocomp.latencies.length") >= n + statuses)
 
 
+def number(s):
+    """A tile's number, or None for its dash."""
+    try:
+        return float(s)
+    except ValueError:
+        return None
+
+
 def text(d, element_id):
     # The DOM's text, not as styled (the mode badge is upper-cased by CSS).
     return d.find_element(By.ID, element_id).get_attribute("textContent").strip()
@@ -316,6 +324,10 @@ def session_session(url, shots):
         d.find_element(By.ID, "go-target").click()
         wait("the path to it", lambda: text(d, "mode") == "approaching", 20)
         wait("tracking it", lambda: text(d, "mode") == "tracking", 40)
+        # The dose tile, shown once the coil model gives a dose.
+        wait("the dose tile", lambda: d.find_element(By.ID, "dose-tile").is_displayed())
+        seen["dose_pct"] = wait("a dose", lambda: number(text(d, "dose_pct")))
+        seen["dose_v_per_m"] = number(text(d, "dose_v_per_m"))
         rows = lambda: d.execute_script(
             "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
         wait("the selection in the events", lambda: any("target beside selected" in r for r in rows()))

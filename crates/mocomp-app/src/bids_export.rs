@@ -56,7 +56,7 @@ pub fn check_label(option: &str, label: &str) -> Result<(), String> {
 }
 
 /// The columns of `*_nibs.tsv`: the draft's, then mocomp's own (described in its sidecar).
-pub const NIBS_COLUMNS: [&str; 15] = [
+pub const NIBS_COLUMNS: [&str; 17] = [
     "CoilDriver",
     "CoilID",
     "StimulusMode",
@@ -72,6 +72,8 @@ pub const NIBS_COLUMNS: [&str; 15] = [
     "GateReason",
     "StimulatorTimestamp",
     "LoopTime",
+    "ElectricFieldTarget",
+    "ElectricFieldTargetPercent",
 ];
 
 /// The columns of `*_markers.tsv` (the draft's names).
@@ -184,7 +186,7 @@ pub fn dataset(s: &BidsSession<'_>) -> Vec<BidsFile> {
                  the coil's position and angle error and its distance to the scalp), and the \
                  coil's measured pose at it a row of `nibs/*_markers.tsv`, in the coordinates of \
                  the T1 in `anat/` (RAS, mm; SimNIBS's coil axes: normal into the head, \
-                 direction along the handle).\n\n\
+                 direction pointing away from the handle).\n\n\
                  The `nibs` datatype follows the draft of BIDS extension proposal BEP037 \
                  (https://github.com/nigelrogasch/nibs-bids, its v5+ layout); no released \
                  bids-validator knows it yet, so `.bidsignore` keeps it from the validator, \
@@ -236,6 +238,8 @@ pub fn dataset(s: &BidsSession<'_>) -> Vec<BidsFile> {
                 cell(&p.why_shut),
                 time(p.stimulator_unix_s),
                 num(p.t_s, 4),
+                num(p.dose_v_per_m, 3),
+                num(p.dose_pct, 2),
             ]
         })
         .collect();
@@ -254,7 +258,7 @@ pub fn dataset(s: &BidsSession<'_>) -> Vec<BidsFile> {
         .filter_map(|(p, id)| {
             let (pose, id) = (p.image_from_coil?, id.clone()?);
             let m = matsimnibs(&pose);
-            // matsimnibs' columns: x, y (direction: along the handle), z (normal: into the
+            // matsimnibs' columns: x, y (direction: away from the handle), z (normal: into the
             // head), then the centre (mm).
             let col = |c: usize, digits: usize| (0..3).map(move |r| num(m[r * 4 + c], digits));
             let mut row = vec![id];
@@ -334,7 +338,9 @@ fn nibs_sidecar(s: &BidsSession<'_>) -> serde_json::Value {
         "ScalpDistance": with_units("The coil centre's distance to the scalp (negative inside).", "mm"),
         "GateReason": described("Why the gate was shut (n/a: open)."),
         "StimulatorTimestamp": described("The stimulator's own time of the pulse, ISO 8601, when it gave one."),
-        "LoopTime": with_units("The pulse's time on mocomp's loop clock.", "s")
+        "LoopTime": with_units("The pulse's time on mocomp's loop clock.", "s"),
+        "ElectricFieldTarget": with_units("The dose: the electric field the measured coil induced at the target's brain point, along the field its planned pose gives there (the coil's SimNIBS dipole model in the sphere fitted to the scalp under it; n/a: no coil model).", "V/m"),
+        "ElectricFieldTargetPercent": with_units("ElectricFieldTarget as a percentage of the dose the target's planned coil pose gives.", "%")
     })
 }
 
@@ -355,7 +361,7 @@ fn markers_sidecar() -> serde_json::Value {
             &c.to_uppercase(),
         ));
         v[format!("direction_{c}")] = described(&axis(
-            "direction (its y axis, along the handle)",
+            "direction (its y axis, pointing away from the handle)",
             &c.to_uppercase(),
         ));
     }
@@ -424,6 +430,8 @@ mod tests {
                     Vector3::y() * std::f64::consts::PI,
                 )
             }),
+            dose_v_per_m: if pose { 131.5 } else { f64::NAN },
+            dose_pct: if pose { 98.25 } else { f64::NAN },
         }
     }
 
@@ -493,6 +501,9 @@ mod tests {
         assert_eq!(rows[0][col("Timestamp")], "2026-11-30T00:53:21Z");
         assert_eq!(rows[0][col("FirstPulseAmplitude")], "62.0");
         assert_eq!(rows[0][col("PositionError")], "0.800");
+        assert_eq!(rows[0][col("ElectricFieldTarget")], "131.500");
+        assert_eq!(rows[0][col("ElectricFieldTargetPercent")], "98.25");
+        assert_eq!(rows[1][col("ElectricFieldTarget")], "n/a");
         // Markers: one per pulse with a pose, the coil turned half a turn about y: its normal
         // (z) is -z, its direction (y) +y, its centre in mm.
         let (head, markers) = table(&get("_markers.tsv").text);

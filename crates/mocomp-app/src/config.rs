@@ -920,6 +920,13 @@ impl Config {
             .params()
             .validate()
             .map_err(|e| AppError::Config(format!("session.{e}")))?;
+        if self.session.params().gate.max_dose_error_pct.is_some() && self.coil.model.is_none() {
+            return Err(AppError::Config(
+                "session.gate.max_dose_error_pct: the gate judges the dose, which needs \
+                 coil.model (a SimNIBS .ccd file)"
+                    .into(),
+            ));
+        }
         Check::range(
             "session.simulated_stimulator.rate_hz",
             self.session.simulated_stimulator.rate_hz,

@@ -136,9 +136,9 @@ impl crate::driver::Pace for Live<'_> {
         (&mut self.robot, self.source.as_mut())
     }
 
-    fn cycle_done(&mut self, record: CycleRecord) -> Result<(), Self::Error> {
+    fn cycle_done(&mut self, mut record: CycleRecord) -> Result<(), Self::Error> {
         self.faulted = matches!(record.mode, Mode::Faulted(_));
-        self.session.after_cycle(&record, &mut self.robot);
+        self.session.after_cycle(&mut record, &mut self.robot);
         if let Err(TrySendError::Full(_)) = self.tx.try_send(record) {
             self.dropped += 1;
         }

@@ -70,6 +70,8 @@ pub(crate) struct Summary {
     deviation_deg: Vec<f64>,
     /// The contact force read each cycle (with `force_sensing`), N.
     contact_force_n: Vec<f64>,
+    /// The dose's error while tracking (with a coil model), |dose − planned|, % of the planned.
+    dose_error_pct: Vec<f64>,
     by_mode: [u64; 5],
     /// Cycles a rule (not the operator) held, stopped or backed the coil off, and the last
     /// such rule: why a run that never reached its goal did not.
@@ -207,6 +209,8 @@ pub(crate) fn logger(
             "contact_force_n",
             "contact_axial_n",
             "press_mm",
+            "dose_v_per_m",
+            "dose_pct",
         ];
         if let Err(e) = w.write_record(header) {
             log_error = Some(e);
@@ -241,6 +245,9 @@ pub(crate) fn logger(
         if r.contact_force_n.is_finite() {
             s.contact_force_n.push(r.contact_force_n);
         }
+        if r.mode == Mode::Tracking && r.dose_pct.is_finite() {
+            s.dose_error_pct.push((r.dose_pct - 100.0).abs());
+        }
         if let Some(e) = r.event {
             s.events.push((r.t, e));
             observer.event(r.t, &e);
@@ -272,6 +279,8 @@ pub(crate) fn logger(
                 format!("{:.3}", r.contact_force_n),
                 format!("{:.3}", r.contact_axial_n),
                 format!("{:.4}", r.press_m * 1e3),
+                format!("{:.3}", r.dose_v_per_m),
+                format!("{:.3}", r.dose_pct),
             ]);
             if let Err(e) = w.write_record(&row) {
                 log_error = Some(e);
@@ -418,6 +427,13 @@ pub struct RunReport {
     /// Retreats for a force rule (over the limit, over the warning level too long, a stale or
     /// saturated sensor).
     pub force_retreats: usize,
+    /// The dose's error against the planned while tracking, |dose − planned| in % of the
+    /// planned (`[coil] model`), RMS (NaN without a coil model or a cycle tracked).
+    pub dose_error_pct_rms: f64,
+    /// The same, 95th percentile.
+    pub dose_error_pct_p95: f64,
+    /// The same, largest.
+    pub dose_error_pct_max: f64,
     /// The loop's events.
     pub events: usize,
     /// The session's notes other than pulses (the gate, the drift monitor, a target chosen).
@@ -564,6 +580,13 @@ impl RunReport {
             "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
             r.deviation_rms_mm, r.deviation_p95_mm, r.deviation_max_mm, r.rotation_p95_deg
         )?;
+        if r.dose_error_pct_rms.is_finite() {
+            writeln!(
+                out,
+                "  dose error        while tracking: RMS {:.2} %, p95 {:.2} %, max {:.2} % of the planned",
+                r.dose_error_pct_rms, r.dose_error_pct_p95, r.dose_error_pct_max
+            )?;
+        }
         writeln!(
             out,
             "  holds             {} (robot state stale {}, protective stops {})",
@@ -657,6 +680,13 @@ impl RunReport {
         } else {
             (s.deviation_mm.iter().map(|d| d * d).sum::<f64>() / s.deviation_mm.len() as f64).sqrt()
         };
+        let rms_of = |v: &[f64]| {
+            if v.is_empty() {
+                f64::NAN
+            } else {
+                (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+            }
+        };
         let holds = |f: fn(&Reason) -> bool| {
             s.events
                 .iter()
@@ -689,13 +719,7 @@ impl RunReport {
             holds: holds(|_| true),
             robot_stale_holds: holds(|r| matches!(r, Reason::RobotStale)),
             protective_stops: protective_stops(&s.events),
-            contact_force_n_rms: if s.contact_force_n.is_empty() {
-                f64::NAN
-            } else {
-                (s.contact_force_n.iter().map(|f| f * f).sum::<f64>()
-                    / s.contact_force_n.len() as f64)
-                    .sqrt()
-            },
+            contact_force_n_rms: rms_of(&s.contact_force_n),
             contact_force_n_max: percentile(&mut s.contact_force_n, 1.0),
             force_retreats: s
                 .events
@@ -704,6 +728,9 @@ impl RunReport {
                     matches!(e, Event::Retreat(r) if mocomp_control::force::is_force_reason(r))
                 })
                 .count(),
+            dose_error_pct_rms: rms_of(&s.dose_error_pct),
+            dose_error_pct_p95: percentile(&mut s.dose_error_pct, 0.95),
+            dose_error_pct_max: percentile(&mut s.dose_error_pct, 1.0),
             events: s.events.len(),
             session_notes: s.session_lines.iter().filter(|l| !l.2).count(),
             event_log: by_time(

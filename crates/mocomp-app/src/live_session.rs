@@ -1,8 +1,10 @@
 //! The clinical session in `mocomp run` (`[session]`): on the loop's thread, after each cycle,
 //! the on-target gate on the cycle's measured coil (to a robot output), the pulses (a robot
 //! input's rising edge, or a STRING `pulse` over OpenIGTLink) and the drift monitor on a marker
-//! on the flange (the loop holds once it calls the calibration invalid); before each cycle, a
-//! target the operator selected. What happened goes to the logger thread as [`Note`]s (`Copy`,
+//! on the flange (the loop holds once it calls the calibration invalid), and, with a coil model
+//! (`[coil] model`), the dose the measured coil gives at the goal's target, into the cycle's
+//! record before the gate and the log see it; before each cycle, a target the operator
+//! selected. What happened goes to the logger thread as [`Note`]s (`Copy`,
 //! through a bounded channel the loop never waits on), which writes the pulse log, publishes the
 //! gate over OpenIGTLink and keeps the figures.
 
@@ -10,6 +12,7 @@ use crate::config::Setup;
 use crate::frontend::{NamedTargets, Note};
 use crate::{AppError, Context};
 use mocomp_control::CycleRecord;
+use mocomp_efield::DosePlans;
 use mocomp_geom::PoseSource;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_igtl::client::{Client, IgtlPoseSource};
@@ -40,6 +43,8 @@ pub struct SessionSetup {
     /// What a pulse's record is made with: the image, the head, the configured output (its
     /// UTC offset is set once the loop's clock runs).
     pub recorder: mocomp_session::Recorder,
+    /// With a coil model: the dose planned for the configuration's goal and each target.
+    pub dose: Option<DosePlans>,
 }
 
 impl SessionSetup {
@@ -81,6 +86,7 @@ impl SessionSetup {
             head: setup.file.head_model()?,
             output_pct: s.stimulator_output_pct,
         };
+        let dose = plan_doses(setup, &recorder.head, &targets)?;
         Ok(Self {
             targets,
             start,
@@ -89,6 +95,7 @@ impl SessionSetup {
             igtl_device: s.igtl_device.clone(),
             marker,
             recorder,
+            dose,
         })
     }
 
@@ -110,6 +117,37 @@ impl SessionSetup {
             .and_then(|i| self.targets.get(i))
             .map_or("-", |t| t.0.as_str())
     }
+}
+
+/// The dose planned on `head` for the configuration's goal (when it has one) and each of
+/// `targets`, with `[coil] model` (`None` without). A target the model gives no dose at is
+/// refused by name before anything moves.
+fn plan_doses(
+    setup: &Setup,
+    head: &mocomp_control::HeadModel,
+    targets: &NamedTargets,
+) -> Result<Option<DosePlans>, AppError> {
+    let Some(model) = setup.file.coil.dose_model()? else {
+        return Ok(None);
+    };
+    let goal = setup.file.head_from_coil().ok();
+    let poses: Vec<Isometry3<f64>> = targets.iter().map(|t| t.1).collect();
+    DosePlans::new(&model, head.shape(), goal.as_ref(), &poses)
+        .map(Some)
+        .map_err(|e| {
+            // The plan's error names a target by its number; the operator knows its name.
+            let name = e
+                .what
+                .strip_prefix("the session's target ")
+                .and_then(|k| k.parse::<usize>().ok())
+                .and_then(|k| targets.get(k - 1))
+                .map(|t| format!("target {:?}", t.0));
+            AppError::Config(format!(
+                "coil.model: the dose at {}: {}",
+                name.unwrap_or(e.what.clone()),
+                e.source
+            ))
+        })
 }
 
 /// The drift marker's mounting on the flange.
@@ -154,6 +192,8 @@ pub struct LoopSession {
     /// Whether the gate's changes are reported ([`SessionSetup::active`]).
     report_gate: bool,
     notes: SyncSender<Note>,
+    /// The dose's plans and meter (`None`: no coil model).
+    dose: Option<DosePlans>,
     /// Notes the logger could not take.
     pub dropped: u64,
 }
@@ -188,6 +228,7 @@ impl LoopSession {
             gate_level: false,
             report_gate: s.active(),
             notes,
+            dose: s.dose.clone(),
             dropped: 0,
         }
     }
@@ -211,9 +252,11 @@ impl LoopSession {
         self.session.calibration_invalid()
     }
 
-    /// After the loop's cycle: the drift monitor on the marker's new samples, the gate on the
-    /// cycle's record (and the robot's output when it changed), the pulses.
-    pub fn after_cycle(&mut self, rec: &CycleRecord, robot: &mut UrRobot) {
+    /// After the loop's cycle: the dose into its record, the drift monitor on the marker's new
+    /// samples, the gate on the record (and the robot's output when it changed), the pulses.
+    pub fn after_cycle(&mut self, rec: &mut CycleRecord, robot: &mut UrRobot) {
+        measure_dose(self.dose.as_mut(), rec);
+        let rec = &*rec;
         let state = robot.state();
         if let Some(s) = &state {
             self.history.push(s.received_s, s.actual_q);
@@ -267,6 +310,15 @@ impl LoopSession {
     }
 }
 
+/// The dose the cycle's measured coil gives against the plan of the goal the loop holds, into
+/// `rec` (NaN where there is no plan, coil or field).
+pub fn measure_dose(plans: Option<&mut DosePlans>, rec: &mut CycleRecord) {
+    if let (Some(d), Some(coil)) = (plans, rec.coil_now) {
+        let m = d.dose_at_goal(&rec.head_from_coil_goal, &coil);
+        (rec.dose_v_per_m, rec.dose_pct) = (m.v_per_m, m.pct);
+    }
+}
+
 /// Takes STRING `pulse` messages (any device; `pulse`, optionally `output=<percent>`, in any
 /// case: [`Announced::parse`]) from a client's message channel ([`Client::take_messages`]) and
 /// passes them on with their reception times and the sender's timestamp (the stimulator's own
@@ -306,6 +358,9 @@ pub struct SessionReport {
     pub pulses_off_target: u64,
     /// The largest position error at a pulse while the gate was open, mm.
     pub pulse_error_max_mm: f64,
+    /// The largest dose error at a pulse while the gate was open, |dose − planned| in % of the
+    /// planned (NaN: no pulse with a dose).
+    pub pulse_dose_error_max_pct: f64,
     /// Times the gate opened.
     pub gate_openings: u64,
     /// The drift monitor's largest filtered offset reported, mm (NaN: no drift monitor or no
@@ -360,6 +415,7 @@ impl SessionLog {
             publish: s.igtl_device.clone().map(|d| (publish, d)),
             report: SessionReport {
                 drift_max_mm: f64::NAN,
+                pulse_dose_error_max_pct: f64::NAN,
                 ..SessionReport::default()
             },
         })
@@ -391,6 +447,11 @@ impl SessionLog {
                 r.pulses += 1;
                 if p.gate == GateState::Open {
                     r.pulse_error_max_mm = r.pulse_error_max_mm.max(p.position_error_m * 1e3);
+                    if p.dose.1.is_finite() {
+                        // NaN (none yet) gives way to the first.
+                        r.pulse_dose_error_max_pct =
+                            r.pulse_dose_error_max_pct.max((p.dose.1 - 100.0).abs());
+                    }
                 } else {
                     r.pulses_off_target += 1;
                 }
@@ -405,8 +466,13 @@ impl SessionLog {
                     GateState::Open => "gate open".to_string(),
                     GateState::Shut(s) => format!("OFF TARGET: {}", shut_reason(&s)),
                 };
+                let dose = if p.dose.1.is_finite() {
+                    format!(", dose {:.1} V/m ({:.1} %)", p.dose.0, p.dose.1)
+                } else {
+                    String::new()
+                };
                 format!(
-                    "pulse on {}: {:.2} mm, {:.2} deg, {gate}",
+                    "pulse on {}: {:.2} mm, {:.2} deg{dose}, {gate}",
                     self.name(target),
                     p.position_error_m * 1e3,
                     p.angle_error_rad.to_degrees()

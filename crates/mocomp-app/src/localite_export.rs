@@ -144,6 +144,8 @@ mod tests {
             gate_open: true,
             why_shut: String::new(),
             image_from_coil: pose,
+            dose_v_per_m: f64::NAN,
+            dose_pct: f64::NAN,
         }
     }
 

@@ -164,6 +164,8 @@ pub fn cycle_record_msg(r: &CycleRecord, controller: &str) -> mocomp_record::Cyc
         q_actual: r.q_actual,
         contact_force_n: r.contact_force_n,
         compute_ns: r.compute_ns,
+        dose_v_per_m: r.dose_v_per_m,
+        dose_pct: r.dose_pct,
     }
 }
 

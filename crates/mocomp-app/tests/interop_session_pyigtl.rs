@@ -81,6 +81,7 @@ fn pulses_from_pyigtl_reach_the_loop_and_the_gate_reads_back_in_pyigtl() {
             head: mocomp_control::HeadModel::adult(),
             output_pct: None,
         },
+        dose: None,
     };
     let mut log = SessionLog::open(&setup, publisher).unwrap();
     let wait = |py: &mut PythonPeer| {

@@ -468,9 +468,25 @@ fn the_session_in_a_real_browser_switches_targets_shows_pulses_and_hands_the_arm
         "127.0.0.79",
         "gate_output = 7\npulse_input = 0\n[session.simulated_stimulator]\nrate_hz = 5.0\n",
     );
+    // With SimNIBS's Magstim D70: the dose tile.
+    let model = mocomp_testkit::workspace_root()
+        .join("crates/mocomp-efield/tests/data/coils/MagStim_D70.ccd");
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        "thickness_m = 0.03\n",
+        &format!(
+            "thickness_m = 0.03\nmodel = {:?}\noutput_pct = 60.0\n",
+            model.display().to_string()
+        ),
+    );
+    std::fs::write(&path, text).unwrap();
     let s = Session::start_file(&path, 120, &[]);
     let shots = dir.path("shots");
     let seen = browse(&s, &shots, "session");
+    // The dose on the new target, against its own plan: near 100 % of it, in V/m beside.
+    let dose = seen["dose_pct"].as_f64().unwrap();
+    assert!((95.0..105.0).contains(&dose), "{seen}");
+    let field = seen["dose_v_per_m"].as_f64().unwrap();
+    assert!((20.0..400.0).contains(&field), "{seen}");
     assert_eq!(seen["targets_shown"], json!(["hot", "beside"]), "{seen}");
     assert_eq!(
         seen["guided_reason"], "the operator guides the arm by hand",

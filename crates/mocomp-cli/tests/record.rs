@@ -90,6 +90,12 @@ fn a_recorded_run_reads_back_in_the_ros_2_mcap_reader_message_for_message() {
     for (a, b) in last["q_actual"].as_array().unwrap().iter().zip(&q_csv) {
         assert!((a.as_f64().unwrap() - b).abs() < 1e-5, "{last}");
     }
+    // The fields after the joints decode too (the schema is the encoding's): no coil model,
+    // no dose (NaN, which the reader's JSON gives as null).
+    for key in ["dose_pct", "dose_v_per_m"] {
+        assert!(last.get(key).is_some_and(|v| v.is_null()), "{key}: {last}");
+    }
+    assert!(last["compute_ns"].as_u64().unwrap() > 0, "{last}");
     let js = &r["last"]["/joint_states"];
     assert_eq!(js["name"][0], "shoulder_pan_joint");
     let tf = &r["last"]["/tf"]["transforms"];

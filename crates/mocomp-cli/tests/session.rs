@@ -465,3 +465,108 @@ fn a_session_target_that_is_not_in_its_file_is_refused_by_name() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("session.gate_output = 16"), "{err}");
 }
+
+/// With `[coil] model` (SimNIBS's Magstim D70 at 60 % output): every cycle's log has the dose
+/// the measured coil gives at the selected target's brain point against that target's plan,
+/// every pulse carries it, the run's summary scores it, and the gate with
+/// `max_dose_error_pct` lets no pulse through further off its planned dose.
+#[test]
+fn with_a_coil_model_each_cycle_and_pulse_has_its_dose_and_the_gate_judges_it() {
+    let dir = TempDir::new("mocomp-session-dose");
+    let pulses = dir.path("pulses.csv");
+    let cycles = dir.path("cycles.csv");
+    let model = mocomp_testkit::workspace_root()
+        .join("crates/mocomp-efield/tests/data/coils/MagStim_D70.ccd")
+        .display()
+        .to_string();
+    let limit = 1.0;
+    let session = format!(
+        "\n[session]\ntargets = \"targets.toml\"\ntarget = \"hot-r0c1\"\npulse_log = \"{pulses}\"\n\
+         gate_output = 7\npulse_input = 0\nstimulator_output_pct = 60.0\n\
+         [session.gate]\nmax_dose_error_pct = {limit}\n\
+         [session.simulated_stimulator]\nrate_hz = 5.0\n"
+    );
+    let coil = format!("thickness_m = 0.03\nmodel = {model:?}\noutput_pct = 60.0\n");
+    let cfg = config(
+        &dir,
+        "127.0.0.87",
+        &session,
+        &[("thickness_m = 0.03\n", &coil)],
+    );
+    targets(&dir, &cfg);
+    let out = mocomp(&run_args(&cfg, "10", &["--log-csv", &cycles]));
+    assert_success(&out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(common::reached(&v), "{v}");
+    // Each cycle tracking the target has a dose, against the target's own plan: near its
+    // planned dose (the coil follows within a fraction of a millimetre; against another
+    // target's plan, 20 mm away on the grid, it would be tens of percent off).
+    let text = std::fs::read_to_string(&cycles).unwrap();
+    let mut csv = csv::Reader::from_reader(text.as_bytes());
+    let head = csv.headers().unwrap().clone();
+    let col = |name: &str| head.iter().position(|h| h == name).unwrap();
+    let (mode, pct, vm) = (col("mode"), col("dose_pct"), col("dose_v_per_m"));
+    let mut tracked = Vec::new();
+    for row in csv.records().map(Result::unwrap) {
+        if &row[mode] == "tracking" {
+            let p: f64 = row[pct].parse().unwrap();
+            let e: f64 = row[vm].parse().unwrap();
+            assert!((90.0..110.0).contains(&p), "{p} % while tracking");
+            assert!(
+                (20.0..400.0).contains(&e),
+                "{e} V/m at 15 mm under the scalp"
+            );
+            tracked.push((p - 100.0).abs());
+        }
+    }
+    assert!(tracked.len() > 500, "{} cycles tracking", tracked.len());
+    // The summary's score is the log's.
+    tracked.sort_by(f64::total_cmp);
+    let max = tracked[tracked.len() - 1];
+    let reported = v["dose_error_pct_max"].as_f64().unwrap();
+    assert!((reported - max).abs() < 1e-2, "{reported} {max}");
+    assert!(v["dose_error_pct_p95"].as_f64().unwrap() <= reported);
+    // Each pulse has the dose of its cycle; through the open gate, within the limit.
+    let rows = pulse_rows(&pulses);
+    assert!(rows.len() >= 5, "{} pulses: {v}", rows.len());
+    let open: Vec<_> = rows.iter().filter(|r| r.gate_open).collect();
+    assert!(!open.is_empty(), "no pulse through the gate: {rows:?}");
+    for r in &rows {
+        assert!(r.dose_pct.is_finite() && r.dose_v_per_m > 0.0, "{r:?}");
+    }
+    for r in &open {
+        assert!((r.dose_pct - 100.0).abs() <= limit, "{r:?}");
+    }
+    eprintln!(
+        "dose error while tracking: RMS {} p95 {} max {} %; {} pulses, {} through the gate; {}",
+        v["dose_error_pct_rms"],
+        v["dose_error_pct_p95"],
+        v["dose_error_pct_max"],
+        rows.len(),
+        open.len(),
+        v["session"]
+    );
+    let worst = v["session"]["pulse_dose_error_max_pct"].as_f64().unwrap();
+    assert!(worst <= limit, "{worst}");
+    // A pulse the stimulator fired on a dose the gate refused says so.
+    for r in rows
+        .iter()
+        .filter(|r| !r.gate_open && r.why_shut.starts_with("dose"))
+    {
+        assert!((r.dose_pct - 100.0).abs() > limit, "{r:?}");
+    }
+}
+
+#[test]
+fn a_gate_on_the_dose_without_a_coil_model_is_refused_by_name() {
+    let dir = TempDir::new("mocomp-session-dose-none");
+    let session = "\n[session.gate]\nmax_dose_error_pct = 5.0\n";
+    let cfg = config(&dir, "127.0.0.88", session, &[]);
+    let out = mocomp(&run_args(&cfg, "1", &[]));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("session.gate.max_dose_error_pct") && err.contains("coil.model"),
+        "{err}"
+    );
+}

@@ -60,6 +60,10 @@ function showStatus(s) {
   $("horizon_ms").textContent = fmt(s.horizon_ms, 1);
   $("sample_age_ms").textContent = fmt(s.sample_age_ms, 1);
   $("force_n").textContent = fmt(s.force_n, 1);
+  // The dose tile once a coil model gives one; it then stays, showing — while there is none.
+  if (s.dose_pct != null) $("dose-tile").hidden = false;
+  $("dose_pct").textContent = fmt(s.dose_pct, 1);
+  $("dose_v_per_m").textContent = fmt(s.dose_v_per_m, 1);
   $("t").textContent = fmt(s.t, 2);
   $("hold").disabled = !s.running || s.operator_hold;
   $("resume").disabled = !s.running || !s.operator_hold;

@@ -172,6 +172,11 @@ pub struct StatusJson {
     pub standoff_mm: f64,
     /// Contact force, N (none without `loop.force_sensing`).
     pub force_n: Option<f64>,
+    /// The dose the measured coil gives at the goal's target, % of the planned (none without
+    /// a coil model or a plan for the goal).
+    pub dose_pct: Option<f64>,
+    /// The same in V/m.
+    pub dose_v_per_m: Option<f64>,
     /// Whether the operator holds the loop.
     pub operator_hold: bool,
     /// Free-drive is on (the arm yields to the operator's hand).
@@ -231,6 +236,8 @@ impl StatusJson {
             clearance_mm: f64::NAN,
             standoff_mm: f64::NAN,
             force_n: None,
+            dose_pct: None,
+            dose_v_per_m: None,
             operator_hold: false,
             freedrive: false,
             running: true,
@@ -773,6 +780,8 @@ impl ConsoleObserver {
             clearance_mm: r.clearance_m * 1e3,
             standoff_mm: r.standoff_m * 1e3,
             force_n: r.contact_force_n.is_finite().then_some(r.contact_force_n),
+            dose_pct: r.dose_pct.is_finite().then_some(r.dose_pct),
+            dose_v_per_m: r.dose_v_per_m.is_finite().then_some(r.dose_v_per_m),
             operator_hold: self.shared.controls.hold(),
             freedrive: self.shared.controls.freedrive(),
             running: true,

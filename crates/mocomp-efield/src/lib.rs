@@ -7,6 +7,7 @@
 //!   time, allocating nothing;
 //! - [`fit`]: the sphere nearest a patch of points (least squares);
 //! - [`dose`]: the dose at a target against the one planned, for any coil pose;
+//! - [`plans`]: a run's plans, one per goal it may hold, measured against by the goal's pose;
 //! - [`local`]: the sphere a head is taken to be under the coil (fitted to the scalp near it,
 //!   as local-sphere methods do), for any head shape.
 //!
@@ -21,6 +22,7 @@ pub mod dose;
 pub mod error;
 pub mod fit;
 pub mod local;
+pub mod plans;
 pub mod sphere;
 #[cfg(test)]
 mod test_coil;
@@ -30,4 +32,5 @@ pub use dose::{Along, DoseMeter, DoseModel, PlannedDose};
 pub use error::EfieldError;
 pub use fit::fit_sphere;
 pub use local::{FIT_RADIUS_M, LocalSphere, local_sphere};
+pub use plans::{Dose, DosePlanError, DosePlans};
 pub use sphere::{PlacedCoil, Sphere};

@@ -72,7 +72,7 @@ pub enum ExperimentError {
     Config(String),
     /// The dose cannot be planned for a goal.
     #[error(transparent)]
-    Dose(#[from] crate::dose::DosePlanError),
+    Dose(#[from] mocomp_efield::DosePlanError),
     /// The paper's goal matrix is not a rigid transform.
     #[error("the goal E2_T_E1,g: {0}")]
     Goal(String),
@@ -1665,7 +1665,12 @@ impl Rig {
                 let targets: Vec<Isometry3<f64>> = plan
                     .map(|p| p.targets.iter().map(|t| t.1).collect())
                     .unwrap_or_default();
-                crate::dose::DoseWatch::new(model, cfg.head.shape(), &goal_head_from_coil, &targets)
+                mocomp_efield::DosePlans::new(
+                    model,
+                    cfg.head.shape(),
+                    Some(&goal_head_from_coil),
+                    &targets,
+                )
             })
             .transpose()?;
         let mut pace = Lockstep {
@@ -1786,7 +1791,7 @@ struct Lockstep<'a, 'p> {
     pulses: Vec<LoggedPulse>,
     withheld: usize,
     /// The dose each tick, with a coil model.
-    dose: Option<crate::dose::DoseWatch>,
+    dose: Option<mocomp_efield::DosePlans>,
 }
 
 impl Lockstep<'_, '_> {
@@ -1878,7 +1883,13 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
         }
     }
 
-    fn cycle_done(&mut self, rec: CycleRecord) -> Result<(), ExperimentError> {
+    fn cycle_done(&mut self, mut rec: CycleRecord) -> Result<(), ExperimentError> {
+        // The dose a live system knows: the measured coil against the goal the loop holds
+        // (what the gate judges and a pulse records; the run's score takes the true coil's).
+        if let (Some(d), Some(coil)) = (self.dose.as_mut(), rec.coil_now) {
+            let m = d.dose_at_goal(&rec.head_from_coil_goal, &coil);
+            (rec.dose_v_per_m, rec.dose_pct) = (m.v_per_m, m.pct);
+        }
         let w = &mut *self.world;
         if matches!(rec.mode, Mode::Faulted(_)) {
             w.robot1
@@ -1995,7 +2006,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             execution_m: f64::NAN,
             standoff_m: rec.standoff_m + rec.filtered_m,
             dose_pct: self.dose.as_mut().map_or(f64::NAN, |d| {
-                d.pct(self.plan.map(|_| target), &head_from_coil)
+                d.dose(self.plan.map(|_| target), &head_from_coil).pct
             }),
         });
         if let Some(watching) = self.watching.as_mut() {

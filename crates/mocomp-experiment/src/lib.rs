@@ -6,7 +6,8 @@
 //! clinical session ([`session_plan`]). The experiment's own parts: the head robot playing a
 //! motion within its limits ([`head_drive`]), the oracle's knowledge of the true head
 //! ([`oracle`]), and the error's split into the prediction's and the execution's share
-//! ([`split`]), and each tick's dose at the target with a coil model ([`dose`]).
+//! ([`split`]); each tick's dose at the target, with a coil model, is measured against the
+//! plans `mocomp_efield` makes ([`mocomp_efield::DosePlans`]).
 //!
 //! **Limits.** It knows no configuration file, no command line and no front end beyond the
 //! contract (`mocomp-frontend`): the application turns its configuration into an
@@ -14,7 +15,6 @@
 //! is deterministic for its seed.
 
 pub mod calibration;
-pub mod dose;
 pub mod driver;
 pub mod experiment;
 pub mod head_drive;

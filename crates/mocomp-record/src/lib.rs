@@ -50,6 +50,10 @@ pub struct CycleRecordMsg {
     pub contact_force_n: f64,
     /// The cycle's compute time, ns.
     pub compute_ns: u64,
+    /// The dose the measured coil gives at the goal's target, V/m (NaN without a coil model).
+    pub dose_v_per_m: f64,
+    /// The same, % of the goal's planned dose.
+    pub dose_pct: f64,
 }
 
 impl ros2_client::Message for CycleRecordMsg {}
@@ -58,7 +62,7 @@ impl RosMessage for CycleRecordMsg {
         package: "mocomp_msgs",
         name: "CycleRecord",
     };
-    const DEFINITION: &'static str = "float64 t_s\nstring controller\nstring mode\nstring event\nfloat64 sample_age_s\nfloat64 horizon_s\nfloat64 command_delay_s\nfloat64 head_speed_m_s\nfloat64 head_speed_rad_s\nfloat64 deviation_m\nfloat64 deviation_rad\nfloat64 coil_error_m\nfloat64[6] q_command\nfloat64[6] q_actual\nfloat64 contact_force_n\nuint64 compute_ns\n";
+    const DEFINITION: &'static str = "float64 t_s\nstring controller\nstring mode\nstring event\nfloat64 sample_age_s\nfloat64 horizon_s\nfloat64 command_delay_s\nfloat64 head_speed_m_s\nfloat64 head_speed_rad_s\nfloat64 deviation_m\nfloat64 deviation_rad\nfloat64 coil_error_m\nfloat64[6] q_command\nfloat64[6] q_actual\nfloat64 contact_force_n\nuint64 compute_ns\nfloat64 dose_v_per_m\nfloat64 dose_pct\n";
 }
 
 /// Why a recording could not be written.

@@ -304,7 +304,8 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
     o.push_str(
         "<h2>Pulses</h2>\n<table id=\"pulses\"><tr><th>#</th><th class=\"l\">UTC</th>\
          <th class=\"l\">target</th><th>output (%)</th><th>position error (mm)</th>\
-         <th>angle error (°)</th><th>scalp (mm)</th><th class=\"l\">gate</th>\
+         <th>angle error (°)</th><th>scalp (mm)</th><th>dose (V/m)</th>\
+         <th>dose (% planned)</th><th class=\"l\">gate</th>\
          <th class=\"l\">coil centre on the image (mm)</th></tr>\n",
     );
     for (k, x) in p.iter().enumerate() {
@@ -323,8 +324,8 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
         let _ = writeln!(
             o,
             "<tr class=\"pulse{}\"><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td>\
-             <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td>\
-             <td class=\"l\">{}</td></tr>",
+             <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td class=\"l\">{}</td><td class=\"l\">{}</td></tr>",
             if x.gate_open { "" } else { " shut" },
             k + 1,
             x.utc_unix_s.map(iso8601).as_deref().unwrap_or("—"),
@@ -333,6 +334,8 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
             num(x.position_error_m * 1e3, 2),
             num(x.angle_error_rad.to_degrees(), 2),
             num(x.scalp_distance_m * 1e3, 1),
+            num(x.dose_v_per_m, 1),
+            num(x.dose_pct, 1),
             h(&gate),
             centre,
         );
@@ -365,6 +368,8 @@ mod tests {
                 "position error 2.40 mm".into()
             },
             image_from_coil: Some(Isometry3::translation(-0.04, 0.01, 0.09)),
+            dose_v_per_m: 120.0 + k as f64,
+            dose_pct: if k == 3 { f64::NAN } else { 99.0 },
         }
     }
 
@@ -402,6 +407,15 @@ mod tests {
         // C3: 12 pulses, one shut; its errors 0, 0.2, …, 0.8 mm in turn: the median 0.30, the max 0.80.
         assert!(
             html.contains("<td class=\"l\">C3</td><td>12</td><td>1</td><td>0.30 / 0.80</td>"),
+            "{html}"
+        );
+        // Each pulse's dose, V/m and % of the planned; none where the log has none.
+        assert!(
+            html.contains("<td>3.0</td><td>121.0</td><td>99.0</td><td class=\"l\">open</td>"),
+            "{html}"
+        );
+        assert!(
+            html.contains("<td>123.0</td><td>—</td><td class=\"l\">open</td>"),
             "{html}"
         );
     }

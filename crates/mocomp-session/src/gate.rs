@@ -6,7 +6,11 @@
 //! tracking. The gate opens once that has held for `dwell_s` without a break, and shuts at the
 //! first cycle it does not: leaving the tolerance, the loop leaving tracking (a planned path to
 //! another target, a retreat, a hold), or no head estimate. So a pulse can never fall while the
-//! coil travels between targets. Each change is an event with its reason.
+//! coil travels between targets. With `max_dose_error_pct`, the coil must also give the target
+//! its planned dose within that many percent (the field the measured coil induces there, which
+//! a lift of a millimetre lowers by 4 %: the pose tolerances alone let a pulse through 8 % off);
+//! a cycle without a dose (no plan for the goal, the field without an answer) is off target.
+//! Each change is an event with its reason.
 
 /// The gate's tolerances and dwell.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -18,6 +22,10 @@ pub struct GateParams {
     pub angle_tolerance_rad: f64,
     /// How long the coil must have been on target before the gate opens, s. [0.1]
     pub dwell_s: f64,
+    /// The dose's largest error, % of the planned dose (`None`: the dose is not judged; with
+    /// it, a coil model is needed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_dose_error_pct: Option<f64>,
 }
 
 impl Default for GateParams {
@@ -26,6 +34,7 @@ impl Default for GateParams {
             position_tolerance_m: 0.002,
             angle_tolerance_rad: 2f64.to_radians(),
             dwell_s: 0.1,
+            max_dose_error_pct: None,
         }
     }
 }
@@ -39,6 +48,11 @@ pub enum Shut {
     PositionError(f64),
     /// The coil's angle error is beyond the tolerance (rad).
     AngleError(f64),
+    /// The dose is further from the planned than `max_dose_error_pct` (the dose, % of the
+    /// planned).
+    DoseError(f64),
+    /// The gate judges the dose and this cycle has none.
+    NoDose,
     /// The loop is not tracking the target (on a path, retreating, holding, faulted).
     NotTracking,
     /// No head estimate: where the target is is unknown.
@@ -71,6 +85,8 @@ pub struct GateInputs {
     /// The measured coil's error against the target for the head now, m and rad (`None`: no
     /// head estimate).
     pub error: Option<(f64, f64)>,
+    /// The dose the measured coil gives at the target, % of the planned (NaN: none).
+    pub dose_pct: f64,
 }
 
 /// The gate.
@@ -114,7 +130,14 @@ impl Gate {
             (true, Some((_, a))) if a.is_nan() || a > p.angle_tolerance_rad => {
                 Some(Shut::AngleError(a))
             }
-            (true, Some(_)) => None,
+            (true, Some(_)) => p.max_dose_error_pct.and_then(|max| {
+                let pct = i.dose_pct;
+                if pct.is_nan() {
+                    Some(Shut::NoDose)
+                } else {
+                    ((pct - 100.0).abs() > max).then_some(Shut::DoseError(pct))
+                }
+            }),
         };
         let next = match off {
             Some(why) => {
@@ -149,6 +172,14 @@ mod tests {
         GateInputs {
             tracking: true,
             error: Some((d, a)),
+            dose_pct: f64::NAN,
+        }
+    }
+
+    fn dosed(pct: f64) -> GateInputs {
+        GateInputs {
+            dose_pct: pct,
+            ..on(0.0005, 0.005)
         }
     }
 
@@ -189,6 +220,7 @@ mod tests {
                 &GateInputs {
                     tracking: false,
                     error: Some((0.0, 0.0)),
+                    dose_pct: 100.0,
                 },
             );
             assert_eq!(g.state(), GateState::Shut(Shut::NotTracking));
@@ -203,6 +235,7 @@ mod tests {
             &GateInputs {
                 tracking: true,
                 error: None,
+                dose_pct: 100.0,
             },
         );
         assert_eq!(e, Some(GateEvent::Shut(Shut::NoHead)));
@@ -212,5 +245,56 @@ mod tests {
             g.update(k as f64 * 0.002, &on(f64::NAN, 0.0));
         }
         assert!(!g.is_open());
+    }
+
+    #[test]
+    fn with_a_dose_limit_it_opens_only_on_the_planned_dose_and_never_without_one() {
+        let p = GateParams {
+            max_dose_error_pct: Some(3.0),
+            ..GateParams::default()
+        };
+        // Within the pose tolerances but 4 % under the planned dose (a 1 mm lift): shut, all
+        // the time, with the dose said.
+        let mut g = Gate::new(p);
+        for k in 0..200 {
+            g.update(k as f64 * 0.002, &dosed(96.0));
+            assert_eq!(g.state(), GateState::Shut(Shut::DoseError(96.0)));
+        }
+        // Over the planned dose by as much counts alike: the prescription is a dose, not a floor.
+        g.update(0.5, &dosed(103.5));
+        assert_eq!(g.state(), GateState::Shut(Shut::DoseError(103.5)));
+        // No dose at all (no plan for the goal, no field): shut.
+        g.update(0.6, &dosed(f64::NAN));
+        assert_eq!(g.state(), GateState::Shut(Shut::NoDose));
+        // Within 3 %: opens after the dwell, and shuts at the first cycle beyond.
+        let mut opened = None;
+        for k in 0..100 {
+            let t = 1.0 + k as f64 * 0.002;
+            if g.update(t, &dosed(97.5)) == Some(GateEvent::Opened) {
+                opened = Some(t);
+            }
+        }
+        assert!(
+            (opened.unwrap() - 1.0 - p.dwell_s).abs() < 0.003,
+            "{opened:?}"
+        );
+        let e = g.update(1.3, &dosed(96.9));
+        assert_eq!(e, Some(GateEvent::Shut(Shut::DoseError(96.9))));
+        // The pose still counts first: on the dose but off in position is a position error.
+        let e = g.update(
+            1.302,
+            &GateInputs {
+                dose_pct: 100.0,
+                ..on(0.003, 0.0)
+            },
+        );
+        assert_eq!(e, None);
+        assert_eq!(g.state(), GateState::Shut(Shut::PositionError(0.003)));
+        // Without the limit the same dose passes: the limit is what shut it.
+        let mut g = Gate::new(GateParams::default());
+        for k in 0..100 {
+            g.update(k as f64 * 0.002, &dosed(90.0));
+        }
+        assert!(g.is_open());
     }
 }

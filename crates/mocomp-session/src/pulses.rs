@@ -5,7 +5,8 @@
 //! machines), the stimulator's own time when it gave one, the target, the coil's position and
 //! angle error against it (the measured coil, as the gate judges), the coil's distance to the
 //! scalp, the stimulator's output, the head's speed, whether the gate was open, and the coil's
-//! pose in the image's coordinates as SimNIBS writes it (`matsimnibs`, mm). A pulse while the
+//! pose in the image's coordinates as SimNIBS writes it (`matsimnibs`, mm), and, with a coil
+//! model, the dose the coil gave at the target (V/m, and % of the planned). A pulse while the
 //! gate is shut is written too, marked as such: the record must show every pulse the patient
 //! received.
 //!
@@ -47,10 +48,17 @@ pub struct Pulse {
     pub why_shut: String,
     /// The measured coil in the image's frame (RAS; SimNIBS's coil axes), when the head was known.
     pub image_from_coil: Option<Isometry3<f64>>,
+    /// The dose the coil gave at the target, V/m (NaN: no coil model, plan or head estimate).
+    pub dose_v_per_m: f64,
+    /// The dose, % of the target's planned dose (NaN alike).
+    pub dose_pct: f64,
 }
 
+/// The columns every log has (a log written before the dose lacks the rest).
+const REQUIRED: usize = 13;
+
 /// The log's columns.
-pub const HEADER: [&str; 13] = [
+pub const HEADER: [&str; 15] = [
     "t_s",
     "utc",
     "stimulator_time",
@@ -64,6 +72,8 @@ pub const HEADER: [&str; 13] = [
     "gate",
     "why_shut",
     "matsimnibs",
+    "dose_v_per_m",
+    "dose_pct",
 ];
 
 /// What turns a pulse the loop saw into the log's row: the clocks, the image, the head.
@@ -101,6 +111,8 @@ impl Recorder {
             gate_open,
             why_shut,
             image_from_coil: at.coil.map(|c| self.head_from_image.inv_mul(&c)),
+            dose_v_per_m: at.dose.0,
+            dose_pct: at.dose.1,
         }
     }
 }
@@ -183,6 +195,8 @@ impl<W: Write> PulseLog<W> {
             if p.gate_open { "open" } else { "shut" }.to_string(),
             p.why_shut.clone(),
             matrix,
+            opt(Some(p.dose_v_per_m), 3),
+            opt(Some(p.dose_pct), 2),
         ])?;
         self.w.flush()?;
         Ok(())
@@ -234,7 +248,8 @@ pub enum PulseLogError {
 }
 
 /// Reads a pulse log's text (`file` names it in errors) back into its pulses. Empty fields are
-/// what the writer leaves for unknowns: NaN, or `None`.
+/// what the writer leaves for unknowns: NaN, or `None`; a log from before the dose columns
+/// reads with no dose.
 pub fn read_log(file: &str, text: &str) -> Result<Vec<Pulse>, PulseLogError> {
     let mut r = csv::Reader::from_reader(text.as_bytes());
     let csv_error = |e: csv::Error| PulseLogError::Csv {
@@ -243,16 +258,20 @@ pub fn read_log(file: &str, text: &str) -> Result<Vec<Pulse>, PulseLogError> {
         detail: e.to_string(),
     };
     let headers = r.headers().map_err(csv_error)?.clone();
-    let mut at = [0usize; 13];
-    for (slot, column) in at.iter_mut().zip(HEADER) {
-        *slot = headers
-            .iter()
-            .position(|h| h == column)
-            .ok_or_else(|| PulseLogError::Column {
-                file: file.to_string(),
-                column,
-                expected: HEADER.join(", "),
-            })?;
+    // Columns are found by name; a missing optional one reads as an empty field.
+    let mut at = [usize::MAX; HEADER.len()];
+    for (k, (slot, column)) in at.iter_mut().zip(HEADER).enumerate() {
+        match headers.iter().position(|h| h == column) {
+            Some(i) => *slot = i,
+            None if k >= REQUIRED => {}
+            None => {
+                return Err(PulseLogError::Column {
+                    file: file.to_string(),
+                    column,
+                    expected: HEADER.join(", "),
+                });
+            }
+        }
     }
     let mut out = Vec::new();
     for record in r.records() {
@@ -324,6 +343,8 @@ pub fn read_log(file: &str, text: &str) -> Result<Vec<Pulse>, PulseLogError> {
             gate_open,
             why_shut: field(11).to_string(),
             image_from_coil,
+            dose_v_per_m: number(13)?,
+            dose_pct: number(14)?,
         });
     }
     Ok(out)
@@ -347,6 +368,7 @@ mod tests {
             coil,
             stimulator_unix_s: None,
             output_pct: None,
+            dose: (142.123_4, 98.765),
         }
     }
 
@@ -436,6 +458,7 @@ mod tests {
         assert_eq!(&rows[1][10], "shut");
         assert_eq!(&rows[1][11], "position error 4.00 mm");
         assert_eq!((&rows[1][1], &rows[1][7], &rows[1][12]), ("", "", ""));
+        assert_eq!((&rows[0][13], &rows[0][14]), ("142.123", "98.77"));
         // Read back: the same pulses, to the digits written.
         let back = read_log("pulses.csv", &text).unwrap();
         assert_eq!(back.len(), 2);
@@ -454,6 +477,28 @@ mod tests {
             (None, None, None)
         );
         assert!(b.position_error_m.is_nan());
+        assert!((a.dose_v_per_m - 142.123).abs() < 1e-9 && (a.dose_pct - 98.77).abs() < 1e-9);
+        // A log from before the dose: its pulses read, without a dose.
+        let old: String = text
+            .lines()
+            .map(|l| {
+                let mut r = csv::ReaderBuilder::new()
+                    .has_headers(false)
+                    .from_reader(l.as_bytes());
+                let rec = r.records().next().unwrap().unwrap();
+                let mut w = csv::Writer::from_writer(Vec::new());
+                w.write_record(rec.iter().take(REQUIRED)).unwrap();
+                String::from_utf8(w.into_inner().unwrap()).unwrap()
+            })
+            .collect();
+        let back = read_log("old.csv", &old).unwrap();
+        assert_eq!(back.len(), 2);
+        assert!(back[0].dose_pct.is_nan() && back[0].dose_v_per_m.is_nan());
+        assert_eq!(back[0].target, "hotspot, APB");
+        // A dose that is no number is named.
+        let bad = text.replacen("98.77", "most", 1);
+        let e = read_log("p.csv", &bad).unwrap_err();
+        assert!(e.to_string().contains("column dose_pct"), "{e}");
     }
 
     #[test]
@@ -474,7 +519,18 @@ mod tests {
         let e = read_log("p.csv", &bad).unwrap_err();
         assert!(e.to_string().contains("column t_s"), "{e}");
         let (head, row) = good.split_once('\n').unwrap();
-        let bad = format!("{head}\n{}", row.trim_end().to_string() + "1 2 3");
+        let mut fields: Vec<String> = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(row.as_bytes())
+            .records()
+            .next()
+            .unwrap()
+            .unwrap()
+            .iter()
+            .map(String::from)
+            .collect();
+        fields[12] = "1 2 3".into();
+        let bad = format!("{head}\n{}\n", fields.join(","));
         let e = read_log("p.csv", &bad).unwrap_err();
         assert!(e.to_string().contains("column matsimnibs"), "{e}");
         let e = read_log("p.csv", &format!("{head}\n1,2\n")).unwrap_err();

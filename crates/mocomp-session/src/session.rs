@@ -55,6 +55,13 @@ impl SessionParams {
                 return Err(format!("{key} = {v}: must be finite and > 0"));
             }
         }
+        if let Some(m) = g.max_dose_error_pct
+            && !(m.is_finite() && m > 0.0 && m <= 100.0)
+        {
+            return Err(format!(
+                "gate.max_dose_error_pct = {m}: must be a percentage in (0, 100]"
+            ));
+        }
         if !(g.dwell_s.is_finite() && g.dwell_s >= 0.0) {
             return Err(format!(
                 "gate.dwell_s = {}: must be finite and >= 0",
@@ -101,6 +108,8 @@ pub struct PulseAt {
     pub stimulator_unix_s: Option<f64>,
     /// The stimulator's output, % of its maximum, when it said.
     pub output_pct: Option<f64>,
+    /// The dose the measured coil gave at the target, V/m and % of the planned (NaN: none).
+    pub dose: (f64, f64),
 }
 
 /// A pulse a message announced (an OpenIGTLink STRING `pulse`): when it came, on the loop's
@@ -173,6 +182,8 @@ pub struct Session {
     last: (f64, (f64, f64), (f64, f64)),
     /// The last cycle's measured coil on the head.
     last_coil: Option<Isometry3<f64>>,
+    /// The last cycle's dose, V/m and % of the planned.
+    last_dose: (f64, f64),
 }
 
 impl Session {
@@ -189,6 +200,7 @@ impl Session {
             pulse_level: None,
             last: (f64::NAN, (f64::NAN, f64::NAN), (0.0, 0.0)),
             last_coil: None,
+            last_dose: (f64::NAN, f64::NAN),
         }
     }
 
@@ -240,9 +252,17 @@ impl Session {
         let before = self.gate.state();
         let tracking = rec.mode == Mode::Tracking && !self.switching;
         let error = rec.coil_error.0.is_finite().then_some(rec.coil_error);
-        let gate_event = self.gate.update(rec.t, &GateInputs { tracking, error });
+        let gate_event = self.gate.update(
+            rec.t,
+            &GateInputs {
+                tracking,
+                error,
+                dose_pct: rec.dose_pct,
+            },
+        );
         self.last = (rec.t, rec.coil_error, rec.head_speed);
         self.last_coil = rec.coil_now;
+        self.last_dose = (rec.dose_v_per_m, rec.dose_pct);
         let level = match (self.params.pulse_input, digital_inputs) {
             (Some(bit), Some(bits)) => Some(bits & (1 << bit) != 0),
             _ => None,
@@ -280,6 +300,7 @@ impl Session {
             coil: self.last_coil,
             stimulator_unix_s,
             output_pct,
+            dose: self.last_dose,
         }
     }
 
@@ -308,6 +329,8 @@ pub fn shut_reason(s: &Shut) -> String {
         Shut::Dwelling(_) => "dwelling".into(),
         Shut::PositionError(d) => format!("position error {:.2} mm", d * 1e3),
         Shut::AngleError(a) => format!("angle error {:.2} deg", a.to_degrees()),
+        Shut::DoseError(pct) => format!("dose {pct:.1} % of the planned"),
+        Shut::NoDose => "no dose".into(),
         Shut::NotTracking => "not tracking".into(),
         Shut::NoHead => "no head estimate".into(),
     }
@@ -484,5 +507,48 @@ mod tests {
         let mut p = params();
         p.drift.warning_m = 0.01;
         assert!(p.validate().unwrap_err().contains("warning level"));
+        for bad in [0.0, -1.0, 150.0, f64::NAN] {
+            let mut p = params();
+            p.gate.max_dose_error_pct = Some(bad);
+            let e = p.validate().unwrap_err();
+            assert!(e.contains("gate.max_dose_error_pct"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_pulse_carries_the_dose_of_the_cycle_it_fell_in_and_the_gate_judges_it() {
+        let p = SessionParams {
+            gate: GateParams {
+                max_dose_error_pct: Some(3.0),
+                ..GateParams::default()
+            },
+            ..params()
+        };
+        let mut s = Session::new(p, (0.0, 0.0), 0);
+        let dosed = |t: f64, pct: f64| {
+            let mut r = rec(t, Mode::Tracking, 0.0005);
+            (r.dose_v_per_m, r.dose_pct) = (1.2 * pct, pct);
+            r
+        };
+        for k in 0..100 {
+            s.cycle(&dosed(k as f64 * 0.002, 99.0), Some(0));
+        }
+        assert_eq!(s.gate(), GateState::Open);
+        let on = s.cycle(&dosed(0.2, 98.5), Some(1 << 3)).pulse.unwrap();
+        assert_eq!(on.dose, (1.2 * 98.5, 98.5));
+        assert_eq!(on.gate, GateState::Open);
+        // The coil lifted: the pose within its tolerances, the dose not; the pulse that comes
+        // anyway is recorded with its dose and the gate's reason.
+        s.cycle(&dosed(0.202, 95.0), Some(0));
+        let off = s.cycle(&dosed(0.204, 95.0), Some(1 << 3)).pulse.unwrap();
+        assert_eq!(off.dose.1, 95.0);
+        assert_eq!(off.gate, GateState::Shut(Shut::DoseError(95.0)));
+        assert_eq!(
+            shut_reason(&Shut::DoseError(95.0)),
+            "dose 95.0 % of the planned"
+        );
+        // An announced pulse takes the last cycle's dose.
+        let a = Announced::parse("pulse", 0.205, None).unwrap();
+        assert_eq!(s.pulse(&a).dose.1, 95.0);
     }
 }

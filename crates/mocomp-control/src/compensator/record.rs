@@ -78,6 +78,12 @@ pub struct CycleRecord {
     /// gap of more than a period between cycles is a controller cycle the loop did not answer,
     /// whatever the loop's own clock says of when it ran.
     pub robot_s: f64,
+    /// The dose the measured coil ([`Self::coil_now`]) gives at the goal's brain target, V/m,
+    /// and as % of the goal's planned dose (NaN without a coil model, a plan for the goal, or a
+    /// head estimate; filled by the caller that owns a dose meter).
+    pub dose_v_per_m: f64,
+    /// See [`Self::dose_v_per_m`].
+    pub dose_pct: f64,
 }
 
 impl CycleRecord {
@@ -114,6 +120,8 @@ impl CycleRecord {
             press_m: 0.0,
             compute_ns: 0,
             robot_s: f64::NAN,
+            dose_v_per_m: f64::NAN,
+            dose_pct: f64::NAN,
         }
     }
 }
