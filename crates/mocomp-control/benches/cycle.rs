@@ -7,8 +7,10 @@
 //! noisy head and prints their median, p99 and max (the goal: p99 under 20 µs), for each
 //! head model in the same run: the ellipsoid, FreeSurfer's fsaverage scalp (4 k triangles, from
 //! MNE through the interop peer, which `scripts/test.sh` installs) and that scalp split to
-//! 110 k triangles (a clinical scalp's size); and on the ellipsoid without the learned
-//! prediction (`[predictor] learned = false`), for its cost.
+//! 110 k triangles (a clinical scalp's size); on the ellipsoid without the learned prediction
+//! (`[predictor] learned = false`), for its cost; and on the ellipsoid with the dose each cycle
+//! (SimNIBS's Magstim D70, 964 dipoles: the measured coil against its goal's plan, as
+//! `mocomp run` does with `[coil] model`), for the dose's cost.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -18,6 +20,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use mocomp_control::{HeadModel, Mode};
+use mocomp_efield::{DoseModel, DosePlans, parse_ccd};
 use mocomp_geom::nalgebra::Point3;
 use mocomp_head::{Head, Mesh, MeshHead, repair};
 use std::sync::Arc;
@@ -54,13 +57,36 @@ fn heads() -> Vec<(String, HeadModel)> {
     out
 }
 
-fn percentiles(name: &str, head: &HeadModel, learned: bool) {
+/// The goal's dose plan with SimNIBS's Magstim D70 at full output on `head`.
+fn d70_plans(head: &HeadModel) -> DosePlans {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../mocomp-efield/tests/data/coils/MagStim_D70.ccd");
+    let coil = parse_ccd("D70", &std::fs::read_to_string(path).unwrap()).unwrap();
+    let model = DoseModel {
+        didt_a_per_s: coil.didt_max_a_per_s.unwrap(),
+        coil: Arc::new(coil),
+        depth_m: 0.015,
+    };
+    let goal = mocomp_testkit::scene::head_from_coil_goal();
+    DosePlans::new(&model, head.shape(), Some(&goal), &[]).unwrap()
+}
+
+/// One cycle, and its dose when `dose` is given (what `mocomp run`'s loop thread does).
+fn cycle(w: &mut World, dose: Option<&mut DosePlans>) -> Mode {
+    let rec = w.cycle_record();
+    if let (Some(d), Some(coil)) = (dose, rec.coil_now) {
+        std::hint::black_box(d.dose_at_goal(&rec.head_from_coil_goal, &coil));
+    }
+    rec.mode
+}
+
+fn percentiles(name: &str, head: &HeadModel, learned: bool, mut dose: Option<DosePlans>) {
     let mut w = World::with_config(head.clone(), |c| c.predictor.learned = learned);
     let mut ns: Vec<u64> = Vec::with_capacity(20_000);
     let mut tracking = 0;
     for _ in 0..20_000 {
         let t0 = Instant::now();
-        let mode = std::hint::black_box(w.cycle());
+        let mode = std::hint::black_box(cycle(&mut w, dose.as_mut()));
         ns.push(t0.elapsed().as_nanos() as u64);
         tracking += usize::from(mode == Mode::Tracking);
     }
@@ -77,13 +103,21 @@ fn percentiles(name: &str, head: &HeadModel, learned: bool) {
 fn bench(c: &mut Criterion) {
     let heads = heads();
     for (name, head) in &heads {
-        percentiles(name, head, true);
+        percentiles(name, head, true, None);
     }
-    // What the learned prediction costs, in the same run.
+    // What the learned prediction and the dose cost, in the same run.
     percentiles(
         "ellipsoid, the filter alone (learned = false)",
         &heads[0].1,
         false,
+        None,
+    );
+    let plans = d70_plans(&heads[0].1);
+    percentiles(
+        "ellipsoid, with the dose (D70)",
+        &heads[0].1,
+        true,
+        Some(plans.clone()),
     );
     for (name, head) in &heads {
         let mut w = World::with_head(head.clone());
@@ -91,6 +125,12 @@ fn bench(c: &mut Criterion) {
             b.iter(|| std::hint::black_box(w.cycle()))
         });
     }
+    let mut w = World::with_head(heads[0].1.clone());
+    let mut plans = plans;
+    c.bench_function(
+        "cycle (tracking a nodding head), ellipsoid, with the dose (D70)",
+        |b| b.iter(|| std::hint::black_box(cycle(&mut w, Some(&mut plans)))),
+    );
 }
 
 criterion_group!(benches, bench);

@@ -118,12 +118,17 @@ impl World {
 
     /// One cycle on time: a fresh state one period after the last.
     pub fn cycle(&mut self) -> Mode {
+        self.cycle_record().mode
+    }
+
+    /// [`Self::cycle`], its record.
+    pub fn cycle_record(&mut self) -> CycleRecord {
         let now = self.tracker.now;
         self.robot.state.received_s = now;
         self.robot.state.controller_s = now;
         let rec = self.comp.cycle(now, &mut self.robot, &mut self.tracker);
         self.tracker.now += PERIOD;
-        rec.mode
+        rec
     }
 
     /// `n` cycles on time (a fresh state each); the modes and events they ended with.
