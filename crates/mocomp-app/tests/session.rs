@@ -155,7 +155,11 @@ fn a_grid_of_nine_targets_is_walked_with_pulses_only_on_target_and_each_logged_a
         let tick = run
             .records
             .iter()
-            .min_by(|a, b| (a.t - p.pulse.t_s).abs().total_cmp(&(b.t - p.pulse.t_s).abs()))
+            .min_by(|a, b| {
+                (a.t - p.pulse.t_s)
+                    .abs()
+                    .total_cmp(&(b.t - p.pulse.t_s).abs())
+            })
             .unwrap();
         let (measured, truth) = (p.pulse.dose.1, tick.dose_pct);
         assert!(measured.is_finite() && truth.is_finite(), "{p:?} {truth}");
