@@ -8,7 +8,10 @@ use crate::config::Setup;
 use mocomp_control::goal::{GoalError, check_goal};
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Point3};
 use mocomp_head::{CoilSolid, Reframed};
-use mocomp_nav::{CoilPlacement, CranialLandmarks, EegPosition, Handle, System};
+use mocomp_nav::{
+    CoilPlacement, CranialLandmarks, DoseAlong, DoseMap, DoseSearch, EegPosition, FieldAt, Handle,
+    System,
+};
 use mocomp_session::Target;
 
 /// Millimetres in a metre: the configuration's and the command line's landmarks and targets
@@ -131,10 +134,110 @@ pub struct Placed {
     /// The whole coil's clearance from the scalp at the goal, m (exact; the loop's goal check,
     /// which passed, measures it conservatively).
     pub clearance_m: f64,
+    /// Targeted by dose: what the search found (the placement is its best).
+    pub dose: Option<DoseMap>,
+}
+
+/// Targeting by dose (`targets add --optimize-dose`): where to look and what to maximise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DoseTargeting {
+    /// How far from the nearest scalp point the coil's centre may go, m.
+    pub radius_m: f64,
+    /// The direction the dose is taken along (image RAS, a gyral wall's normal); `None`: |E|.
+    pub direction: Option<[f64; 3]>,
+}
+
+/// The coil placed for the largest dose at `image_point` by `t` (`[coil] model` needed): the
+/// search's map, and the placement it makes.
+fn place_by_dose(
+    setup: &Setup,
+    scalp: &dyn mocomp_head::HeadShape,
+    solid: &CoilSolid,
+    image_point: &Point3<f64>,
+    standoff_m: f64,
+    handle: &Handle,
+    t: &DoseTargeting,
+) -> Result<(CoilPlacement, DoseMap), AppError> {
+    let Some(model) = setup.file.coil.dose_model()? else {
+        return Err(AppError::Config(
+            "--optimize-dose: needs coil.model (a SimNIBS .ccd file) in the configuration".into(),
+        ));
+    };
+    let along = match t.direction {
+        None => DoseAlong::Magnitude,
+        Some(d) => DoseAlong::Direction(
+            mocomp_geom::nalgebra::Unit::try_new(d.into(), 1e-9).ok_or_else(|| {
+                AppError::Config(format!("--dose-direction {d:?}: not a direction"))
+            })?,
+        ),
+    };
+    if !(t.radius_m.is_finite() && (0.0..=0.03).contains(&t.radius_m)) {
+        return Err(AppError::Config(format!(
+            "--dose-radius-mm {}: 0 to 30 mm (beyond, the coil leaves the target's scalp)",
+            t.radius_m * MM_PER_M
+        )));
+    }
+    let field = FieldAt {
+        coil: &model.coil,
+        didt_a_per_s: model.didt_a_per_s,
+        target: *image_point,
+        along,
+    };
+    let params = DoseSearch {
+        radius_m: t.radius_m,
+        ..DoseSearch::default()
+    };
+    let map = mocomp_nav::dose_search::search(scalp, solid, standoff_m, handle, &field, &params)
+        .map_err(|e| AppError::Refused(format!("--optimize-dose: {e}")))?;
+    let pose = map.best.image_from_coil;
+    let under = scalp.nearest(&Point3::from(pose.translation.vector));
+    let placement = CoilPlacement {
+        image_from_coil: pose,
+        scalp_point: under.point,
+        depth_m: (image_point - under.point).norm(),
+        lift_m: ((pose.translation.vector - under.point.coords).norm() - standoff_m).max(0.0),
+    };
+    Ok((placement, map))
+}
+
+/// Writes the dose search's `map` to `path` as CSV: each place and turn evaluated (its offset
+/// from the nearest scalp point in mm, the turn in degrees, the coil's centre in the image in
+/// mm, the dose in V/m), in the order evaluated.
+pub fn write_dose_map(path: &std::path::Path, map: &DoseMap) -> Result<(), AppError> {
+    let what = || format!("--dose-map {}", path.display());
+    let mut w =
+        csv::Writer::from_path(path).map_err(|e| AppError::Config(format!("{}: {e}", what())))?;
+    let write = |w: &mut csv::Writer<std::fs::File>| -> Result<(), csv::Error> {
+        w.write_record([
+            "offset_u_mm",
+            "offset_v_mm",
+            "turn_deg",
+            "x_mm",
+            "y_mm",
+            "z_mm",
+            "dose_v_per_m",
+        ])?;
+        for p in &map.evaluated {
+            let c = p.image_from_coil.translation.vector * MM_PER_M;
+            w.write_record([
+                format!("{:.3}", p.offset_m.0 * MM_PER_M),
+                format!("{:.3}", p.offset_m.1 * MM_PER_M),
+                format!("{:.3}", p.turn_rad.to_degrees()),
+                format!("{:.3}", c.x),
+                format!("{:.3}", c.y),
+                format!("{:.3}", c.z),
+                format!("{:.4}", p.dose_v_per_m),
+            ])?;
+        }
+        w.flush()?;
+        Ok(())
+    };
+    write(&mut w).map_err(|e| AppError::Config(format!("{}: {e}", what())))
 }
 
 /// Places the target `name` given by `spec`, the coil's face `standoff_m` off the scalp and its
-/// handle as `handle` says, and checks it as the loop will.
+/// handle as `handle` says (or, with `dose`, where and turned as gives the target the largest
+/// dose), and checks it as the loop will.
 pub fn place_target(
     setup: &Setup,
     name: &str,
@@ -142,6 +245,7 @@ pub fn place_target(
     standoff_m: f64,
     handle: &Handle,
     note: &str,
+    dose: Option<&DoseTargeting>,
 ) -> Result<Placed, AppError> {
     let head = setup.file.head_model()?;
     let head_from_image = setup.file.head.head_from_image.iso();
@@ -150,8 +254,17 @@ pub fn place_target(
     let coil = setup.file.coil_model();
     let solid = CoilSolid::new(coil.radius, coil.thickness)
         .map_err(|e| AppError::Config(format!("[coil]: {e}")))?;
-    let placement = mocomp_nav::place_coil(&scalp, &solid, &image_point, standoff_m, handle)
-        .map_err(|e| AppError::Refused(format!("target {name} ({source}): {e}")))?;
+    let (placement, map) = match dose {
+        None => (
+            mocomp_nav::place_coil(&scalp, &solid, &image_point, standoff_m, handle)
+                .map_err(|e| AppError::Refused(format!("target {name} ({source}): {e}")))?,
+            None,
+        ),
+        Some(t) => {
+            let (p, m) = place_by_dose(setup, &scalp, &solid, &image_point, standoff_m, handle, t)?;
+            (p, Some(m))
+        }
+    };
     let head_from_coil: Isometry3<f64> = head_from_image * placement.image_from_coil;
     check_goal(
         &head,
@@ -176,6 +289,7 @@ pub fn place_target(
         placement,
         image_point,
         clearance_m,
+        dose: map,
     })
 }
 

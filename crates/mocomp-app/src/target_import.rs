@@ -60,7 +60,7 @@ pub fn import(
             .iter()
             .map(|l| {
                 let spec = TargetSpec::Image(mm_from_point(&l.point));
-                place_target(setup, &l.name, &spec, standoff_m, handle, "").map(
+                place_target(setup, &l.name, &spec, standoff_m, handle, "", None).map(
                     |Placed { target, .. }| Target {
                         source: format!("slicer {file}: {}", target.source),
                         ..target

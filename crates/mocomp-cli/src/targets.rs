@@ -39,7 +39,7 @@ enum TargetsCommand {
     /// nearest it, its face `--standoff-mm` off, +z into the head, its handle (+y) posterior
     /// unless `--handle` says otherwise, in the head marker's frame through `[head]
     /// head_from_image`; checked as the loop checks its goal.
-    Add(AddCmd),
+    Add(Box<AddCmd>),
     /// Import targets from another navigator's file: SimNIBS `matsimnibs` text, a Localite
     /// InstrumentMarker/TriggerMarker XML, a Brainsight NIfTI:Aligned export (coil poses, kept
     /// as planned), or 3D Slicer markups (points, each placed as `targets add --image` does);
@@ -109,6 +109,24 @@ struct AddCmd {
     /// Free text.
     #[arg(long, default_value = "")]
     note: String,
+    /// Place and turn the coil for the largest dose at the target (the field of `[coil]
+    /// model`), within `--dose-radius-mm` of the nearest scalp point.
+    #[arg(long)]
+    optimize_dose: bool,
+    /// How far the search may move the coil's centre, mm.
+    #[arg(
+        long,
+        value_name = "MM",
+        default_value_t = 10.0,
+        requires = "optimize_dose"
+    )]
+    dose_radius_mm: f64,
+    /// The dose is the field along this direction (image RAS; a gyral wall's normal), not |E|.
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::args::three, allow_hyphen_values = true, requires = "optimize_dose")]
+    dose_direction: Option<[f64; 3]>,
+    /// Write every place and turn the search evaluated to this CSV (its map).
+    #[arg(long, value_name = "FILE", requires = "optimize_dose")]
+    dose_map: Option<PathBuf>,
 }
 
 /// `targets import`.
@@ -199,6 +217,12 @@ impl AddCmd {
             toward: self.handle.into(),
             turn_rad: self.handle_turn_deg.to_radians(),
         };
+        let dose = self
+            .optimize_dose
+            .then_some(mocomp_app::navigation::DoseTargeting {
+                radius_m: self.dose_radius_mm * 1e-3,
+                direction: self.dose_direction,
+            });
         let placed = place_target(
             &setup,
             &self.name,
@@ -206,7 +230,11 @@ impl AddCmd {
             self.standoff_mm * 1e-3,
             &handle,
             &self.note,
+            dose.as_ref(),
         )?;
+        if let (Some(map), Some(path)) = (&placed.dose, &self.dose_map) {
+            mocomp_app::navigation::write_dose_map(path, map)?;
+        }
         let mut targets = mocomp_app::targets::load(file)?;
         targets
             .teach(placed.target.clone())
@@ -232,6 +260,21 @@ impl AddCmd {
             },
             placed.clearance_m * 1e3
         )?;
+        if let Some(map) = &placed.dose {
+            let (best, plain) = (&map.best, &map.plain);
+            writeln!(
+                out,
+                "targeted by dose: {:.1} V/m at the target, {:+.1} % on the coil placed over the \
+                 nearest scalp ({:.1} V/m); its centre {:.1} mm from there, turned {:.0}° from the \
+                 handle asked; {} places and turns evaluated",
+                best.dose_v_per_m,
+                100.0 * (best.dose_v_per_m / plain.dose_v_per_m - 1.0),
+                plain.dose_v_per_m,
+                best.offset_m.0.hypot(best.offset_m.1) * 1e3,
+                best.turn_rad.to_degrees().rem_euclid(360.0),
+                map.evaluated.len()
+            )?;
+        }
         writeln!(out, "{}", placed.target.line())?;
         reach_note(&setup, &self.name, &placed.target, &self.config, out)
     }

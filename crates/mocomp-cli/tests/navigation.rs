@@ -449,3 +449,87 @@ fn the_landmarks_distance_to_the_scalp_is_said_and_one_placed_off_it_is_named() 
         "{nasion} → {now}"
     );
 }
+
+/// `targets add --optimize-dose` on fsaverage with SimNIBS's Magstim D70: a target 20 mm under
+/// C3 with a gyral normal given; the search's map written; the target kept at the map's best,
+/// which beats the coil placed over the nearest scalp; without a coil model, refused by name.
+#[test]
+fn a_target_placed_by_dose_keeps_the_best_place_and_turn_of_its_map() {
+    let dir = TempDir::new("nav-dose");
+    let config = setup(&dir);
+    let model = mocomp_testkit::workspace_root()
+        .join("crates/mocomp-efield/tests/data/coils/MagStim_D70.ccd");
+    let file = dir.path("targets.toml");
+    // Without a coil model: refused, naming what is missing.
+    let out = mocomp(&[
+        "targets",
+        "--file",
+        &file,
+        "add",
+        "m1",
+        "--config",
+        &config,
+        "--eeg",
+        "C3",
+        "--optimize-dose",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("coil.model"), "{err}");
+    let mut text = std::fs::read_to_string(&config).unwrap();
+    text.push_str(&format!(
+        "\n[coil]\nmodel = {:?}\noutput_pct = 70.0\n",
+        model.display().to_string()
+    ));
+    std::fs::write(&config, text).unwrap();
+    // 20 mm under C3 (image frame, mm), the dose along a direction across the central sulcus.
+    let all = json(&mocomp(&["head", "eeg", "--config", &config, "--json"]));
+    let c3 = point(&all["C3"]);
+    let inward = (Point3::origin() - c3).normalize();
+    let deep = c3 + inward * 20.0;
+    let at = format!("{},{},{}", deep.x, deep.y, deep.z);
+    let map = dir.path("map.csv");
+    let out = mocomp(&[
+        "targets",
+        "--file",
+        &file,
+        "add",
+        "m1",
+        "--config",
+        &config,
+        "--image",
+        &at,
+        "--optimize-dose",
+        "--dose-direction",
+        "0.6,0.8,0",
+        "--dose-map",
+        &map,
+    ]);
+    assert_success(&out);
+    let said = String::from_utf8_lossy(&out.stdout);
+    eprintln!("{said}");
+    assert!(said.contains("targeted by dose: "), "{said}");
+    // The map: every place and turn; the kept target is its best row's coil centre.
+    let text = std::fs::read_to_string(&map).unwrap();
+    let mut rows = csv::Reader::from_reader(text.as_bytes());
+    let rows: Vec<Vec<f64>> = rows
+        .records()
+        .map(|r| r.unwrap().iter().map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert!(rows.len() > 100, "{} rows", rows.len());
+    let best = rows.iter().max_by(|a, b| a[6].total_cmp(&b[6])).unwrap();
+    let plain = &rows[0];
+    assert_eq!((plain[0], plain[1], plain[2]), (0.0, 0.0, 0.0));
+    assert!(best[6] > plain[6], "{best:?} against {plain:?}");
+    let kept = image_from_coil_mm(&file, "m1");
+    for r in 0..3 {
+        assert!(
+            (kept[(r, 3)] - best[3 + r]).abs() < 0.01,
+            "{kept} against {best:?}"
+        );
+    }
+    // Within the radius of the nearest scalp point, facing into the head.
+    assert!(best[0].hypot(best[1]) <= 10.0 + 1e-9, "{best:?}");
+    let axis = Vector3::new(kept[(0, 2)], kept[(1, 2)], kept[(2, 2)]);
+    assert!(axis.dot(&inward) > 0.8, "{axis}");
+}

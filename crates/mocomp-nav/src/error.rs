@@ -185,6 +185,16 @@ pub enum NavError {
         "the handle's direction is along the scalp's normal at the target: give another (--handle)"
     )]
     HandleAlongNormal,
+    /// A dose search asked for what it cannot do (a radius not a distance, a step not positive).
+    #[error("the dose search's reach and steps must be positive distances and angles: {0}")]
+    BadSearch(String),
+    /// No place the dose search tried gives a field at the target (it lies outside the sphere
+    /// fitted under the coil).
+    #[error(
+        "no dose at the target from the coil over it: the target lies outside the sphere the \
+         head is taken to be under the coil (is it in the head?)"
+    )]
+    NoDose,
     /// The scalp rises around the target so the coil cannot come near enough.
     #[error(
         "no coil fits over the target: the scalp around it would hold the coil {:.1} mm farther \

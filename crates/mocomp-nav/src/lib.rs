@@ -17,10 +17,13 @@
 //! - [`landmarks`]: the landmarks' rigid fit (the procedure's start);
 //! - [`eeg`]: the 10-20 and 10-10 positions on the patient's own scalp, from the nasion, the
 //!   inion and the preauricular points;
-//! - [`placement`]: a target in the image turned into the coil's pose over it.
+//! - [`placement`]: a target in the image turned into the coil's pose over it;
+//! - [`dose_search`]: the place and turn of the coil near it that give the target the largest
+//!   field (targeting by dose).
 
 pub mod bound;
 pub mod capture;
+pub mod dose_search;
 pub mod eeg;
 pub mod error;
 pub mod landmarks;
@@ -37,6 +40,7 @@ pub mod sweep;
 pub mod verdict;
 
 pub use capture::{CaptureOptions, Captured, LandmarkCapture, Touch};
+pub use dose_search::{DoseAlong, DoseMap, DosePlace, DoseSearch, FieldAt};
 pub use eeg::{CranialLandmarks, EegPosition, System, eeg_positions};
 pub use error::NavError;
 pub use landmarks::{Landmark, LandmarkRegistration, register_landmarks};

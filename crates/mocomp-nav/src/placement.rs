@@ -99,7 +99,7 @@ pub fn place_coil(
 }
 
 /// The coil over the scalp point `at`, lifted as it needs.
-fn over(
+pub(crate) fn over(
     scalp: &dyn HeadShape,
     coil: &CoilSolid,
     at: &Point3<f64>,
