@@ -187,7 +187,13 @@ fn place_by_dose(
         radius_m: t.radius_m,
         ..DoseSearch::default()
     };
-    let map = mocomp_nav::dose_search::search(scalp, solid, standoff_m, handle, &field, &params)
+    let over = mocomp_nav::CoilOver {
+        scalp,
+        solid,
+        standoff_m,
+        handle: *handle,
+    };
+    let map = mocomp_nav::dose_search::search(&over, &field, &params)
         .map_err(|e| AppError::Refused(format!("--optimize-dose: {e}")))?;
     let pose = map.best.image_from_coil;
     let under = scalp.nearest(&Point3::from(pose.translation.vector));

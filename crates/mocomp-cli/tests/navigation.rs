@@ -460,19 +460,13 @@ fn a_target_placed_by_dose_keeps_the_best_place_and_turn_of_its_map() {
     let model = mocomp_testkit::workspace_root()
         .join("crates/mocomp-efield/tests/data/coils/MagStim_D70.ccd");
     let file = dir.path("targets.toml");
+    let add = |rest: &[&str]| {
+        let mut args = vec!["targets", "--file", &file, "add", "m1", "--config", &config];
+        args.extend_from_slice(rest);
+        mocomp(&args)
+    };
     // Without a coil model: refused, naming what is missing.
-    let out = mocomp(&[
-        "targets",
-        "--file",
-        &file,
-        "add",
-        "m1",
-        "--config",
-        &config,
-        "--eeg",
-        "C3",
-        "--optimize-dose",
-    ]);
+    let out = add(&["--eeg", "C3", "--optimize-dose"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("coil.model"), "{err}");
@@ -489,14 +483,7 @@ fn a_target_placed_by_dose_keeps_the_best_place_and_turn_of_its_map() {
     let deep = c3 + inward * 20.0;
     let at = format!("{},{},{}", deep.x, deep.y, deep.z);
     let map = dir.path("map.csv");
-    let out = mocomp(&[
-        "targets",
-        "--file",
-        &file,
-        "add",
-        "m1",
-        "--config",
-        &config,
+    let out = add(&[
         "--image",
         &at,
         "--optimize-dose",

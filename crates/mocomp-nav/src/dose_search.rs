@@ -81,6 +81,29 @@ pub struct DoseMap {
     pub evaluated: Vec<DosePlace>,
 }
 
+/// How the coil is set over a scalp point ([`place_coil`]'s way): the scalp, the coil's solid,
+/// the face's standoff, the handle.
+#[derive(Clone, Copy)]
+pub struct CoilOver<'a> {
+    /// The scalp (image frame).
+    pub scalp: &'a dyn HeadShape,
+    /// The coil's solid for the clearance.
+    pub solid: &'a CoilSolid,
+    /// The face's distance from the scalp, m.
+    pub standoff_m: f64,
+    /// The handle asked (the turn 0).
+    pub handle: Handle,
+}
+
+impl std::fmt::Debug for CoilOver<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CoilOver")
+            .field("standoff_m", &self.standoff_m)
+            .field("handle", &self.handle)
+            .finish_non_exhaustive()
+    }
+}
+
 /// The coil's field at one point, for a coil model at a stimulator's dI/dt.
 #[derive(Debug)]
 pub struct FieldAt<'a> {
@@ -202,14 +225,12 @@ fn plane(scalp: &dyn HeadShape, target: &Point3<f64>, handle: &Handle) -> Result
     })
 }
 
-fn places<'a>(
-    scalp: &'a dyn HeadShape,
-    solid: &'a CoilSolid,
-    standoff_m: f64,
-    handle: &Handle,
+/// The search's start: its places, the plain placement's dose, and the radius in finest steps.
+fn start<'a>(
+    over: &CoilOver<'a>,
     field: &'a FieldAt<'a>,
     params: &DoseSearch,
-) -> Result<Places<'a>, NavError> {
+) -> Result<(Places<'a>, DosePlace, i64), NavError> {
     if !(params.radius_m.is_finite()
         && params.radius_m >= 0.0
         && params.min_step_m > 0.0
@@ -222,12 +243,12 @@ fn places<'a>(
         u,
         v,
         normal,
-    } = plane(scalp, &field.target, handle)?;
-    Ok(Places {
-        scalp,
-        solid,
-        standoff_m,
-        handle: *handle,
+    } = plane(over.scalp, &field.target, &over.handle)?;
+    let mut p = Places {
+        scalp: over.scalp,
+        solid: over.solid,
+        standoff_m: over.standoff_m,
+        handle: over.handle,
         field,
         origin,
         u,
@@ -238,26 +259,23 @@ fn places<'a>(
         fitted: HashMap::new(),
         placed: PlacedCoil::with_capacity(field.coil.len()),
         evaluated: Vec::new(),
-    })
+    };
+    let plain = p.dose(0, 0, 0.0).ok_or(NavError::NoDose)?;
+    let reach = (params.radius_m / params.min_step_m).floor() as i64;
+    Ok((p, plain, reach))
 }
 
 /// The best place within `params.radius_m` of the scalp point nearest the target, and turn,
-/// for the coil's dose at `field`'s target; the coil set as [`place_coil`] sets it
-/// (`standoff_m`, `handle`). Refused where no place gives a field (the target outside every
+/// for the coil's dose at `field`'s target; the coil set as `over` says. Refused where no place gives a field (the target outside every
 /// sphere under the coil).
 pub fn search(
-    scalp: &dyn HeadShape,
-    solid: &CoilSolid,
-    standoff_m: f64,
-    handle: &Handle,
+    over: &CoilOver<'_>,
     field: &FieldAt<'_>,
     params: &DoseSearch,
 ) -> Result<DoseMap, NavError> {
-    let mut p = places(scalp, solid, standoff_m, handle, field, params)?;
-    let plain = p.dose(0, 0, 0.0).ok_or(NavError::NoDose)?;
+    let (mut p, plain, reach) = start(over, field, params)?;
     // The coarse grid: a quarter of the radius apart (in whole finest steps), every 30°.
     let coarse = ((params.radius_m / 4.0 / params.min_step_m).round() as i64).max(1);
-    let reach = (params.radius_m / params.min_step_m).floor() as i64;
     let mut best = Some(plain);
     let turns = 12;
     let mut i = -reach / coarse * coarse;
@@ -322,16 +340,11 @@ pub fn search(
 /// Every place on a grid of `params.min_step_m` within the radius and every turn
 /// `params.min_turn_rad` apart: the search's reference.
 pub fn exhaustive(
-    scalp: &dyn HeadShape,
-    solid: &CoilSolid,
-    standoff_m: f64,
-    handle: &Handle,
+    over: &CoilOver<'_>,
     field: &FieldAt<'_>,
     params: &DoseSearch,
 ) -> Result<DoseMap, NavError> {
-    let mut p = places(scalp, solid, standoff_m, handle, field, params)?;
-    let plain = p.dose(0, 0, 0.0).ok_or(NavError::NoDose)?;
-    let reach = (params.radius_m / params.min_step_m).floor() as i64;
+    let (mut p, plain, reach) = start(over, field, params)?;
     let turns = (std::f64::consts::TAU / params.min_turn_rad).round() as u32;
     let mut best = Some(plain);
     for i in -reach..=reach {
@@ -373,6 +386,15 @@ mod tests {
         (head, target, CoilSolid::new(0.04, 0.02).unwrap())
     }
 
+    fn over<'a>(head: &'a Ellipsoid, solid: &'a CoilSolid) -> CoilOver<'a> {
+        CoilOver {
+            scalp: head,
+            solid,
+            standoff_m: 0.004,
+            handle: Handle::default(),
+        }
+    }
+
     #[test]
     fn the_search_finds_what_the_exhaustive_grid_finds_for_a_fraction_of_the_work() {
         let (head, target, solid) = setup();
@@ -395,9 +417,9 @@ mod tests {
             min_step_m: 0.001,
             min_turn_rad: 5f64.to_radians(),
         };
-        let handle = Handle::default();
-        let found = search(&head, &solid, 0.004, &handle, &field, &params).unwrap();
-        let all = exhaustive(&head, &solid, 0.004, &handle, &field, &params).unwrap();
+        let over = over(&head, &solid);
+        let found = search(&over, &field, &params).unwrap();
+        let all = exhaustive(&over, &field, &params).unwrap();
         let (f, a) = (found.best.dose_v_per_m, all.best.dose_v_per_m);
         eprintln!(
             "search {f:.3} V/m in {} evaluations, exhaustive {a:.3} V/m in {}, plain {:.3} V/m; \
@@ -447,7 +469,8 @@ mod tests {
             along: DoseAlong::Magnitude,
         };
         let params = DoseSearch::default();
-        let m = search(&head, &solid, 0.004, &Handle::default(), &field, &params).unwrap();
+        let over = over(&head, &solid);
+        let m = search(&over, &field, &params).unwrap();
         let gain = m.best.dose_v_per_m / m.plain.dose_v_per_m;
         eprintln!(
             "|E|: {:.3} V/m against {:.3} plainly, {} evaluations",
@@ -460,14 +483,14 @@ mod tests {
             target: Point3::new(0.0, 0.0, 0.3),
             ..field
         };
-        let e = search(&head, &solid, 0.004, &Handle::default(), &outside, &params).unwrap_err();
+        let e = search(&over, &outside, &params).unwrap_err();
         assert!(matches!(e, NavError::NoDose), "{e}");
         let bad = DoseSearch {
             min_step_m: 0.0,
             ..params
         };
         assert!(matches!(
-            search(&head, &solid, 0.004, &Handle::default(), &field, &bad),
+            search(&over, &field, &bad),
             Err(NavError::BadSearch(_))
         ));
     }

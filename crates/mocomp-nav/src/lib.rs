@@ -40,7 +40,7 @@ pub mod sweep;
 pub mod verdict;
 
 pub use capture::{CaptureOptions, Captured, LandmarkCapture, Touch};
-pub use dose_search::{DoseAlong, DoseMap, DosePlace, DoseSearch, FieldAt};
+pub use dose_search::{CoilOver, DoseAlong, DoseMap, DosePlace, DoseSearch, FieldAt};
 pub use eeg::{CranialLandmarks, EegPosition, System, eeg_positions};
 pub use error::NavError;
 pub use landmarks::{Landmark, LandmarkRegistration, register_landmarks};
