@@ -47,6 +47,12 @@ pub struct LoopParams {
     pub max_joint_accel_rad_s2: f64,
     /// TCP (coil) speed limit, m/s. [0.25]
     pub max_tcp_speed_m_s: f64,
+    /// Where the acceleration and speed limits cannot grant every joint its wish, give up what
+    /// costs the dose at the target least (the coil's slide along the scalp and its turn about
+    /// its axis) before its lift and tilt: the limited step nearest the wished one weighed by
+    /// the dose's sensitivities (`compensator::priorities`); false: clamp each joint on its own.
+    /// [true]
+    pub weigh_by_dose: bool,
     /// How much of the servo's lag behind the command's catch-up the setpoint sent leads by, in
     /// [0, 1]. The horizon already carries the servo's lag behind the predicted goal's own
     /// motion; what the command does besides (closing the jump a new sample makes in the
@@ -197,6 +203,7 @@ impl Default for LoopParams {
             speed_fraction: 0.75,
             max_joint_accel_rad_s2: 60.0,
             max_tcp_speed_m_s: 0.25,
+            weigh_by_dose: true,
             catch_up_lead: 0.15,
             servo_deviation_m: 0.02,
             plan_rotation_rad: 0.7,

@@ -92,6 +92,10 @@ impl Compensator {
             self.period,
             desired,
             speed_fraction,
+            // While following the goal; a retreat, a path or a hold keeps to its joints' own
+            // limits (giving way is never traded for dose).
+            (self.cfg.params.weigh_by_dose && self.mode == Mode::Tracking)
+                .then_some(&self.cfg.flange_from_coil),
         )
     }
 

@@ -6,6 +6,7 @@
 use super::held::HeldSetpoints;
 use super::in_flight::InFlight;
 use crate::config::LoopParams;
+use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
 use mocomp_ur::RobotState;
 
@@ -170,7 +171,10 @@ impl CommandState {
     /// controller that stalled and caught up, a network that held the previous command back),
     /// so after any gap the command goes on from the last setpoint within the per-cycle limit
     /// (URControl's C204A3) and makes up the lost time over the following cycles. A cycle with
-    /// no controller time passed moves nothing.
+    /// no controller time passed moves nothing. Where a joint's wish is beyond its limits and
+    /// `weigh_by_dose` gives the coil's mounting, the step is the one within the same limits
+    /// whose coil motion loses the least dose against the wished one
+    /// ([`super::priorities`]), not each joint clamped on its own.
     pub(super) fn limit(
         &mut self,
         arm: &Arm,
@@ -178,6 +182,7 @@ impl CommandState {
         period: f64,
         desired: &[f64; 6],
         speed_fraction: f64,
+        weigh_by_dose: Option<&Isometry3<f64>>,
     ) -> [f64; 6] {
         if self.dt <= 0.0 {
             return self.q;
@@ -188,6 +193,10 @@ impl CommandState {
         let mut q = self.q;
         let mut v = self.v;
         let previous = self.last_desired.replace(*desired);
+        // Each joint's wished speed and the speeds this cycle's limits allow it.
+        let mut wish = [0.0; 6];
+        let mut lo = [0.0; 6];
+        let mut hi = [0.0; 6];
         for j in 0..6 {
             let vmax = arm.spec().max_speed[j] * speed_fraction;
             // The target's speed: along the prediction, else from its last two values; a jump
@@ -206,20 +215,46 @@ impl CommandState {
             let adt2 = a * dt * dt;
             let n = 0.5 * ((1.0 + 8.0 * delta.abs() / adt2).sqrt() - 1.0);
             let v_stop = n * a * dt;
-            let want =
-                (v_target + (delta / dt - v_target).clamp(-v_stop, v_stop)).clamp(-vmax, vmax);
-            v[j] = want.clamp(self.v[j] - a * dt, self.v[j] + a * dt);
-            q[j] = self.q[j] + v[j] * dt;
+            wish[j] = v_target + (delta / dt - v_target).clamp(-v_stop, v_stop);
+            // The speed limit, then the acceleration's: where the two do not meet (a joint
+            // faster than a lowered speed fraction) the acceleration wins, slowing it at most.
+            let (slow, fast) = (self.v[j] - a * dt, self.v[j] + a * dt);
+            lo[j] = (-vmax).clamp(slow, fast);
+            hi[j] = vmax.clamp(slow, fast);
+            v[j] = wish[j].clamp(lo[j], hi[j]);
         }
-        // The coil's speed limit, on the whole step.
-        let p0 = arm.fk(&self.q).translation.vector;
-        let p1 = arm.fk(&q).translation.vector;
-        let speed = (p1 - p0).norm() / dt;
         let tcp_limit = if self.giving_way {
             p.max_tcp_speed_m_s.max(p.retreat_tcp_speed_m_s)
         } else {
             p.max_tcp_speed_m_s
         };
+        let p0 = arm.fk(&self.q).translation.vector;
+        let tcp_speed = |v: &[f64; 6]| {
+            let q1: [f64; 6] = std::array::from_fn(|j| self.q[j] + v[j] * dt);
+            (arm.fk(&q1).translation.vector - p0).norm() / dt
+        };
+        if let Some(flange_from_coil) = weigh_by_dose
+            && v != wish
+        {
+            let form = super::priorities::dose_form(arm, &self.q, flange_from_coil);
+            v = super::priorities::nearest_in_box(&form, &wish, &lo, &hi);
+            // Too fast for the coil: the wish slowed until the step is not, within the same
+            // limits (scaling the step itself, below, could take a joint out of them).
+            if tcp_speed(&v) > tcp_limit
+                && let Some(slower) =
+                    super::priorities::slowed_in_box(&form, &wish, &lo, &hi, |v| {
+                        tcp_speed(v) <= tcp_limit
+                    })
+            {
+                v = slower;
+            }
+        }
+        for j in 0..6 {
+            q[j] = self.q[j] + v[j] * dt;
+        }
+        // The coil's speed limit, on the whole step (the last word: over the acceleration's
+        // where both cannot hold).
+        let speed = tcp_speed(&v);
         if speed > tcp_limit {
             let k = tcp_limit / speed;
             for j in 0..6 {
@@ -352,7 +387,6 @@ impl DelayEstimator {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
-    use mocomp_geom::nalgebra::Isometry3;
     use mocomp_kin::Model;
 
     const PERIOD: f64 = 0.002;
@@ -384,8 +418,16 @@ mod tests {
         assert_eq!(c.dt, 0.1);
     }
 
+    /// Per joint, and weighed by the dose (the same box, another point in it).
     #[test]
     fn the_limits_bound_speed_and_acceleration_and_a_zero_step_moves_nothing() {
+        let coil = Isometry3::translation(0.0, 0.0, 0.12);
+        for weigh in [None, Some(&coil)] {
+            limits_bound_speed_and_acceleration(weigh);
+        }
+    }
+
+    fn limits_bound_speed_and_acceleration(weigh: Option<&Isometry3<f64>>) {
         let arm = Arm::new(Model::Ur3e);
         let p = LoopParams::default();
         let mut c = CommandState::new(PERIOD);
@@ -395,7 +437,7 @@ mod tests {
         let mut prev_v = [0.0; 6];
         for k in 1..200 {
             c.step_time(&state_at(k as f64 * PERIOD, c.q), PERIOD, p.robot_stale_s);
-            let q = c.limit(&arm, &p, PERIOD, &far, 1.0);
+            let q = c.limit(&arm, &p, PERIOD, &far, 1.0, weigh);
             for j in 0..6 {
                 let v = (q[j] - c.q[j]) / PERIOD;
                 assert!(
@@ -415,7 +457,7 @@ mod tests {
         }
         // A cycle on the same state moves nothing.
         c.step_time(&state_at(199.0 * PERIOD, c.q), PERIOD, p.robot_stale_s);
-        assert_eq!(c.limit(&arm, &p, PERIOD, &far, 1.0), c.q);
+        assert_eq!(c.limit(&arm, &p, PERIOD, &far, 1.0, weigh), c.q);
     }
 
     #[test]
@@ -429,7 +471,7 @@ mod tests {
         for k in 1..400 {
             c.step_time(&state_at(k as f64 * PERIOD, c.q), PERIOD, p.robot_stale_s);
             let hold = c.stand_still();
-            c.q = c.limit(&arm, &p, PERIOD, &hold, 1.0);
+            c.q = c.limit(&arm, &p, PERIOD, &hold, 1.0, None);
         }
         assert!(c.v.iter().all(|v| v.abs() < 1e-9), "{:?}", c.v);
     }
@@ -473,7 +515,7 @@ mod tests {
             state.actual_qd = qd;
             c.step_time(&state, CB3, p.robot_stale_s);
             c.target_speed = Some(speed);
-            c.q = c.limit(&arm, &p, CB3, &goal(t + ahead, k), 1.0);
+            c.q = c.limit(&arm, &p, CB3, &goal(t + ahead, k), 1.0, None);
             let set = c.setpoint(&arm, SERVO, CB3, (lead_fraction, 1.0), true);
             servo_step(&mut q, &mut qd, &set);
             out.push((q[2] - goal(t + CB3, k)[2], set[2] - c.q[2]));
@@ -533,7 +575,7 @@ mod tests {
             }
             c.target_speed = Some(std::array::from_fn(|_| rng.random_range(-4.0..4.0)));
             let before = c.q;
-            c.q = c.limit(&arm, &p, CB3, &desired, p.speed_fraction);
+            c.q = c.limit(&arm, &p, CB3, &desired, p.speed_fraction, None);
             let set = c.setpoint(
                 &arm,
                 SERVO,
@@ -571,11 +613,11 @@ mod tests {
         // The arm moves, the goal stands: a catch-up of 0.8 rad/s, but none to take a change
         // from.
         c.target_speed = Some([0.0; 6]);
-        c.q = c.limit(&arm, &p, CB3, &q0, 1.0);
+        c.q = c.limit(&arm, &p, CB3, &q0, 1.0, None);
         assert_eq!(c.setpoint(&arm, SERVO, CB3, (0.3, 1.0), true), c.q);
         // Next cycle it leads …
         c.step_time(&state_at(CB3, c.q), CB3, p.robot_stale_s);
-        c.q = c.limit(&arm, &p, CB3, &q0, 1.0);
+        c.q = c.limit(&arm, &p, CB3, &q0, 1.0, None);
         let set = c.setpoint(&arm, SERVO, CB3, (0.3, 1.0), true);
         assert!((set[2] - c.q[2]).abs() > 1e-4, "{set:?} vs {:?}", c.q);
         // … and the same state again changes nothing.
@@ -584,7 +626,7 @@ mod tests {
         // Not following the goal (a hold, a path): the lead goes.
         c.step_time(&state_at(2.0 * CB3, c.q), CB3, p.robot_stale_s);
         let hold = c.stand_still();
-        c.q = c.limit(&arm, &p, CB3, &hold, 1.0);
+        c.q = c.limit(&arm, &p, CB3, &hold, 1.0, None);
         let set = c.setpoint(&arm, SERVO, CB3, (0.3, 1.0), false);
         assert!(c.lead.iter().all(|l| *l == 0.0), "{:?}", c.lead);
         assert_eq!(set, c.q);
@@ -635,7 +677,7 @@ mod tests {
             if bounded {
                 c.held.acknowledge(acked, state.controller_s);
             }
-            c.q = c.limit(&arm, &p, PERIOD, &far, 0.75);
+            c.q = c.limit(&arm, &p, PERIOD, &far, 0.75, None);
             let set = c.setpoint(&arm, SERVO, PERIOD, (0.3, 0.75), false);
             let seq = tick as i32 + 1;
             c.held.note_sent(seq, set);

@@ -12,7 +12,7 @@
 //! | sense: head | the head where it will be when the command acts, the clearance required then | [`sense`]: `head_estimate` |
 //! | decide | one reason and its reaction, by the precedence beside the table | [`crate::supervisor::decide`] |
 //! | target | standoff, contact press, the goal's joints; follow, wait, come back by a path, retreat or hold | [`target`]: `update_standoff`, `goal_joints`, `target`; paths in [`plan`] |
-//! | limit and filter | rate and acceleration limits, the safety filter's push back along the axis | [`command`]: `CommandState::limit`; [`check`]: `limit_and_filter` |
+//! | limit and filter | rate and acceleration limits (what they cannot grant given up where it costs the dose least), the safety filter's push back along the axis | [`command`]: `CommandState::limit`, [`priorities`]; [`check`]: `limit_and_filter` |
 //! | check | the motion's collision checks, each answered by its reaction (give way, refuse) | [`check`]: `check_phase` |
 //! | command | `servo`, and the record | here: `command` |
 //!
@@ -30,6 +30,7 @@ mod command;
 mod held;
 mod in_flight;
 mod plan;
+mod priorities;
 pub mod reach;
 mod record;
 mod robot;
