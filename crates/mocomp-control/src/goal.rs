@@ -108,7 +108,9 @@ fn near_scan_edge(
     // Not a solid: as if touching, so the goal is refused.
     let solid = mocomp_head::CoilSolid::new(coil.radius, coil.thickness).ok();
     for cut in cuts {
-        let distance_m = solid.map_or(0.0, |s| cut.coil_distance(head_from_coil, &s));
+        let distance_m = solid
+            .as_ref()
+            .map_or(0.0, |s| cut.coil_distance(head_from_coil, s));
         if distance_m < SCAN_CUT_KEEP_M {
             return Err(GoalError::NearScanEdge {
                 side: cut.side,

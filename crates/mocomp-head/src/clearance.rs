@@ -20,50 +20,49 @@ use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
 use parry3d_f64::partitioning::BvhNode;
 use parry3d_f64::shape::TriMesh;
 
-/// The coil's cylinder seen from the head: its frame, its axis and its extent along it.
-struct Cylinder {
+/// The coil's solid seen from the head: its frame, its axis, the slab it lies in along it and
+/// its box.
+struct Cylinder<'a> {
+    coil: &'a CoilSolid,
     coil_from_head: Isometry3<f64>,
     /// The coil's +z in the head frame (its axis, into the head).
     axis: Vector3<f64>,
-    radius: f64,
-    thickness: f64,
-    /// The cylinder's box in the head frame: centre and half extents.
+    /// The solid's heights along the axis (coil frame z), back to face.
+    z_span: (f64, f64),
+    /// The solid's box in the head frame: centre and half extents.
     box_centre: Point3<f64>,
     box_half: Vector3<f64>,
 }
 
-impl Cylinder {
-    fn new(coil: &CoilSolid, head_from_coil: &Isometry3<f64>) -> Self {
+impl<'a> Cylinder<'a> {
+    fn new(coil: &'a CoilSolid, head_from_coil: &Isometry3<f64>) -> Self {
         let axis = head_from_coil.rotation * Vector3::z();
-        let (r, t) = (coil.radius(), coil.thickness());
-        // A disc of radius r about the axis reaches r·√(1 − aᵢ²) along head axis i; the
-        // thickness adds half of itself times |aᵢ|.
-        let box_half = axis.map(|a| r * (1.0 - a * a).max(0.0).sqrt() + 0.5 * t * a.abs());
+        let (centre, half) = coil.local_box();
+        let box_half = match coil.as_cylinder() {
+            // A disc of radius r about the axis reaches r·√(1 − aᵢ²) along head axis i; the
+            // thickness adds half of itself times |aᵢ|.
+            Some((r, t)) => axis.map(|a| r * (1.0 - a * a).max(0.0).sqrt() + 0.5 * t * a.abs()),
+            // Any other solid: its own box turned, |R|·h.
+            None => head_from_coil.rotation.to_rotation_matrix().matrix().abs() * half,
+        };
         Self {
+            coil,
             coil_from_head: head_from_coil.inverse(),
             axis,
-            radius: r,
-            thickness: t,
-            box_centre: head_from_coil * Point3::new(0.0, 0.0, -t / 2.0),
+            z_span: coil.z_span(),
+            box_centre: head_from_coil * centre,
             box_half,
         }
     }
 
-    /// How far a point (coil frame) is from the cylinder (0 inside).
-    fn point_distance(&self, p: &Point3<f64>) -> f64 {
-        let radial = (p.x.hypot(p.y) - self.radius).max(0.0);
-        let along = (p.z).max(-self.thickness - p.z).max(0.0);
-        radial.hypot(along)
-    }
-
     /// How far the span `[lo, hi]` of heights along the axis (coil frame z) is from the slab
-    /// the cylinder lies in.
+    /// the solid lies in.
     fn slab_gap(&self, lo: f64, hi: f64) -> f64 {
-        lo.max(-self.thickness - hi).max(0.0)
+        (lo - self.z_span.1).max(self.z_span.0 - hi).max(0.0)
     }
 
     /// A lower bound of the distance from anything in the box `[min, max]` (head frame) to the
-    /// cylinder.
+    /// solid.
     fn box_bound(&self, min: &Point3<f64>, max: &Point3<f64>) -> f64 {
         let centre = mocomp_geom::nalgebra::center(min, max);
         let half = (max - min) / 2.0;
@@ -76,12 +75,12 @@ impl Cylinder {
         let spread = self.axis.abs().dot(&half);
         let slab = self.slab_gap(c.z - spread, c.z + spread);
         // The enclosing sphere's.
-        let sphere = self.point_distance(&c) - half.norm();
+        let sphere = self.coil.point_distance(&c) - half.norm();
         gap.max(slab).max(sphere)
     }
 
-    /// A lower bound of the distance from the triangle `abc` (head frame) to the cylinder:
-    /// the slab's, exact for a triangle (its heights are its corners').
+    /// A lower bound of the distance from the triangle `abc` (head frame) to the solid: the
+    /// slab's, exact for a triangle (its heights are its corners').
     fn triangle_bound(&self, abc: [&Point3<f64>; 3]) -> f64 {
         let z = abc.map(|p| (self.coil_from_head * p).z);
         self.slab_gap(z[0].min(z[1]).min(z[2]), z[0].max(z[1]).max(z[2]))
@@ -98,8 +97,9 @@ pub(crate) fn least_distance(
     at_most: f64,
 ) -> Option<f64> {
     let cylinder = Cylinder::new(coil, head_from_coil);
-    let head_from_cylinder = coil.head_from_cylinder(head_from_coil);
-    let shape = coil.cylinder();
+    let convex = coil.convex();
+    let head_from_shape = convex.placed(head_from_coil);
+    let shape = convex.shape();
     let vertices = mesh.vertices();
     let indices = mesh.indices();
     // A hair above the bound, so that the triangle it was measured to is still found.
@@ -117,8 +117,8 @@ pub(crate) fn least_distance(
                 parry3d_f64::query::distance(
                     &Isometry3::identity(),
                     &mesh.triangle(t),
-                    &head_from_cylinder,
-                    &shape,
+                    &head_from_shape,
+                    shape,
                 )
                 .ok()
             },
@@ -132,11 +132,29 @@ mod tests {
     use super::*;
     use mocomp_geom::nalgebra::{Translation3, UnitQuaternion};
 
+    /// The distance from `p` (coil frame) to the solid, exactly.
+    fn exact(coil: &CoilSolid, p: &Point3<f64>) -> f64 {
+        use parry3d_f64::query::PointQuery;
+        match coil.as_casing() {
+            Some(c) => c.hull().distance_to_local_point(p, true),
+            None => coil.point_distance(p),
+        }
+    }
+
     /// Each bound is below the true distance for points of the box or triangle: checked on
-    /// random points against the cylinder's own point distance.
+    /// random points against the solid's exact point distance, for a cylinder and a casing.
     #[test]
     fn the_bounds_never_exceed_a_distance_they_bound() {
-        let coil = CoilSolid::new(0.04, 0.03).unwrap();
+        let casing = crate::casing::Casing::new(&crate::casing::tests::slab(), "slab").unwrap();
+        for coil in [
+            CoilSolid::new(0.04, 0.03).unwrap(),
+            CoilSolid::casing(std::sync::Arc::new(casing)),
+        ] {
+            bounds_never_exceed_a_distance(&coil);
+        }
+    }
+
+    fn bounds_never_exceed_a_distance(coil: &CoilSolid) {
         let mut s = 0x9e37_79b9_7f4a_7c15_u64;
         let mut next = move || {
             s ^= s << 13;
@@ -149,7 +167,7 @@ mod tests {
                 Translation3::new(next() * 0.2 - 0.1, next() * 0.2 - 0.1, next() * 0.2 - 0.1),
                 UnitQuaternion::from_euler_angles(next() * 6.3, next() * 6.3, next() * 6.3),
             );
-            let cyl = Cylinder::new(&coil, &pose);
+            let cyl = Cylinder::new(coil, &pose);
             let min = Point3::new(next() * 0.2 - 0.1, next() * 0.2 - 0.1, next() * 0.2 - 0.1);
             let max = min + Vector3::new(next(), next(), next()) * 0.05;
             let bound = cyl.box_bound(&min, &max);
@@ -158,7 +176,7 @@ mod tests {
             let tbound = cyl.triangle_bound([&tri[0], &tri[1], &tri[2]]);
             for _ in 0..50 {
                 let p = min + (max - min).component_mul(&Vector3::new(next(), next(), next()));
-                let d = cyl.point_distance(&(cyl.coil_from_head * p));
+                let d = exact(coil, &(cyl.coil_from_head * p));
                 assert!(bound <= d + 1e-12, "box bound {bound} above {d}");
                 let (u, v) = (next(), next());
                 let (u, v) = if u + v > 1.0 {
@@ -167,7 +185,7 @@ mod tests {
                     (u, v)
                 };
                 let q = tri[0] + (tri[1] - tri[0]) * u + (tri[2] - tri[0]) * v;
-                let dq = cyl.point_distance(&(cyl.coil_from_head * q));
+                let dq = exact(coil, &(cyl.coil_from_head * q));
                 assert!(tbound <= dq + 1e-12, "triangle bound {tbound} above {dq}");
             }
         }

@@ -51,9 +51,10 @@ impl ScanCut {
         // A plate a micrometre thick: parry's box against its cylinder.
         let plate =
             parry3d_f64::shape::Cuboid::new(Vector3::new(self.half_m[0], self.half_m[1], 1e-6));
+        let convex = coil.convex();
         parry3d_f64::query::distance(
-            &coil.head_from_cylinder(head_from_coil),
-            &coil.cylinder(),
+            &convex.placed(head_from_coil),
+            convex.shape(),
             &head_from_patch,
             &plate,
         )

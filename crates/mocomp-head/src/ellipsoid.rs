@@ -290,21 +290,21 @@ impl HeadShape for Ellipsoid {
     }
 
     fn coil_clearance(&self, head_from_coil: &Isometry3<f64>, coil: &CoilSolid) -> f64 {
-        let ellipsoid_from_cylinder = self
+        let convex = coil.convex();
+        let ellipsoid_from_shape = self
             .head_from_ellipsoid
-            .inv_mul(&coil.head_from_cylinder(head_from_coil));
+            .inv_mul(&convex.placed(head_from_coil));
         let d = distance_support_map_support_map(
-            &ellipsoid_from_cylinder,
+            &ellipsoid_from_shape,
             &Support(&self.radii),
-            &coil.cylinder(),
+            convex.support(),
         );
         if d > 0.0 {
             return d;
         }
         // Cutting in: as deep as its deepest face or rim point, as for the mesh.
-        coil.sample_points(head_from_coil)
-            .iter()
-            .map(|p| self.signed_distance(p))
+        coil.key_points(head_from_coil)
+            .map(|p| self.signed_distance(&p))
             .fold(0.0, f64::min)
     }
 }

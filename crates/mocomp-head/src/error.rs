@@ -120,6 +120,14 @@ pub enum HeadError {
         /// Thickness.
         thickness: f64,
     },
+    /// A coil casing that is no solid.
+    #[error("coil casing {file}: {why}")]
+    BadCasing {
+        /// The file it was read from.
+        file: String,
+        /// What is wrong with it.
+        why: String,
+    },
 }
 
 impl HeadError {

@@ -14,6 +14,7 @@
 //! distance field's grid allocates nothing (beyond it, parry's traversal keeps a small stack that
 //! may spill to the heap). Volumes (NIfTI) are not read here yet.
 
+pub mod casing;
 mod clearance;
 pub mod cut;
 pub mod ellipsoid;

@@ -404,9 +404,8 @@ impl HeadShape for MeshHead {
     /// point.
     fn coil_clearance(&self, head_from_coil: &Isometry3<f64>, coil: &CoilSolid) -> f64 {
         let (deepest, nearest) = coil
-            .sample_points(head_from_coil)
-            .iter()
-            .map(|p| (self.distance_below(p, 0.0), *p))
+            .key_points(head_from_coil)
+            .map(|p| (self.distance_below(&p, 0.0), p))
             .fold((f64::INFINITY, Point3::origin()), |a, b| {
                 if b.0 < a.0 { b } else { a }
             });
@@ -428,9 +427,10 @@ impl MeshHead {
         head_from_coil: &Isometry3<f64>,
         coil: &CoilSolid,
     ) -> f64 {
+        let convex = coil.convex();
         parry3d_f64::query::distance(
-            &coil.head_from_cylinder(head_from_coil),
-            &coil.cylinder(),
+            &convex.placed(head_from_coil),
+            convex.shape(),
             &Isometry3::identity(),
             &self.mesh,
         )

@@ -11,7 +11,7 @@
 
 use crate::field::{EXACT_BAND_M, INTERPOLATION_SLACK_M};
 use crate::mesh::MeshHead;
-use crate::shape::{CoilSolid, HeadShape};
+use crate::shape::{CoilSolid, HeadShape, SolidKey};
 use mocomp_geom::nalgebra::{Isometry3, Point3};
 use std::sync::LazyLock;
 
@@ -28,6 +28,21 @@ const REFINED: usize = 2;
 /// margin. The loop takes it off the sampled clearance, so it never believes in more room than
 /// there is.
 pub const BETWEEN_SAMPLES_M: f64 = 0.0015;
+
+/// [`BETWEEN_SAMPLES_M`] for a casing's samples ([`crate::casing`]): 1.75 mm at most on the
+/// fsaverage head with SimNIBS's Magstim D70 (505 samples; 1,100 clear poses facing it from
+/// touching to 30 mm, tilted up to 17°; the same with other spacings of face and rim), with a
+/// margin.
+pub const CASING_BETWEEN_SAMPLES_M: f64 = 0.002;
+
+/// How much nearer than its sampled points `coil` may be to a scalp, m.
+pub fn between_samples_m(coil: &CoilSolid) -> f64 {
+    if coil.as_casing().is_some() {
+        CASING_BETWEEN_SAMPLES_M
+    } else {
+        BETWEEN_SAMPLES_M
+    }
+}
 
 /// How far above the least interpolated value a sample is still refined, m (refining only the
 /// least gave the same figures on the fsaverage scalp: a second near it is a spare).
@@ -57,12 +72,23 @@ static SAMPLES: LazyLock<Vec<[f64; 3]>> = LazyLock::new(|| {
     out
 });
 
-/// How many points the sampled coil has: its face's centre and rings, and two rims.
-pub const SAMPLE_COUNT: usize = 1 + 3 * FACE_RINGS * (FACE_RINGS + 1) + 2 * RIM_POINTS;
+/// How many points a sampled cylinder has: its face's centre and rings, and two rims.
+pub const CYLINDER_SAMPLES: usize = 1 + 3 * FACE_RINGS * (FACE_RINGS + 1) + 2 * RIM_POINTS;
 
-/// How many points the sampled coil has.
-pub fn sample_count() -> usize {
-    SAMPLES.len()
+/// The most points any sampled coil has (a casing's, [`crate::casing::MAX_SAMPLES`]): what a
+/// [`ClearanceMemory`] keeps a value for.
+pub const SAMPLE_COUNT: usize = if crate::casing::MAX_SAMPLES > CYLINDER_SAMPLES {
+    crate::casing::MAX_SAMPLES
+} else {
+    CYLINDER_SAMPLES
+};
+
+/// How many points `coil` is sampled at.
+pub fn sample_count(coil: &CoilSolid) -> usize {
+    match coil.as_casing() {
+        Some(c) => c.samples().len(),
+        None => SAMPLES.len(),
+    }
 }
 
 /// The coil's sampled points in the head frame.
@@ -70,13 +96,19 @@ pub fn surface_samples<'a>(
     coil: &'a CoilSolid,
     head_from_coil: &'a Isometry3<f64>,
 ) -> impl Iterator<Item = Point3<f64>> + 'a {
-    (0..SAMPLES.len()).map(move |i| sample(coil, head_from_coil, i))
+    (0..sample_count(coil)).map(move |i| sample(coil, head_from_coil, i))
 }
 
 /// Sample `i` of the coil at `head_from_coil`, head frame.
 fn sample(coil: &CoilSolid, head_from_coil: &Isometry3<f64>, i: usize) -> Point3<f64> {
-    let [x, y, z] = SAMPLES[i];
-    head_from_coil * Point3::new(coil.radius() * x, coil.radius() * y, coil.thickness() * z)
+    match (coil.as_cylinder(), coil.as_casing()) {
+        (Some((r, t)), _) => {
+            let [x, y, z] = SAMPLES[i];
+            head_from_coil * Point3::new(r * x, r * y, t * z)
+        }
+        (None, Some(c)) => head_from_coil * c.samples()[i],
+        (None, None) => head_from_coil * Point3::origin(),
+    }
 }
 
 /// What one caller of [`MeshHead::coil_clearance_remembering`] knew at its last call: for
@@ -89,7 +121,7 @@ fn sample(coil: &CoilSolid, head_from_coil: &Isometry3<f64>, i: usize) -> Point3
 #[derive(Debug, Clone)]
 pub struct ClearanceMemory {
     /// The head, coil and pose `below` holds at; `None` when it holds nothing.
-    at: Option<(u64, CoilSolid, Isometry3<f64>)>,
+    at: Option<(u64, SolidKey, Isometry3<f64>)>,
     /// Per sample, at most its ranked value at `at`.
     below: [f64; SAMPLE_COUNT],
     /// The sample that ranked least at `at`: looked up first, so the bar starts low.
@@ -126,27 +158,27 @@ impl ClearanceMemory {
     /// first call).
     fn move_to(&mut self, head: &MeshHead, coil: &CoilSolid, head_from_coil: &Isometry3<f64>) {
         let fall = match &self.at {
-            Some((id, c, before)) if *id == head.id() && c == coil => {
+            Some((id, c, before)) if *id == head.id() && *c == coil.key() => {
                 // A sample s (coil frame) moves by at most |Δt| + ‖ΔR‖·|s|, with
                 // ‖ΔR‖ = 2 sin(θ/2) for the turn θ between the poses; |s| is at most the rim
                 // behind the face.
                 let turn = (head_from_coil.rotation * before.rotation.inverse()).angle();
                 let shift = (head_from_coil.translation.vector - before.translation.vector).norm();
-                let moved =
-                    shift + 2.0 * (turn / 2.0).sin() * coil.radius().hypot(coil.thickness());
+                let moved = shift + 2.0 * (turn / 2.0).sin() * coil.extent();
                 // f32 nodes and f64 arithmetic: far below a nanometre; a margin all the same.
                 head.field().lipschitz() * moved + 1e-9
             }
             _ => f64::INFINITY,
         };
         if fall.is_finite() {
-            for b in &mut self.below {
+            // Only the coil's own samples hold anything (the same coil as before).
+            for b in self.below.iter_mut().take(sample_count(coil)) {
                 *b -= fall;
             }
         } else {
             self.below = [f64::NEG_INFINITY; SAMPLE_COUNT];
         }
-        self.at = Some((head.id(), *coil, *head_from_coil));
+        self.at = Some((head.id(), coil.key(), *head_from_coil));
     }
 
     /// Forgets everything (the next call looks every sample up).
@@ -179,8 +211,8 @@ impl MeshHead {
         coil: &CoilSolid,
         cutoff: f64,
     ) -> f64 {
-        let centre = head_from_coil * Point3::new(0.0, 0.0, -coil.thickness() / 2.0);
-        let reach = coil.radius().hypot(coil.thickness() / 2.0);
+        let (centre, reach) = coil.bounding_sphere();
+        let centre = head_from_coil * centre;
         let bound = self.bounds().distance(&centre) - reach;
         if bound >= cutoff {
             memory.forget();
@@ -192,7 +224,9 @@ impl MeshHead {
         let mut lowest = [(f64::INFINITY, Point3::origin()); REFINED];
         let first = memory.least;
         let mut least_at = first;
-        for i in std::iter::once(first).chain((0..SAMPLE_COUNT).filter(|&i| i != first)) {
+        let count = sample_count(coil);
+        let first = if first < count { first } else { 0 };
+        for i in std::iter::once(first).chain((0..count).filter(|&i| i != first)) {
             // Spared: above the least by more than any refined sample can be.
             if i != first && memory.below[i] > lowest[0].0 + REFINE_WITHIN_M {
                 continue;
@@ -236,8 +270,8 @@ mod tests {
         let coil = CoilSolid::new(0.04, 0.03).unwrap();
         let pose = Isometry3::identity();
         let pts: Vec<_> = surface_samples(&coil, &pose).collect();
-        assert_eq!(pts.len(), sample_count());
-        assert_eq!(sample_count(), SAMPLE_COUNT);
+        assert_eq!(pts.len(), sample_count(&coil));
+        assert_eq!(sample_count(&coil), CYLINDER_SAMPLES);
         for p in &pts {
             let radial = p.x.hypot(p.y);
             assert!(radial <= 0.04 + 1e-12 && p.z <= 0.0 && p.z >= -0.03 - 1e-12);

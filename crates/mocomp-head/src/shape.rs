@@ -2,8 +2,10 @@
 //! nearest surface point with its normal, a ray's hit, the coil's clearance, a bounding box.
 //! All in the head (marker) frame, metres.
 
+use crate::casing::Casing;
 use crate::error::HeadError;
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+use std::sync::Arc;
 
 /// A point on the surface nearest a query point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,60 +86,199 @@ pub const COIL_RIM: [(f64, f64); 9] = {
     ]
 };
 
-/// The coil as the solid it is: a cylinder (a disc with thickness) in the coil frame, its face
-/// at the origin, +z (its approach axis) into the head, its body behind the face (z from
-/// `-thickness` to 0), `radius` as seen from the head.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The coil as the solid it is, in the coil frame (+z, its approach axis, into the head): a
+/// cylinder (a disc with thickness: its face at the origin, its body behind it, z from
+/// `-thickness` to 0, `radius` as seen from the head), or a casing as drawn
+/// ([`crate::casing::Casing`]: its convex hull). Clones share a casing.
+#[derive(Debug, Clone, PartialEq)]
 pub struct CoilSolid {
-    radius: f64,
-    thickness: f64,
+    form: Form,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Form {
+    Cylinder { radius: f64, thickness: f64 },
+    Casing(Arc<Casing>),
+}
+
+/// Which solid a coil is, cheap to keep and compare: the same key, the same solid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SolidKey {
+    /// A cylinder of this radius and thickness.
+    Cylinder(f64, f64),
+    /// The casing of this number ([`Casing::id`]).
+    Casing(u64),
+}
+
+/// The convex solid parry measures a coil as, and where it sits in the coil frame.
+pub(crate) enum Convex<'a> {
+    Cylinder(parry3d_f64::shape::Cylinder, Isometry3<f64>),
+    Hull(&'a parry3d_f64::shape::ConvexPolyhedron),
+}
+
+impl Convex<'_> {
+    /// The shape, for parry's queries.
+    pub(crate) fn shape(&self) -> &dyn parry3d_f64::shape::Shape {
+        match self {
+            Self::Cylinder(c, _) => c,
+            Self::Hull(h) => *h,
+        }
+    }
+
+    /// The shape's support map, for GJK against another support map.
+    pub(crate) fn support(&self) -> &dyn parry3d_f64::shape::SupportMap {
+        match self {
+            Self::Cylinder(c, _) => c,
+            Self::Hull(h) => *h,
+        }
+    }
+
+    /// `head_from_shape` for the coil at `head_from_coil`.
+    pub(crate) fn placed(&self, head_from_coil: &Isometry3<f64>) -> Isometry3<f64> {
+        match self {
+            Self::Cylinder(_, coil_from_cylinder) => head_from_coil * coil_from_cylinder,
+            Self::Hull(_) => *head_from_coil,
+        }
+    }
 }
 
 impl CoilSolid {
     /// A coil of `radius` and `thickness`, metres.
     pub fn new(radius: f64, thickness: f64) -> Result<Self, HeadError> {
         if radius.is_finite() && thickness.is_finite() && radius > 0.0 && thickness > 0.0 {
-            Ok(Self { radius, thickness })
+            Ok(Self {
+                form: Form::Cylinder { radius, thickness },
+            })
         } else {
             Err(HeadError::BadCoil { radius, thickness })
         }
     }
 
-    /// Its radius, m.
-    pub fn radius(&self) -> f64 {
-        self.radius
+    /// The coil as its casing.
+    pub fn casing(casing: Arc<Casing>) -> Self {
+        Self {
+            form: Form::Casing(casing),
+        }
     }
 
-    /// Its thickness, m.
-    pub fn thickness(&self) -> f64 {
-        self.thickness
+    /// The casing, when the coil is one.
+    pub fn as_casing(&self) -> Option<&Casing> {
+        match &self.form {
+            Form::Casing(c) => Some(c),
+            Form::Cylinder { .. } => None,
+        }
     }
 
-    /// The cylinder as parry holds it (its axis along its own y), centred.
-    pub(crate) fn cylinder(&self) -> parry3d_f64::shape::Cylinder {
-        parry3d_f64::shape::Cylinder::new(self.thickness / 2.0, self.radius)
+    /// Which solid it is.
+    pub fn key(&self) -> SolidKey {
+        match &self.form {
+            Form::Cylinder { radius, thickness } => SolidKey::Cylinder(*radius, *thickness),
+            Form::Casing(c) => SolidKey::Casing(c.id()),
+        }
     }
 
-    /// The face's and back's centres and their rims every 45°, head frame: where a coil facing
-    /// the head is nearest it, to seed the exact search and to measure how deep a coil cutting
-    /// in goes.
-    pub(crate) fn sample_points(&self, head_from_coil: &Isometry3<f64>) -> [Point3<f64>; 18] {
-        let r = self.radius;
-        std::array::from_fn(|i| {
-            let (c, s) = COIL_RIM[i % 9];
-            let z = if i < 9 { 0.0 } else { -self.thickness };
-            head_from_coil * Point3::new(r * c, r * s, z)
-        })
+    /// A sphere holding the solid: its centre (coil frame) and radius, m.
+    pub fn bounding_sphere(&self) -> (Point3<f64>, f64) {
+        match &self.form {
+            Form::Cylinder { radius, thickness } => (
+                Point3::new(0.0, 0.0, -thickness / 2.0),
+                radius.hypot(thickness / 2.0),
+            ),
+            Form::Casing(c) => c.bounding_sphere(),
+        }
     }
 
-    /// `head_from_cylinder` for the coil at `head_from_coil`: the cylinder's centre half its
-    /// thickness behind the face, its y turned onto the coil's z.
-    pub(crate) fn head_from_cylinder(&self, head_from_coil: &Isometry3<f64>) -> Isometry3<f64> {
-        let coil_from_cylinder = Isometry3::from_parts(
-            Translation3::new(0.0, 0.0, -self.thickness / 2.0),
-            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
-        );
-        head_from_coil * coil_from_cylinder
+    /// The farthest any point of the solid is from the coil's origin, m.
+    pub fn extent(&self) -> f64 {
+        match &self.form {
+            Form::Cylinder { radius, thickness } => radius.hypot(*thickness),
+            Form::Casing(c) => c.extent(),
+        }
+    }
+
+    /// Its heights along +z, back to face: `(z_min, z_max)`, m.
+    pub fn z_span(&self) -> (f64, f64) {
+        match &self.form {
+            Form::Cylinder { thickness, .. } => (-thickness, 0.0),
+            Form::Casing(c) => c.z_span(),
+        }
+    }
+
+    /// Its box in the coil frame: centre and half extents, m.
+    pub(crate) fn local_box(&self) -> (Point3<f64>, Vector3<f64>) {
+        match &self.form {
+            Form::Cylinder { radius, thickness } => (
+                Point3::new(0.0, 0.0, -thickness / 2.0),
+                Vector3::new(*radius, *radius, thickness / 2.0),
+            ),
+            Form::Casing(c) => c.local_box(),
+        }
+    }
+
+    /// The convex solid parry measures.
+    pub(crate) fn convex(&self) -> Convex<'_> {
+        match &self.form {
+            Form::Cylinder { radius, thickness } => Convex::Cylinder(
+                parry3d_f64::shape::Cylinder::new(thickness / 2.0, *radius),
+                // Its centre half its thickness behind the face, its y turned onto the coil's z.
+                Isometry3::from_parts(
+                    Translation3::new(0.0, 0.0, -thickness / 2.0),
+                    UnitQuaternion::from_axis_angle(
+                        &Vector3::x_axis(),
+                        std::f64::consts::FRAC_PI_2,
+                    ),
+                ),
+            ),
+            Form::Casing(c) => Convex::Hull(c.hull()),
+        }
+    }
+
+    /// A lower bound of the distance from `p` (coil frame) to the solid (0 inside): exact for
+    /// the cylinder, from the bounding sphere for a casing.
+    pub(crate) fn point_distance(&self, p: &Point3<f64>) -> f64 {
+        match &self.form {
+            Form::Cylinder { radius, thickness } => {
+                let radial = (p.x.hypot(p.y) - radius).max(0.0);
+                let along = (p.z).max(-thickness - p.z).max(0.0);
+                radial.hypot(along)
+            }
+            Form::Casing(c) => {
+                let (centre, reach) = c.bounding_sphere();
+                ((p - centre).norm() - reach).max(0.0)
+            }
+        }
+    }
+
+    /// The points a coil facing the head is nearest it at, head frame: to seed the exact
+    /// search and to measure how deep a coil cutting in goes. The cylinder's face and back
+    /// centres and rims every 45°; a casing's samples.
+    pub(crate) fn key_points<'a>(
+        &'a self,
+        head_from_coil: &'a Isometry3<f64>,
+    ) -> impl Iterator<Item = Point3<f64>> + 'a {
+        let (cylinder, casing) = match &self.form {
+            Form::Cylinder { radius, thickness } => (Some((*radius, *thickness)), None),
+            Form::Casing(c) => (None, Some(c.samples())),
+        };
+        let rims = cylinder.into_iter().flat_map(move |(r, t)| {
+            (0..18).map(move |i| {
+                let (c, s) = COIL_RIM[i % 9];
+                let z = if i < 9 { 0.0 } else { -t };
+                head_from_coil * Point3::new(r * c, r * s, z)
+            })
+        });
+        let samples = casing
+            .into_iter()
+            .flat_map(move |s| s.iter().map(move |p| head_from_coil * p));
+        rims.chain(samples)
+    }
+
+    /// The cylinder's radius and thickness, when it is one.
+    pub(crate) fn as_cylinder(&self) -> Option<(f64, f64)> {
+        match &self.form {
+            Form::Cylinder { radius, thickness } => Some((*radius, *thickness)),
+            Form::Casing(_) => None,
+        }
     }
 }
 
@@ -195,9 +336,8 @@ pub trait HeadShape {
         coil: &CoilSolid,
         cutoff: f64,
     ) -> f64 {
-        // The coil lies within a sphere of its half-diagonal about the cylinder's centre.
-        let centre = head_from_coil * Point3::new(0.0, 0.0, -coil.thickness / 2.0);
-        let reach = coil.radius.hypot(coil.thickness / 2.0);
+        let (centre, reach) = coil.bounding_sphere();
+        let centre = head_from_coil * centre;
         let bound = self.bounds().distance(&centre) - reach;
         if bound >= cutoff {
             bound
