@@ -3,6 +3,7 @@
 //! 100 k of a clinical scalp lies between), by the distance field and by parry's BVH, and what
 //! building both costs; the coil's clearance sampled as the loop asks it (a new pose each call,
 //! and remembering the last call while following the head), and exact as reports measure it.
+//! The coil as SimNIBS's D70 casing against the cylinder (group `coil solid`).
 //! `cargo bench -p mocomp-head` (needs the peers in .venv: `scripts/test.sh` installs them).
 #![allow(
     missing_docs,
@@ -214,5 +215,68 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+/// The coil as SimNIBS's D70 casing against the 40 × 30 mm cylinder, the same queries on the
+/// ellipsoid and fsaverage: what a casing costs the loop.
+fn bench_casing(c: &mut Criterion) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../mocomp-efield/tests/data/coils/MagStim_D70.stl");
+    let bytes = std::fs::read(&path).expect("the D70 casing");
+    let read = mocomp_head::formats::read_surface(
+        "MagStim_D70.stl",
+        &bytes,
+        Some(mocomp_geom::LengthUnit::Millimetre),
+    )
+    .unwrap();
+    let casing = mocomp_head::casing::Casing::new(&read.mesh, "MagStim_D70.stl").unwrap();
+    let coils = [
+        ("cylinder", CoilSolid::new(0.04, 0.03).unwrap()),
+        ("D70 casing", CoilSolid::casing(std::sync::Arc::new(casing))),
+    ];
+    let head = MeshHead::new(fsaverage(), "fsaverage").unwrap();
+    let ellipsoid = Ellipsoid::new(
+        Isometry3::translation(0.0, -0.01, -0.03),
+        Vector3::new(0.085, 0.11, 0.13),
+    )
+    .unwrap();
+    let (_, poses) = queries(&head, 256);
+    let mut g = c.benchmark_group("coil solid");
+    for (name, coil) in &coils {
+        g.bench_with_input(
+            BenchmarkId::new("ellipsoid clearance (GJK)", name),
+            coil,
+            |b, coil| {
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % poses.len();
+                    black_box(ellipsoid.coil_clearance(&poses[i], coil))
+                })
+            },
+        );
+        g.bench_with_input(
+            BenchmarkId::new("fsaverage clearance sampled", name),
+            coil,
+            |b, coil| {
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % poses.len();
+                    black_box(head.coil_clearance_sampled(&poses[i], coil, f64::INFINITY))
+                })
+            },
+        );
+        g.bench_with_input(
+            BenchmarkId::new("fsaverage clearance exact", name),
+            coil,
+            |b, coil| {
+                let mut i = 0;
+                b.iter(|| {
+                    i = (i + 1) % poses.len();
+                    black_box(head.coil_clearance(&poses[i], coil))
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench, bench_casing);
 criterion_main!(benches);
