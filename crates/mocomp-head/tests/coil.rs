@@ -27,6 +27,11 @@ fn fsaverage() -> MeshHead {
 
 /// SimNIBS's Magstim D70 casing (its `.stl`, mm, the coil's frame), as the solid.
 fn d70() -> CoilSolid {
+    d70_read().1
+}
+
+/// The D70's casing as read (coil frame, metres), and as the solid.
+fn d70_read() -> (mocomp_head::Mesh, CoilSolid) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../mocomp-efield/tests/data/coils/MagStim_D70.stl");
     let bytes = std::fs::read(&path).unwrap();
@@ -34,7 +39,7 @@ fn d70() -> CoilSolid {
         mocomp_head::formats::read_surface("MagStim_D70.stl", &bytes, Some(LengthUnit::Millimetre))
             .unwrap();
     let casing = mocomp_head::casing::Casing::new(&read.mesh, "MagStim_D70.stl").unwrap();
-    CoilSolid::casing(std::sync::Arc::new(casing))
+    (read.mesh, CoilSolid::casing(std::sync::Arc::new(casing)))
 }
 
 /// A coil facing the scalp near `p`, its face `gap` off the surface along the normal.
@@ -320,17 +325,11 @@ fn the_exact_clearance_is_parrys_distance_between_the_solids() {
 fn the_d70_casing_is_its_hull_and_its_clearance_is_the_hull_s() {
     use mocomp_head::{Ellipsoid, HeadShape};
     use parry3d_f64::query::PointQuery;
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../mocomp-efield/tests/data/coils/MagStim_D70.stl");
-    let bytes = std::fs::read(&path).unwrap();
-    let read =
-        mocomp_head::formats::read_surface("MagStim_D70.stl", &bytes, Some(LengthUnit::Millimetre))
-            .unwrap();
-    let coil = d70();
+    let (mesh, coil) = d70_read();
     let casing = coil.as_casing().unwrap();
     // Every casing point inside the hull and every sample on it (to rounding: parry builds the
     // hull within nanometres).
-    for v in &read.mesh.vertices {
+    for v in &mesh.vertices {
         let d = casing.hull().distance_to_local_point(v, true);
         assert!(d < 1e-8, "{v}: {d}");
     }
