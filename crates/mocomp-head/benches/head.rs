@@ -227,7 +227,7 @@ fn bench_casing(c: &mut Criterion) {
         Some(mocomp_geom::LengthUnit::Millimetre),
     )
     .unwrap();
-    let casing = mocomp_head::casing::Casing::new(&read.mesh, "MagStim_D70.stl").unwrap();
+    let casing = mocomp_head::casing::Casing::new(&read.mesh.vertices, "MagStim_D70.stl").unwrap();
     let coils = [
         ("cylinder", CoilSolid::new(0.04, 0.03).unwrap()),
         ("D70 casing", CoilSolid::casing(std::sync::Arc::new(casing))),

@@ -13,7 +13,6 @@
 //! remain (the D70: 505).
 
 use crate::error::HeadError;
-use crate::mesh::Mesh;
 use mocomp_geom::nalgebra::{Point3, Vector3};
 use parry3d_f64::shape::ConvexPolyhedron;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -61,26 +60,26 @@ impl PartialEq for Casing {
 }
 
 impl Casing {
-    /// The casing drawn by `mesh` (coil frame, metres), read from `file` (named in errors).
-    pub fn new(mesh: &Mesh, file: &str) -> Result<Self, HeadError> {
+    /// The casing whose surface has the vertices `vertices` (coil frame, metres; its triangles
+    /// do not matter, the hull is of its points), read from `file` (named in errors).
+    pub fn new(vertices: &[Point3<f64>], file: &str) -> Result<Self, HeadError> {
         let bad = |why: String| HeadError::BadCasing {
             file: file.to_string(),
             why,
         };
-        if let Some(i) = mesh
-            .vertices
+        if let Some(i) = vertices
             .iter()
             .position(|v| !v.coords.iter().all(|c| c.is_finite()))
         {
             return Err(bad(format!("vertex {i} is not finite")));
         }
-        if mesh.vertices.len() < 4 {
+        if vertices.len() < 4 {
             return Err(bad(format!(
                 "{} vertices: a solid needs at least 4",
-                mesh.vertices.len()
+                vertices.len()
             )));
         }
-        let (points, triangles) = parry3d_f64::transformation::convex_hull(&mesh.vertices);
+        let (points, triangles) = parry3d_f64::transformation::convex_hull(vertices);
         let hull = ConvexPolyhedron::from_convex_mesh(points.clone(), &triangles)
             .ok_or_else(|| bad("its points are flat: it encloses no volume".to_string()))?;
         let (mut lo, mut hi) = (points[0], points[0]);
@@ -284,7 +283,7 @@ pub(crate) mod tests {
     use super::*;
 
     /// A box 0.2 × 0.1 × 0.02 m behind the coil's face, wound outward.
-    pub(crate) fn slab() -> Mesh {
+    pub(crate) fn slab() -> crate::mesh::Mesh {
         let (x, y, z0, z1) = (0.1, 0.05, -0.021, -0.001);
         let vertices = vec![
             Point3::new(-x, -y, z0),
@@ -310,7 +309,7 @@ pub(crate) mod tests {
             [3, 0, 4],
             [3, 4, 7],
         ];
-        Mesh {
+        crate::mesh::Mesh {
             vertices,
             triangles,
         }
@@ -318,7 +317,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_box_s_hull_is_itself_and_its_samples_cover_it() {
-        let c = Casing::new(&slab(), "slab.stl").unwrap();
+        let c = Casing::new(&slab().vertices, "slab.stl").unwrap();
         assert_eq!(c.z_span(), (-0.021, -0.001));
         assert!(
             (c.extent() - (0.1f64.powi(2) + 0.05f64.powi(2) + 0.021f64.powi(2)).sqrt()).abs()
@@ -363,25 +362,31 @@ pub(crate) mod tests {
         for v in &mut flat.vertices {
             v.z = 0.0;
         }
-        let e = Casing::new(&flat, "flat.stl").unwrap_err().to_string();
+        let e = Casing::new(&flat.vertices, "flat.stl")
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("flat.stl") && e.contains("encloses no volume"),
             "{e}"
         );
         let mut nan = slab();
         nan.vertices[3].y = f64::NAN;
-        let e = Casing::new(&nan, "nan.stl").unwrap_err().to_string();
+        let e = Casing::new(&nan.vertices, "nan.stl")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("nan.stl") && e.contains("vertex 3"), "{e}");
-        let few = Mesh {
+        let few = crate::mesh::Mesh {
             vertices: slab().vertices[..3].to_vec(),
             triangles: vec![[0, 1, 2]],
         };
-        let e = Casing::new(&few, "few.stl").unwrap_err().to_string();
+        let e = Casing::new(&few.vertices, "few.stl")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("3 vertices"), "{e}");
         // Two casings are two, even from one file.
         let (a, b) = (
-            Casing::new(&slab(), "a").unwrap(),
-            Casing::new(&slab(), "a").unwrap(),
+            Casing::new(&slab().vertices, "a").unwrap(),
+            Casing::new(&slab().vertices, "a").unwrap(),
         );
         assert_ne!(a, b);
         assert_eq!(a, a.clone());

@@ -145,7 +145,8 @@ mod tests {
     /// random points against the solid's exact point distance, for a cylinder and a casing.
     #[test]
     fn the_bounds_never_exceed_a_distance_they_bound() {
-        let casing = crate::casing::Casing::new(&crate::casing::tests::slab(), "slab").unwrap();
+        let casing =
+            crate::casing::Casing::new(&crate::casing::tests::slab().vertices, "slab").unwrap();
         for coil in [
             CoilSolid::new(0.04, 0.03).unwrap(),
             CoilSolid::casing(std::sync::Arc::new(casing)),

@@ -38,7 +38,7 @@ fn d70_read() -> (mocomp_head::Mesh, CoilSolid) {
     let read =
         mocomp_head::formats::read_surface("MagStim_D70.stl", &bytes, Some(LengthUnit::Millimetre))
             .unwrap();
-    let casing = mocomp_head::casing::Casing::new(&read.mesh, "MagStim_D70.stl").unwrap();
+    let casing = mocomp_head::casing::Casing::new(&read.mesh.vertices, "MagStim_D70.stl").unwrap();
     (read.mesh, CoilSolid::casing(std::sync::Arc::new(casing)))
 }
 
