@@ -42,8 +42,7 @@ pub struct Casing {
     /// The hull's heights along +z: from its back (`z_min`) to its face (`z_max`).
     z_min: f64,
     z_max: f64,
-    /// A sphere that holds the hull: centre (coil frame) and radius.
-    centre: Point3<f64>,
+    /// A sphere that holds the hull: its radius about the box's centre.
     reach: f64,
     /// The hull's farthest point from the coil's origin.
     extent: f64,
@@ -107,7 +106,6 @@ impl Casing {
             samples,
             z_min: lo.z,
             z_max: hi.z,
-            centre: box_centre,
             reach,
             extent,
             box_half: (hi - lo) / 2.0,
@@ -133,7 +131,7 @@ impl Casing {
 
     /// A sphere holding the hull: centre (coil frame) and radius, m.
     pub fn bounding_sphere(&self) -> (Point3<f64>, f64) {
-        (self.centre, self.reach)
+        (self.box_centre, self.reach)
     }
 
     /// The hull's box in the coil frame: centre and half extents, m.

@@ -314,12 +314,6 @@ mod tests {
         let q = [0.3, -1.6, 1.4, -1.4, -1.57, 0.2];
         let flange_from_coil = Isometry3::translation(0.0, 0.0, 0.1);
         let a = dose_form(&arm, &q, &flange_from_coil);
-        // The unweighted form, to read the coil's error per axis.
-        let plain = {
-            let j = arm.jacobian(&q);
-            j.transpose() * j
-        };
-        assert!(plain.norm() > 0.0);
         let base_from_coil = arm.fk_flange(&q) * flange_from_coil;
         let coil_from_base = base_from_coil.rotation.inverse();
         // Wish: lift the coil 0.2 m/s along its axis and tilt it 1 rad/s about its x, in joints.
