@@ -1,10 +1,13 @@
-//! `[coil]`: the coil's solid for the clearance and its field model (the `.ccd` file, the
-//! stimulator's dI/dt and the default target depth), checked and read into a [`DoseModel`].
+//! `[coil]`: the coil's solid for the clearance (a cylinder, or SimNIBS's `.stl` casing read
+//! into a [`Casing`]) and its field model (the `.ccd` file, the stimulator's dI/dt and the
+//! default target depth), checked and read into a [`DoseModel`].
 
 use crate::AppError;
 use crate::capped_file::read_capped_text;
 use crate::config_check::Check;
 use mocomp_efield::{DipoleCoil, DoseModel, parse_ccd};
+use mocomp_geom::LengthUnit;
+use mocomp_head::casing::Casing;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -13,10 +16,19 @@ use std::sync::Arc;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CoilSection {
-    /// Radius seen from the head, m.
+    /// Radius seen from the head, m (the cylinder, where no `casing` is given).
     pub radius_m: f64,
-    /// Thickness behind the face, m.
+    /// Thickness behind the face, m (the cylinder, where no `casing` is given).
     pub thickness_m: f64,
+    /// The coil's casing: a surface (`.stl`, `.obj`, `.ply`) in the coil's frame, millimetres,
+    /// as SimNIBS draws them (+z into the head, the origin under the centre of the coil's
+    /// bottom; relative to the configuration's directory, absolute once read). With it, every
+    /// clearance measures the casing (its convex hull) in place of the cylinder.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub casing: Option<PathBuf>,
+    /// The casing as read ([`resolve`]); not part of the file.
+    #[serde(skip)]
+    pub loaded_casing: Option<Arc<Casing>>,
     /// The coil's field model: a SimNIBS `.ccd` file of magnetic dipoles in the coil's frame
     /// (relative to the configuration's directory; absolute once read). With it, the dose.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -37,6 +49,8 @@ impl Default for CoilSection {
         Self {
             radius_m: 0.04,
             thickness_m: 0.03,
+            casing: None,
+            loaded_casing: None,
             model: None,
             didt_a_per_us: None,
             output_pct: None,
@@ -72,16 +86,37 @@ pub fn check(c: &CoilSection) -> Result<(), AppError> {
     Check::range("coil.target_depth_m", c.target_depth_m, 0.0, 0.05, true)
 }
 
-/// `model`'s path relative to `dir`, made absolute (the file must exist).
+/// The largest casing file read, bytes (SimNIBS's casings are a few hundred kilobytes).
+pub const MAX_CASING_BYTES: u64 = 64 << 20;
+
+/// `model`'s and `casing`'s paths relative to `dir`, made absolute (the files must exist), and
+/// the casing read (once).
 pub fn resolve(c: &mut CoilSection, dir: &Path) -> Result<(), AppError> {
-    let Some(model) = &c.model else {
-        return Ok(());
+    let absolute = |key: &str, file: &Path| {
+        let path = dir.join(file);
+        std::fs::canonicalize(&path)
+            .map_err(|e| AppError::Config(format!("coil.{key} = {}: {e}", path.display())))
     };
-    let path = dir.join(model);
-    let absolute = std::fs::canonicalize(&path)
-        .map_err(|e| AppError::Config(format!("coil.model = {}: {e}", path.display())))?;
-    c.model = Some(absolute);
+    if let Some(model) = &c.model {
+        c.model = Some(absolute("model", model)?);
+    }
+    if let Some(casing) = &c.casing {
+        let path = absolute("casing", casing)?;
+        if c.loaded_casing.is_none() {
+            let read = read_casing(&path)
+                .map_err(|e| AppError::Config(format!("coil.casing = {}: {e}", path.display())))?;
+            c.loaded_casing = Some(Arc::new(read));
+        }
+        c.casing = Some(path);
+    }
     Ok(())
+}
+
+/// The casing in `path`: its surface's points, millimetres, as the solid (their convex hull).
+pub fn read_casing(path: &Path) -> Result<Casing, AppError> {
+    let bytes = crate::capped_file::read_capped(path, MAX_CASING_BYTES, "a casing file")?;
+    mocomp_head::formats::read_casing(&path.display().to_string(), &bytes, LengthUnit::Millimetre)
+        .map_err(|e| AppError::Config(e.to_string()))
 }
 
 /// The coil model in `path`.
@@ -174,5 +209,62 @@ mod tests {
         };
         let e = resolve(&mut none, &dir).unwrap_err().to_string();
         assert!(e.contains("coil.model") && e.contains("no-such.ccd"), "{e}");
+    }
+
+    #[test]
+    fn a_casing_is_found_beside_the_configuration_read_once_and_a_bad_one_named() {
+        let dir = coils();
+        let mut c = CoilSection {
+            casing: Some("MagStim_D70.stl".into()),
+            ..CoilSection::default()
+        };
+        resolve(&mut c, &dir).unwrap();
+        assert!(c.casing.as_ref().unwrap().is_absolute());
+        let casing = Arc::clone(c.loaded_casing.as_ref().unwrap());
+        // SimNIBS's frame: the casing ends 1 mm behind the coil's origin, and reaches 100 mm
+        // along the wings.
+        let (z_min, z_max) = casing.z_span();
+        assert!(
+            (z_max + 0.001).abs() < 1e-6 && (z_min + 0.019).abs() < 1e-6,
+            "{z_min} {z_max}"
+        );
+        assert!((casing.extent() - 0.1).abs() < 0.01, "{}", casing.extent());
+        // Read once: a second resolve (the path now absolute) keeps the same casing.
+        resolve(&mut c, Path::new("/")).unwrap();
+        assert!(Arc::ptr_eq(&casing, c.loaded_casing.as_ref().unwrap()));
+        // Missing, and in metres where millimetres are meant (0.2 mm across).
+        let tmp = mocomp_testkit::TempDir::new("coil-casing");
+        let metres = tmp.path("metres.stl");
+        let bytes = std::fs::read(dir.join("MagStim_D70.stl")).unwrap();
+        let facets = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+        assert_eq!(
+            bytes.len(),
+            84 + 50 * facets,
+            "the D70's casing is a binary STL"
+        );
+        std::fs::write(&metres, scaled_binary_stl(&bytes, 1e-3)).unwrap();
+        for (file, says) in [
+            (dir.join("no-such.stl"), "no-such.stl"),
+            (PathBuf::from(metres), "0.2 mm across"),
+        ] {
+            let mut bad = CoilSection {
+                casing: Some(file),
+                ..CoilSection::default()
+            };
+            let e = resolve(&mut bad, &dir).unwrap_err().to_string();
+            assert!(e.contains("coil.casing") && e.contains(says), "{e}");
+        }
+    }
+
+    /// A binary STL's vertices times `k` (its 80-byte header, count, and 50-byte facets).
+    fn scaled_binary_stl(bytes: &[u8], k: f32) -> Vec<u8> {
+        let mut out = bytes.to_vec();
+        for facet in out[84..].chunks_exact_mut(50) {
+            for v in facet[12..48].chunks_exact_mut(4) {
+                let x = f32::from_le_bytes([v[0], v[1], v[2], v[3]]) * k;
+                v.copy_from_slice(&x.to_le_bytes());
+            }
+        }
+        out
     }
 }

@@ -1228,6 +1228,7 @@ impl Config {
         CoilModel {
             radius: self.coil.radius_m,
             thickness: self.coil.thickness_m,
+            casing: self.coil.loaded_casing.clone(),
         }
     }
 }

@@ -258,7 +258,8 @@ pub fn place_target(
     let scalp = Reframed::new(head.shape(), head_from_image.inverse());
     let (image_point, source) = resolve(setup, spec)?;
     let coil = setup.file.coil_model();
-    let solid = CoilSolid::new(coil.radius, coil.thickness)
+    let solid = coil
+        .solid()
         .map_err(|e| AppError::Config(format!("[coil]: {e}")))?;
     let (placement, map) = match dose {
         None => (

@@ -207,10 +207,15 @@ function polyline(g, P, pts, color, width, dash) {
 }
 
 function drawCoil(g, P, pose, color, dash) {
-  const r = state.scene.coil_radius_mm, ring = [];
-  for (let k = 0; k <= 32; k++) {
-    const a = (2 * Math.PI * k) / 32;
-    ring.push(apply(pose, [r * Math.cos(a), r * Math.sin(a), 0]));
+  // The casing's outline where one is given, else the cylinder's rim.
+  const r = state.scene.coil_radius_mm, outline = state.scene.coil_outline_mm, ring = [];
+  if (outline && outline.length) {
+    for (const p of outline.concat([outline[0]])) ring.push(apply(pose, p));
+  } else {
+    for (let k = 0; k <= 32; k++) {
+      const a = (2 * Math.PI * k) / 32;
+      ring.push(apply(pose, [r * Math.cos(a), r * Math.sin(a), 0]));
+    }
   }
   polyline(g, P, ring, color, 2, dash);
   polyline(g, P, [apply(pose, [0, 0, 0]), apply(pose, [0, 0, 40])], color, 1, [3, 3]);

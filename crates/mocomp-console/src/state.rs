@@ -321,6 +321,10 @@ pub struct SceneJson {
     pub coil_radius_mm: f64,
     /// The coil's thickness, mm.
     pub coil_thickness_mm: f64,
+    /// The coil's casing as the head sees it, where one is given: its outline at its face (coil
+    /// frame, mm), drawn in place of the cylinder's rim.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coil_outline_mm: Option<Vec<[f64; 3]>>,
 }
 
 /// A head mesh for the page: vertices (mm) and triangles.
@@ -336,6 +340,16 @@ pub struct MeshJson {
 pub const PAGE_TRIANGLES: usize = 3000;
 
 /// What the page draws of `head`: the ellipsoid's pose and semi-axes (mm), or the scalp.
+/// A casing's outline for the page, mm, to 0.1 mm.
+fn outline_json(casing: &mocomp_head::casing::Casing) -> Vec<[f64; 3]> {
+    let mm = |x: f64| (x * 1e4).round() / 10.0;
+    casing
+        .outline()
+        .iter()
+        .map(|p| [mm(p.x), mm(p.y), mm(p.z)])
+        .collect()
+}
+
 fn head_json(head: &HeadModel) -> (PoseJson, [f64; 3], Option<MeshJson>) {
     if let Some(e) = head.as_ellipsoid() {
         let r = e.radii() * 1e3;
@@ -437,6 +451,7 @@ impl Shared {
                 head_mesh,
                 coil_radius_mm: file.coil.radius_m * 1e3,
                 coil_thickness_mm: file.coil.thickness_m * 1e3,
+                coil_outline_mm: file.coil.loaded_casing.as_deref().map(outline_json),
             }),
             store: Mutex::new(Store {
                 teach_window: Vec::new(),
@@ -473,6 +488,7 @@ impl Shared {
             head_mesh,
             coil_radius_mm: loop_cfg.coil.radius * 1e3,
             coil_thickness_mm: loop_cfg.coil.thickness * 1e3,
+            coil_outline_mm: loop_cfg.coil.casing.as_deref().map(outline_json),
         };
     }
 
@@ -964,6 +980,27 @@ mod tests {
         for v in &mesh.vertices_mm {
             let n = v.iter().map(|x| x * x).sum::<f32>().sqrt();
             assert!((n - 100.0).abs() < 0.01, "{v:?}");
+        }
+    }
+
+    #[test]
+    fn the_page_gets_a_casing_as_its_outline_at_its_face_in_millimetres() {
+        // An octagonal prism 120 mm across, 15 mm thick, its face 1 mm behind the origin.
+        let mut points = Vec::new();
+        for k in 0..8 {
+            let a = std::f64::consts::FRAC_PI_4 * k as f64;
+            for z in [-0.016, -0.001] {
+                points.push(Point3::new(0.06 * a.cos(), 0.06 * a.sin(), z));
+            }
+        }
+        let casing = mocomp_head::casing::Casing::new(&points, "prism").unwrap();
+        let outline = outline_json(&casing);
+        assert_eq!(outline.len(), 8);
+        for p in &outline {
+            assert!(
+                (p[0].hypot(p[1]) - 60.0).abs() < 0.1 && p[2] == -1.0,
+                "{p:?}"
+            );
         }
     }
 }

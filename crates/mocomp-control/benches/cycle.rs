@@ -10,7 +10,9 @@
 //! 110 k triangles (a clinical scalp's size); on the ellipsoid without the learned prediction
 //! (`[predictor] learned = false`), for its cost; and on the ellipsoid with the dose each cycle
 //! (SimNIBS's Magstim D70, 964 dipoles: the measured coil against its goal's plan, as
-//! `mocomp run` does with `[coil] model`), for the dose's cost.
+//! `mocomp run` does with `[coil] model`), for the dose's cost; and with SimNIBS's D70 casing
+//! as the coil's solid (`[coil] casing`) on the ellipsoid and the fsaverage scalp, for the
+//! casing's cost against the cylinder's.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -21,7 +23,10 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use mocomp_control::{HeadModel, Mode};
 use mocomp_efield::{DoseModel, DosePlans, parse_ccd};
+use mocomp_geom::LengthUnit;
 use mocomp_geom::nalgebra::Point3;
+use mocomp_head::casing::Casing;
+use mocomp_head::formats::read_casing;
 use mocomp_head::{Head, Mesh, MeshHead, repair};
 use std::sync::Arc;
 use std::time::Instant;
@@ -80,8 +85,25 @@ fn cycle(w: &mut World, dose: Option<&mut DosePlans>) -> Mode {
     rec.mode
 }
 
-fn percentiles(name: &str, head: &HeadModel, learned: bool, mut dose: Option<DosePlans>) {
-    let mut w = World::with_config(head.clone(), |c| c.predictor.learned = learned);
+/// SimNIBS's Magstim D70 casing (its `.stl`, mm, the coil's frame).
+fn d70_casing() -> Arc<Casing> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../mocomp-efield/tests/data/coils/MagStim_D70.stl");
+    let bytes = std::fs::read(path).unwrap();
+    Arc::new(read_casing("MagStim_D70.stl", &bytes, LengthUnit::Millimetre).unwrap())
+}
+
+/// How a bench run's loop differs from the built-in world's.
+struct Variant {
+    learned: bool,
+    casing: Option<Arc<Casing>>,
+}
+
+fn percentiles(name: &str, head: &HeadModel, v: &Variant, mut dose: Option<DosePlans>) {
+    let mut w = World::with_config(head.clone(), |c| {
+        c.predictor.learned = v.learned;
+        c.coil.casing = v.casing.clone();
+    });
     let mut ns: Vec<u64> = Vec::with_capacity(20_000);
     let mut tracking = 0;
     for _ in 0..20_000 {
@@ -102,28 +124,50 @@ fn percentiles(name: &str, head: &HeadModel, learned: bool, mut dose: Option<Dos
 
 fn bench(c: &mut Criterion) {
     let heads = heads();
+    let plain = Variant {
+        learned: true,
+        casing: None,
+    };
     for (name, head) in &heads {
-        percentiles(name, head, true, None);
+        percentiles(name, head, &plain, None);
     }
-    // What the learned prediction and the dose cost, in the same run.
+    // What the learned prediction, the dose and the casing cost, in the same run.
+    let filter_alone = Variant {
+        learned: false,
+        casing: None,
+    };
     percentiles(
         "ellipsoid, the filter alone (learned = false)",
         &heads[0].1,
-        false,
+        &filter_alone,
         None,
     );
     let plans = d70_plans(&heads[0].1);
     percentiles(
         "ellipsoid, with the dose (D70)",
         &heads[0].1,
-        true,
+        &plain,
         Some(plans.clone()),
     );
+    let cased = Variant {
+        learned: true,
+        casing: Some(d70_casing()),
+    };
+    for (name, head) in &heads[..2] {
+        percentiles(&format!("{name}, the D70's casing"), head, &cased, None);
+    }
     for (name, head) in &heads {
         let mut w = World::with_head(head.clone());
         c.bench_function(&format!("cycle (tracking a nodding head), {name}"), |b| {
             b.iter(|| std::hint::black_box(w.cycle()))
         });
+    }
+    for (name, head) in &heads[..2] {
+        let mut w = World::with_config(head.clone(), |c| c.coil.casing = cased.casing.clone());
+        c.bench_function(
+            &format!("cycle (tracking a nodding head), {name}, the D70's casing"),
+            |b| b.iter(|| std::hint::black_box(w.cycle())),
+        );
     }
     let mut w = World::with_head(heads[0].1.clone());
     let mut plans = plans;

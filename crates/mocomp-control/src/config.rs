@@ -487,10 +487,7 @@ impl LoopConfig {
             },
             predictor: PredictorConfig::default(),
             head: HeadModel::adult(),
-            coil: CoilModel {
-                radius: 0.04,
-                thickness: 0.03,
-            },
+            coil: CoilModel::cylinder(0.04, 0.03),
             params: LoopParams::default(),
         }
     }

@@ -5,8 +5,10 @@
 //! scalp, exact through its distance field.
 
 use mocomp_geom::nalgebra::{Isometry3, Point3, Vector3};
+use mocomp_head::casing::Casing;
 use mocomp_head::sampled::ClearanceMemory;
 use mocomp_head::{CoilSolid, Ellipsoid, Head, HeadError, HeadShape, ScanCut};
+use std::sync::Arc;
 
 /// The head the loop keeps the coil from, in the head (marker) frame. Clones share a mesh.
 #[derive(Debug, Clone)]
@@ -93,7 +95,7 @@ impl PartialEq for HeadModel {
     fn eq(&self, other: &Self) -> bool {
         match (&self.shape, &other.shape) {
             (Head::Ellipsoid(a), Head::Ellipsoid(b)) => a == b,
-            (Head::Mesh(a), Head::Mesh(b)) => std::sync::Arc::ptr_eq(a, b),
+            (Head::Mesh(a), Head::Mesh(b)) => Arc::ptr_eq(a, b),
             _ => false,
         }
     }
@@ -104,33 +106,64 @@ impl PartialEq for HeadModel {
 pub use mocomp_head::ellipsoid_distance;
 
 /// The coil: a cylinder behind its face (+z of the coil frame points into the head; the coil's
-/// face is the origin).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// face is the origin), or, where one is given, its casing as drawn (SimNIBS's `.stl`, in the
+/// same frame: [`mocomp_head::casing::Casing`]), which every clearance then measures in place
+/// of the cylinder. Clones share the casing.
+#[derive(Debug, Clone, PartialEq)]
 pub struct CoilModel {
     /// Coil radius seen from the head, m.
     pub radius: f64,
     /// Coil thickness behind its face (towards the flange), m.
     pub thickness: f64,
+    /// The casing, when given: the solid in place of the cylinder.
+    pub casing: Option<Arc<Casing>>,
 }
 
 impl CoilModel {
+    /// A cylinder of `radius` and `thickness`, m.
+    pub fn cylinder(radius: f64, thickness: f64) -> Self {
+        Self {
+            radius,
+            thickness,
+            casing: None,
+        }
+    }
+
+    /// The solid the clearances measure: the casing where there is one, else the cylinder
+    /// (an error for a cylinder that is none: zero, negative or not finite).
+    pub fn solid(&self) -> Result<CoilSolid, HeadError> {
+        match &self.casing {
+            Some(c) => Ok(CoilSolid::casing(Arc::clone(c))),
+            None => CoilSolid::new(self.radius, self.thickness),
+        }
+    }
+
+    /// The farthest any point of the coil's solid is from its origin, m (a bound of how far a
+    /// turn moves it).
+    pub fn extent(&self) -> f64 {
+        match &self.casing {
+            Some(c) => c.extent(),
+            None => self.radius.hypot(self.thickness),
+        }
+    }
+
     /// Signed distance (m) from the coil at `head_from_coil` to `head`; negative when inside the
-    /// head. Against the ellipsoid, the nearest of its face's and back's centres and rims (eight
-    /// points each: a convex head meets a coil facing it there first); against a scalp, the
-    /// nearest of points every few millimetres over its face, side and back rim
-    /// ([`mocomp_head::sampled`]), which an ear or a nose between the rim points cannot hide
-    /// from, less what the scalp may bulge between them
-    /// ([`mocomp_head::sampled::BETWEEN_SAMPLES_M`]): never more room than there is.
+    /// head. The cylinder against the ellipsoid: the nearest of its face's and back's centres
+    /// and rims (eight points each: a convex head meets a coil facing it there first); a casing
+    /// against the ellipsoid: exact (GJK). Against a scalp, the nearest of points every few
+    /// millimetres over the solid's surface ([`mocomp_head::sampled`]), which an ear or a nose
+    /// between the rim points cannot hide from, less what the scalp may bulge between them
+    /// ([`mocomp_head::sampled::between_samples_m`]): never more room than there is.
     pub fn distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
         self.distance_below(head, head_from_coil, f64::INFINITY)
     }
 
     /// The distance a report measures the true coil by: against a scalp, the exact clearance of
-    /// the coil's cylinder (GJK on the triangles that can be nearest: tens of microseconds at
+    /// the coil's solid (GJK on the triangles that can be nearest: tens of microseconds at
     /// 100 k triangles, not for the loop); against the ellipsoid, [`Self::distance`], as reports
     /// always measured it.
     pub fn measured_distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
-        match (&head.shape, CoilSolid::new(self.radius, self.thickness)) {
+        match (&head.shape, self.solid()) {
             (Head::Mesh(m), Ok(solid)) => m.coil_clearance(head_from_coil, &solid),
             _ => self.distance(head, head_from_coil),
         }
@@ -167,24 +200,41 @@ impl CoilModel {
         cutoff: f64,
         memory: Option<&mut ClearanceMemory>,
     ) -> f64 {
-        if let Head::Mesh(m) = &head.shape {
-            return match CoilSolid::new(self.radius, self.thickness) {
-                Ok(solid) => {
-                    let margin = mocomp_head::sampled::BETWEEN_SAMPLES_M;
-                    let cutoff = cutoff + margin;
-                    let sampled = match memory {
-                        Some(memory) => {
-                            m.coil_clearance_remembering(memory, head_from_coil, &solid, cutoff)
-                        }
-                        None => m.coil_clearance_sampled(head_from_coil, &solid, cutoff),
-                    };
-                    sampled - margin
-                }
-                // Not a solid (the configuration refuses such a coil): as if cutting in, so
-                // every rule keeps it away.
-                Err(_) => f64::NEG_INFINITY,
-            };
+        // Not a solid (the configuration refuses such a coil): as if cutting in, so every rule
+        // keeps it away.
+        let solid = || self.solid().ok();
+        match (&head.shape, &self.casing) {
+            (Head::Mesh(m), _) => {
+                let Some(solid) = solid() else {
+                    return f64::NEG_INFINITY;
+                };
+                let margin = mocomp_head::sampled::between_samples_m(&solid);
+                let cutoff = cutoff + margin;
+                let sampled = match memory {
+                    Some(memory) => {
+                        m.coil_clearance_remembering(memory, head_from_coil, &solid, cutoff)
+                    }
+                    None => m.coil_clearance_sampled(head_from_coil, &solid, cutoff),
+                };
+                sampled - margin
+            }
+            // A casing against the ellipsoid: GJK on its hull, exact (no sample to miss a bulge
+            // between), spared where its bounding sphere is already far enough.
+            (Head::Ellipsoid(e), Some(_)) => solid().map_or(f64::NEG_INFINITY, |solid| {
+                e.coil_clearance_below(head_from_coil, &solid, cutoff)
+            }),
+            (Head::Ellipsoid(_), None) => self.cylinder_points_below(head, head_from_coil, cutoff),
         }
+    }
+
+    /// The cylinder against the ellipsoid: the nearest of its face's and back's centres and rims
+    /// (a convex head meets a coil facing it there first).
+    fn cylinder_points_below(
+        &self,
+        head: &HeadModel,
+        head_from_coil: &Isometry3<f64>,
+        cutoff: f64,
+    ) -> f64 {
         // The rim at every 45° and the centre, as unit offsets (no trigonometry per call: this
         // runs several times a control cycle); the same points the head crate samples.
         let r = self.radius;
@@ -211,10 +261,7 @@ pub(crate) mod fixtures {
 
     /// A figure-8 coil's envelope: 40 mm radius, 30 mm thick.
     pub(crate) fn coil() -> CoilModel {
-        CoilModel {
-            radius: 0.04,
-            thickness: 0.03,
-        }
+        CoilModel::cylinder(0.04, 0.03)
     }
 }
 
@@ -234,10 +281,7 @@ mod tests {
             Vector3::new(0.075, 0.095, 0.11),
         )
         .unwrap();
-        let coil = CoilModel {
-            radius: 0.04,
-            thickness: 0.03,
-        };
+        let coil = CoilModel::cylinder(0.04, 0.03);
         let mut x = 7u64;
         let mut next = || {
             x = x

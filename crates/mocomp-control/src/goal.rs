@@ -106,7 +106,7 @@ fn near_scan_edge(
         return Ok(());
     }
     // Not a solid: as if touching, so the goal is refused.
-    let solid = mocomp_head::CoilSolid::new(coil.radius, coil.thickness).ok();
+    let solid = coil.solid().ok();
     for cut in cuts {
         let distance_m = solid
             .as_ref()

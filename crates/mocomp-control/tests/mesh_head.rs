@@ -30,10 +30,7 @@ fn fsaverage() -> Arc<MeshHead> {
 fn the_standoff_clears_a_real_scalp_by_the_requirement() {
     let scalp = fsaverage();
     let head = HeadModel::new(Head::Mesh(Arc::clone(&scalp)));
-    let coil = CoilModel {
-        radius: 0.04,
-        thickness: 0.03,
-    };
+    let coil = CoilModel::cylinder(0.04, 0.03);
     let v = scalp.vertices();
     let mut rng = SplitMix64(17);
     let (mut backed, mut bounded) = (0, 0);

@@ -90,7 +90,7 @@ fn run_with_tracker(
         head_from_coil_goal(),
         PERIOD,
     );
-    let (head, coil) = (cfg.head.clone(), cfg.coil);
+    let (head, coil) = (cfg.head.clone(), cfg.coil.clone());
     let q0 = coil_on_head_joints(&arm);
     let mut comp = Compensator::new(cfg, arm, PERIOD);
     let mut robot = MemRobot::at(q0, arm.fk(&q0), PERIOD);

@@ -994,7 +994,7 @@ impl Rig {
         let sensor = Arc::new(Mutex::new(Contact::new(
             cfg.contact,
             cfg.head.clone(),
-            cfg.coil,
+            cfg.coil.clone(),
             cfg.tracker.seed,
         )));
         let (head, law) = (Arc::clone(&base1_from_head), Arc::clone(&sensor));
@@ -1106,7 +1106,7 @@ impl Rig {
             t_prev: 0.0,
             base1_from_head,
             sensor,
-            contact: Contact::new(cfg.contact, cfg.head.clone(), cfg.coil, 0),
+            contact: Contact::new(cfg.contact, cfg.head.clone(), cfg.coil.clone(), 0),
             bump: None,
         };
         // One step so the states carry the stepped clock's time.
@@ -1635,7 +1635,7 @@ impl Rig {
         let goal_head_from_coil = loop_cfg.head_from_coil_goal;
         let head_servo = ServoParams::for_period(self.period);
         // The world's scalp, which the true coil is measured against.
-        let (head, coil) = (cfg.head.clone(), loop_cfg.coil);
+        let (head, coil) = (cfg.head.clone(), loop_cfg.coil.clone());
         let loop_frames = (loop_cfg.base_from_tracker, loop_cfg.flange_from_coil);
         let mut oracle_source = None;
         let mut ctl: Box<dyn mocomp_control::Controller> = match (controller, truth) {
@@ -2092,7 +2092,7 @@ pub fn run_experiment_watched(
     loop_cfg.predictor = cfg.predictor;
     (loop_cfg.servo.lookahead_s, loop_cfg.servo.gain) = cfg.servo;
     loop_cfg.head = cfg.loop_head.clone().unwrap_or_else(|| cfg.head.clone());
-    loop_cfg.coil = cfg.coil;
+    loop_cfg.coil = cfg.coil.clone();
     let mut runs = Vec::with_capacity(order.len());
     for &c in order {
         runs.push(world.compensate(

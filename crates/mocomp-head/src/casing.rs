@@ -12,6 +12,7 @@
 //! turned towards the head), 12 mm elsewhere, widened together until at most [`MAX_SAMPLES`]
 //! remain (the D70: 505).
 
+use crate::climb::Climb;
 use crate::error::HeadError;
 use mocomp_geom::nalgebra::{Point3, Vector3};
 use parry3d_f64::shape::ConvexPolyhedron;
@@ -38,6 +39,8 @@ static NEXT_ID: AtomicU64 = AtomicU64::new(1);
 #[derive(Debug, Clone)]
 pub struct Casing {
     hull: ConvexPolyhedron,
+    /// The hull's support map for GJK, faster than the polyhedron's own scan.
+    climb: Climb,
     samples: Vec<Point3<f64>>,
     /// The hull's heights along +z: from its back (`z_min`) to its face (`z_max`).
     z_min: f64,
@@ -103,6 +106,7 @@ impl Casing {
         let samples = spread(&points, &triangles);
         Ok(Self {
             hull,
+            climb: Climb::new(&points, &triangles),
             samples,
             z_min: lo.z,
             z_max: hi.z,
@@ -117,6 +121,12 @@ impl Casing {
     /// The convex hull, coil frame.
     pub fn hull(&self) -> &ConvexPolyhedron {
         &self.hull
+    }
+
+    /// The hull's support map for GJK (the same points as [`Self::hull`]'s, found by climbing
+    /// its edges).
+    pub(crate) fn climb(&self) -> &Climb {
+        &self.climb
     }
 
     /// The points the loop's query samples it at, on the hull's surface, coil frame.
@@ -147,6 +157,36 @@ impl Casing {
     /// This casing's own number (for memories of its samples).
     pub fn id(&self) -> u64 {
         self.id
+    }
+
+    /// Its outline as the head sees it: the hull's silhouette along +z (its points' convex
+    /// hull in x and y, counter-clockwise), laid at the face's height; for a page to draw.
+    pub fn outline(&self) -> Vec<Point3<f64>> {
+        let mut xy: Vec<(f64, f64)> = self.hull.points().iter().map(|p| (p.x, p.y)).collect();
+        xy.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        xy.dedup();
+        // Andrew's monotone chain: the lower hull left to right, the upper right to left.
+        let turn = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+            (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+        };
+        let mut chain: Vec<(f64, f64)> = Vec::with_capacity(2 * xy.len());
+        for pass in [xy.clone(), xy.iter().rev().copied().collect()] {
+            let start = chain.len();
+            for p in pass {
+                while chain.len() >= start + 2
+                    && turn(chain[chain.len() - 2], chain[chain.len() - 1], p) <= 0.0
+                {
+                    chain.pop();
+                }
+                chain.push(p);
+            }
+            // Each pass ends where the other starts.
+            chain.pop();
+        }
+        chain
+            .into_iter()
+            .map(|(x, y)| Point3::new(x, y, self.z_max))
+            .collect()
     }
 }
 
@@ -344,6 +384,21 @@ pub(crate) mod tests {
                 assert!(near <= FACE_SPACING_M + CANDIDATE_SPACING_M, "{q}: {near}");
             }
         }
+    }
+
+    #[test]
+    fn a_box_s_outline_is_its_four_corners_at_its_face() {
+        let c = Casing::new(&slab().vertices, "slab.stl").unwrap();
+        let o = c.outline();
+        assert_eq!(
+            o,
+            vec![
+                Point3::new(-0.1, -0.05, -0.001),
+                Point3::new(0.1, -0.05, -0.001),
+                Point3::new(0.1, 0.05, -0.001),
+                Point3::new(-0.1, 0.05, -0.001),
+            ]
+        );
     }
 
     fn on_box_surface(p: &Point3<f64>) -> bool {

@@ -16,6 +16,7 @@
 
 pub mod casing;
 mod clearance;
+mod climb;
 pub mod cut;
 pub mod ellipsoid;
 pub mod error;

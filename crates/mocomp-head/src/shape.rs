@@ -113,7 +113,11 @@ pub enum SolidKey {
 /// The convex solid parry measures a coil as, and where it sits in the coil frame.
 pub(crate) enum Convex<'a> {
     Cylinder(parry3d_f64::shape::Cylinder, Isometry3<f64>),
-    Hull(&'a parry3d_f64::shape::ConvexPolyhedron),
+    /// The hull for parry's shape queries, and its support map for GJK.
+    Hull(
+        &'a parry3d_f64::shape::ConvexPolyhedron,
+        &'a crate::climb::Climb,
+    ),
 }
 
 impl Convex<'_> {
@@ -121,7 +125,7 @@ impl Convex<'_> {
     pub(crate) fn shape(&self) -> &dyn parry3d_f64::shape::Shape {
         match self {
             Self::Cylinder(c, _) => c,
-            Self::Hull(h) => *h,
+            Self::Hull(h, _) => *h,
         }
     }
 
@@ -129,7 +133,7 @@ impl Convex<'_> {
     pub(crate) fn support(&self) -> &dyn parry3d_f64::shape::SupportMap {
         match self {
             Self::Cylinder(c, _) => c,
-            Self::Hull(h) => *h,
+            Self::Hull(_, climb) => *climb,
         }
     }
 
@@ -137,7 +141,7 @@ impl Convex<'_> {
     pub(crate) fn placed(&self, head_from_coil: &Isometry3<f64>) -> Isometry3<f64> {
         match self {
             Self::Cylinder(_, coil_from_cylinder) => head_from_coil * coil_from_cylinder,
-            Self::Hull(_) => *head_from_coil,
+            Self::Hull(..) => *head_from_coil,
         }
     }
 }
@@ -229,7 +233,7 @@ impl CoilSolid {
                     ),
                 ),
             ),
-            Form::Casing(c) => Convex::Hull(c.hull()),
+            Form::Casing(c) => Convex::Hull(c.hull(), c.climb()),
         }
     }
 

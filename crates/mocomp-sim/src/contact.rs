@@ -19,7 +19,7 @@
 
 use mocomp_control::{CoilModel, HeadModel};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
-use mocomp_head::{CoilSolid, Head};
+use mocomp_head::Head;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -98,13 +98,10 @@ impl Contact {
         // The world's own scalp as it is: a mesh's sampled distance without the margin the
         // loop keeps for what may lie between the samples.
         let d = match self.head.shape() {
-            Head::Mesh(m) => CoilSolid::new(self.coil.radius, self.coil.thickness).map_or(
-                f64::INFINITY,
-                |solid| {
-                    // Only a coil below the scalp has a depth: clear is all it needs to know.
-                    m.coil_clearance_sampled(head_from_coil, &solid, 0.0)
-                },
-            ),
+            Head::Mesh(m) => self.coil.solid().map_or(f64::INFINITY, |solid| {
+                // Only a coil below the scalp has a depth: clear is all it needs to know.
+                m.coil_clearance_sampled(head_from_coil, &solid, 0.0)
+            }),
             Head::Ellipsoid(_) => self.coil.distance(&self.head, head_from_coil),
         };
         (-d).max(0.0)
@@ -173,10 +170,7 @@ mod tests {
     }
 
     fn coil() -> CoilModel {
-        CoilModel {
-            radius: 0.04,
-            thickness: 0.03,
-        }
+        CoilModel::cylinder(0.04, 0.03)
     }
 
     /// The coil on top of the head, its face `gap` m above the scalp, +z down into the head.

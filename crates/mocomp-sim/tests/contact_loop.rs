@@ -177,7 +177,7 @@ fn run(sc: Scenario) -> Outcome {
                 ..ContactParams::default()
             },
             true_head.clone(),
-            cfg.coil,
+            cfg.coil.clone(),
             seed,
         )
     };

@@ -484,7 +484,7 @@ impl Compensator {
             self.head_from_coil_at(q, bh),
             self.head_from_coil_at(&setpoint, bh),
         );
-        let corner = self.cfg.coil.radius.hypot(self.cfg.coil.thickness);
+        let corner = self.cfg.coil.extent();
         let moved = (b.translation.vector - a.translation.vector).norm()
             + corner * a.rotation.angle_to(&b.rotation);
         let known = rec.clearance_m.min(CLEARANCE_EXACT_BELOW_M);

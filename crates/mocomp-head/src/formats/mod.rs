@@ -13,6 +13,7 @@ mod obj;
 mod ply;
 mod stl;
 
+use crate::casing::Casing;
 use crate::error::HeadError;
 use crate::mesh::Mesh;
 use mocomp_geom::LengthUnit;
@@ -119,30 +120,7 @@ pub fn read_surface(
     bytes: &[u8],
     unit: Option<LengthUnit>,
 ) -> Result<ReadSurface, HeadError> {
-    let format = Format::detect(file, bytes)?;
-    let (mesh, frame) = match format {
-        Format::Stl => (
-            stl::read(file, bytes)?,
-            "not stated (STL has no frame)".to_string(),
-        ),
-        Format::Obj => (
-            obj::read(file, bytes)?,
-            "not stated (OBJ has no frame)".to_string(),
-        ),
-        Format::Ply => (
-            ply::read(file, bytes)?,
-            "not stated (PLY has no frame)".to_string(),
-        ),
-        Format::Gifti => gifti::read(file, bytes)?,
-        Format::FreeSurfer => freesurfer::read(file, bytes)?,
-        Format::Nifti => {
-            return Err(HeadError::format(
-                file,
-                "a volume, not a surface: its scalp is segmented (mocomp-mri), not decoded",
-                None,
-            ));
-        }
-    };
+    let (format, mesh, frame) = decode(file, bytes)?;
     let extent = mesh.bounds().map_or(0.0, |b| b.extent());
     let (unit, from_format) = match (format.unit(), unit) {
         (Some(u), _) => (u, true),
@@ -175,6 +153,67 @@ pub fn read_surface(
         unit_from_format: from_format,
         frame,
     })
+}
+
+/// The surface in `bytes` (the file `file`) as its numbers are, in its format, and the frame it
+/// says they are in.
+fn decode(file: &str, bytes: &[u8]) -> Result<(Format, Mesh, String), HeadError> {
+    let format = Format::detect(file, bytes)?;
+    let (mesh, frame) = match format {
+        Format::Stl => (
+            stl::read(file, bytes)?,
+            "not stated (STL has no frame)".to_string(),
+        ),
+        Format::Obj => (
+            obj::read(file, bytes)?,
+            "not stated (OBJ has no frame)".to_string(),
+        ),
+        Format::Ply => (
+            ply::read(file, bytes)?,
+            "not stated (PLY has no frame)".to_string(),
+        ),
+        Format::Gifti => gifti::read(file, bytes)?,
+        Format::FreeSurfer => freesurfer::read(file, bytes)?,
+        Format::Nifti => {
+            return Err(HeadError::format(
+                file,
+                "a volume, not a surface: its scalp is segmented (mocomp-mri), not decoded",
+                None,
+            ));
+        }
+    };
+    Ok((format, mesh, frame))
+}
+
+/// The smallest and largest a coil's casing may measure across, m: a TMS coil's casing spans a
+/// few centimetres (a small round coil) to a few decimetres (a figure-of-eight with its handle).
+pub const CASING_ACROSS_M: (f64, f64) = (0.01, 0.6);
+
+/// A coil's casing from `bytes` (the file `file`: any surface format), its numbers in `unit`
+/// where the format has none (SimNIBS draws casings in millimetres), in the coil's frame.
+pub fn read_casing(file: &str, bytes: &[u8], unit: LengthUnit) -> Result<Casing, HeadError> {
+    let (format, mesh, _) = decode(file, bytes)?;
+    let unit = format.unit().unwrap_or(unit);
+    let scale = match unit {
+        LengthUnit::Metre => 1.0,
+        LengthUnit::Millimetre => 1e-3,
+    };
+    let mesh = mesh.scaled(scale);
+    let across = mesh.bounds().map_or(0.0, |b| b.extent());
+    let (least, most) = CASING_ACROSS_M;
+    if !(least..=most).contains(&across) {
+        return Err(HeadError::BadCasing {
+            file: file.into(),
+            why: format!(
+                "{:.1} mm across, read in {}: a coil's casing measures {:.0} to {:.0} mm (another unit?)",
+                across * 1e3,
+                unit_name(unit),
+                least * 1e3,
+                most * 1e3
+            ),
+        });
+    }
+    Casing::new(&mesh.vertices, file)
 }
 
 /// The unit's name as files and the command line spell it.
