@@ -774,6 +774,11 @@ pub struct ExperimentSection {
     /// "fitted-ellipsoid" (the ellipsoid fitted to the phantom's scalp, while the world stays
     /// the scalp: what an ellipsoid lets through). ["head"]
     pub loop_head: LoopHead,
+    /// A stimulator trying a pulse through the gate this many times a second during each
+    /// `mocomp` run (the gate as `[session.gate]` says, on the run's goal), each pulse scored
+    /// against the goal and, with `[coil] model`, in dose. [none]
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pulses_hz: Option<f64>,
 }
 
 /// The head model the experiment's controllers believe.
@@ -812,6 +817,7 @@ impl Default for ExperimentSection {
             contact: false,
             goal_near_mm: None,
             loop_head: LoopHead::Head,
+            pulses_hz: None,
         }
     }
 }

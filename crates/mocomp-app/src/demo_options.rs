@@ -36,6 +36,8 @@ pub struct DemoOverrides {
     pub goal_near_mm: Option<[f64; 3]>,
     /// `--loop-head`.
     pub loop_head: Option<LoopHead>,
+    /// `--pulses-hz`.
+    pub pulses_hz: Option<f64>,
     /// `--record`.
     pub record_mcap: Option<String>,
     /// `--motion-file`.
@@ -71,19 +73,24 @@ pub struct DemoConfig {
 pub fn demo_config(file: Option<&Path>, o: &DemoOverrides) -> Result<DemoConfig, AppError> {
     let mut cfg = Config::default();
     let mut notes = Vec::new();
+    let mut unused = Vec::new();
     if let Some(path) = file {
         let text = std::fs::read_to_string(path).what(|| format!("--config {}", path.display()))?;
         cfg = Config::parse(&path.display().to_string(), &text)?;
-        let unused = unused_by_experiment(&text);
-        if !unused.is_empty() {
-            notes.push(format!(
-                "{} sets keys the experiment does not use (it places, calibrates and sets its goal itself): {}",
-                path.display(),
-                unused.join(", ")
-            ));
-        }
+        unused = unused_by_experiment(&text);
     }
     overlay(&mut cfg, o);
+    // A pulsing session's gate is the configuration's.
+    if cfg.experiment.pulses_hz.is_some() {
+        unused.retain(|k| !k.starts_with("session.gate."));
+    }
+    if let (Some(path), false) = (file, unused.is_empty()) {
+        notes.push(format!(
+            "{} sets keys the experiment does not use (it places, calibrates and sets its goal itself): {}",
+            path.display(),
+            unused.join(", ")
+        ));
+    }
     motion(&mut cfg.tracker.simulated, o)?;
     cfg.check()?;
     // A scalp file is relative to the configuration's directory.
@@ -106,6 +113,7 @@ fn overlay(cfg: &mut Config, o: &DemoOverrides) {
     x.contact |= o.contact;
     x.goal_near_mm = o.goal_near_mm.or(x.goal_near_mm);
     x.loop_head = o.loop_head.unwrap_or(x.loop_head);
+    x.pulses_hz = o.pulses_hz.or(x.pulses_hz);
     if o.record_mcap.is_some() {
         cfg.record_mcap.clone_from(&o.record_mcap);
     }

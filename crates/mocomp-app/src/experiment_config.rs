@@ -6,6 +6,7 @@ use crate::AppError;
 use crate::config::{Config, LoopHead};
 use mocomp_control::HeadModel;
 use mocomp_experiment::experiment::{ExperimentConfig, ExperimentError};
+use mocomp_experiment::session_plan::SessionPlan;
 use mocomp_geom::iso_from_matrix_mm;
 use mocomp_geom::nalgebra::{Matrix4, Point3, Vector3};
 use mocomp_geom::units::mm_to_m;
@@ -63,7 +64,11 @@ pub fn from_config(cfg: &Config) -> Result<ExperimentConfig, AppError> {
         },
         on_scalp: x.contact,
         tracker_bump: None,
-        session: None,
+        session: x
+            .pulses_hz
+            .map(|hz| SessionPlan::pulsing(cfg.session.params(), x.duration_s, hz))
+            .transpose()
+            .map_err(|m| AppError::Config(format!("experiment.{m}")))?,
         dose: cfg.coil.dose_model()?,
     };
     place_on_head(cfg, &mut e)?;

@@ -141,6 +141,11 @@ pub struct DemoCmd {
     /// fitted to `head.mesh`, while the phantom stays the mesh: what an ellipsoid lets through).
     #[arg(long, value_name = "head|fitted-ellipsoid", value_parser = mocomp_app::config::LoopHead::parse)]
     pub loop_head: Option<mocomp_app::config::LoopHead>,
+    /// A stimulator trying a pulse through the gate (`[session.gate]`) this many times a second
+    /// during each mocomp run (overrides `experiment.pulses_hz`); the summary scores the pulses
+    /// against the goal and, with `[coil] model`, in dose.
+    #[arg(long, value_name = "HZ")]
+    pub pulses_hz: Option<f64>,
     /// Bump the simulated tracker this many seconds into each run (the camera knocked: the
     /// calibration no longer holds); the summary says how soon the drift monitor saw it.
     #[arg(long, value_name = "S")]
@@ -179,6 +184,7 @@ impl DemoCmd {
             contact: self.contact,
             goal_near_mm: self.goal_near,
             loop_head: self.loop_head,
+            pulses_hz: self.pulses_hz,
             record_mcap: self.record.clone(),
             motion_file: self.motion_file.clone(),
             motion: self.motion.clone(),

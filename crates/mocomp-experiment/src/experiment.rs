@@ -272,7 +272,7 @@ impl ExperimentConfig {
             plan.params
                 .validate()
                 .map_err(|m| ExperimentError::Config(format!("session: {m}")))?;
-            if plan.targets.is_empty() || plan.duration_s() > self.duration_s + 1e-9 {
+            if plan.duration_s() > self.duration_s + 1e-9 {
                 return bad(format!(
                     "session: {} targets of {} s do not fit the run's {} s",
                     plan.targets.len(),
@@ -713,6 +713,9 @@ pub struct LoggedPulse {
     pub truth: (f64, f64),
     /// Given by hand (not through the gate).
     pub by_hand: bool,
+    /// With a coil model: the dose the true coil gave the target, % of the planned (NaN
+    /// without).
+    pub dose_pct: f64,
 }
 
 /// Summary statistics of a series.
@@ -1832,6 +1835,12 @@ impl Lockstep<'_, '_> {
     }
 }
 
+/// Whose dose plan `target` (the session's selected one) is: a session target's, or the goal's
+/// (no session, or one without targets of its own).
+fn dose_target(plan: Option<&SessionPlan>, target: usize) -> Option<usize> {
+    plan.filter(|p| !p.targets.is_empty()).map(|_| target)
+}
+
 /// What the drift monitor needs: the calibration, and the coil robot's recent joints (a marker
 /// sample is compared with the robot where it was when the sample was acquired).
 struct DriftWatch {
@@ -1935,6 +1944,11 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
         let inputs = w.robot1.state().map(|s| s.digital_inputs);
         let step = self.session.cycle(&rec, inputs);
         if let Some(p) = step.pulse {
+            let true_head = w.world_from_e2(&w.q_prev.1) * w.scene.e2_from_head;
+            let dose_target = dose_target(self.plan, target);
+            let dose_pct = self.dose.as_mut().map_or(f64::NAN, |d| {
+                d.dose(dose_target, &(true_head.inverse() * true_coil)).pct
+            });
             self.pulses.push(LoggedPulse {
                 pulse: PulseAt {
                     t_s: p.t_s - self.t0,
@@ -1942,6 +1956,7 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
                 },
                 truth: target_error,
                 by_hand: self.by_hand,
+                dose_pct,
             });
         }
         if step.gate_open != self.gate_level
@@ -2005,9 +2020,12 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             prediction_m: f64::NAN,
             execution_m: f64::NAN,
             standoff_m: rec.standoff_m + rec.filtered_m,
-            dose_pct: self.dose.as_mut().map_or(f64::NAN, |d| {
-                d.dose(self.plan.map(|_| target), &head_from_coil).pct
-            }),
+            dose_pct: {
+                let dose_target = dose_target(self.plan, target);
+                self.dose
+                    .as_mut()
+                    .map_or(f64::NAN, |d| d.dose(dose_target, &head_from_coil).pct)
+            },
         });
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);

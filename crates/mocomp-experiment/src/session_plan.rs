@@ -22,13 +22,18 @@ pub struct Attempt {
 pub struct SessionPlan {
     /// The gate, the drift monitor and the robot's I/O.
     pub params: SessionParams,
-    /// The targets in the order visited: name and `head_from_coil`.
+    /// The targets in the order visited: name and `head_from_coil` (none: the run's own goal
+    /// throughout).
     pub targets: Vec<(String, Isometry3<f64>)>,
     /// Time on each target (from its selection to the next), s.
     pub per_target_s: f64,
     /// The stimulator's tries, in time order.
     pub attempts: Vec<Attempt>,
 }
+
+/// The fastest repetitive protocol a pulsing session takes, Hz (rTMS runs at up to 50 Hz in
+/// bursts; the experiment's pulse lasts two cycles of the loop's 500 Hz).
+pub const MAX_PULSE_RATE_HZ: f64 = 50.0;
 
 /// The digital output the experiment's gate drives and the input its stimulator pulses.
 pub const GATE_OUTPUT: u32 = 7;
@@ -89,7 +94,38 @@ impl SessionPlan {
         })
     }
 
-    /// The whole walk, s.
+    /// The run's own goal, a stimulator trying a pulse through `params`' gate `rate_hz` times a
+    /// second for `duration_s` (the first a period in), as a clinician's repetitive protocol.
+    pub fn pulsing(params: SessionParams, duration_s: f64, rate_hz: f64) -> Result<Self, String> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= MAX_PULSE_RATE_HZ) {
+            return Err(format!(
+                "pulses_hz = {rate_hz}: must be in (0, {MAX_PULSE_RATE_HZ}]"
+            ));
+        }
+        if !(duration_s.is_finite() && duration_s > 0.0) {
+            return Err(format!("duration_s = {duration_s}: must be finite and > 0"));
+        }
+        let n = (duration_s * rate_hz).floor() as usize;
+        let attempts = (1..=n)
+            .map(|k| Attempt {
+                t_s: k as f64 / rate_hz,
+                gated: true,
+            })
+            .filter(|a| a.t_s < duration_s)
+            .collect();
+        Ok(Self {
+            params: SessionParams {
+                gate_output: Some(GATE_OUTPUT),
+                pulse_input: Some(PULSE_INPUT),
+                ..params
+            },
+            targets: Vec::new(),
+            per_target_s: duration_s,
+            attempts,
+        })
+    }
+
+    /// The whole walk, s (0 without targets: the run's own length).
     pub fn duration_s(&self) -> f64 {
         self.targets.len() as f64 * self.per_target_s
     }
@@ -136,5 +172,27 @@ mod tests {
             );
         }
         assert!(SessionPlan::grid(&head, &goal, &GridParams::default(), 0.0, 3).is_err());
+    }
+
+    #[test]
+    fn a_pulsing_session_tries_at_its_rate_through_its_gate_on_the_run_s_goal() {
+        let mut params = SessionParams::default();
+        params.gate.max_dose_error_pct = Some(5.0);
+        let p = SessionPlan::pulsing(params, 10.0, 2.0).unwrap();
+        assert!(p.targets.is_empty() && p.duration_s() == 0.0);
+        assert_eq!(p.target_at(7.0), 0);
+        let t: Vec<f64> = p.attempts.iter().map(|a| a.t_s).collect();
+        assert_eq!(t.len(), 19);
+        assert!(t.windows(2).all(|w| (w[1] - w[0] - 0.5).abs() < 1e-12) && t[0] == 0.5);
+        assert!(p.attempts.iter().all(|a| a.gated));
+        assert_eq!(p.params.gate.max_dose_error_pct, Some(5.0));
+        assert_eq!(
+            (p.params.gate_output, p.params.pulse_input),
+            (Some(GATE_OUTPUT), Some(PULSE_INPUT))
+        );
+        for (d, hz) in [(10.0, 0.0), (10.0, 51.0), (10.0, f64::NAN), (0.0, 1.0)] {
+            let e = SessionPlan::pulsing(SessionParams::default(), d, hz).unwrap_err();
+            assert!(e.contains("pulses_hz") || e.contains("duration_s"), "{e}");
+        }
     }
 }

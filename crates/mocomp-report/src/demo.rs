@@ -1,7 +1,7 @@
 //! The experiment's written record: the summary (JSON and Markdown), the CSV of every tick, and
 //! the figures ([`crate::plots`]), in one directory.
 
-use mocomp_experiment::experiment::{ExperimentConfig, Outcome};
+use mocomp_experiment::experiment::{Controller, ExperimentConfig, LoggedPulse, Outcome, Run};
 use mocomp_experiment::head_drive::Lag;
 use mocomp_geom::units::{m_to_mm, rad_to_deg};
 use mocomp_sim::HeadMotion;
@@ -67,6 +67,55 @@ pub struct Row {
     /// The same, largest.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dose_error_pct_max: Option<f64>,
+    /// With a pulsing session (`--pulses-hz`, mocomp's run): the stimulator's pulses (absent
+    /// without).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pulses: Option<PulseScore>,
+}
+
+/// A run's pulses through the gate, scored by the truth: the true coil against the goal on the
+/// true head, and the dose it gave the target.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PulseScore {
+    /// Pulses the gate let through.
+    pub through_gate: usize,
+    /// Tries the shut gate withheld.
+    pub withheld: usize,
+    /// The true coil's largest distance from the goal at a pulse, mm.
+    pub error_mm_max: f64,
+    /// Its largest angle from the goal at a pulse, degrees.
+    pub error_deg_max: f64,
+    /// With a coil model: the largest |dose − planned| at a pulse, % of the planned.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dose_error_pct_max: Option<f64>,
+}
+
+/// `r`'s pulses through the gate, where its run had a session (`cfg`'s, mocomp's run).
+fn pulse_score(r: &Run, cfg: &ExperimentConfig) -> Option<PulseScore> {
+    if cfg.session.is_none() || r.controller != Controller::Mocomp {
+        return None;
+    }
+    let gated: Vec<_> = r.pulses.iter().filter(|p| !p.by_hand).collect();
+    // A NaN (a pulse nothing could score) is not hidden by the others.
+    let most = |f: &dyn Fn(&&LoggedPulse) -> f64| {
+        gated.iter().map(f).fold(0.0, |a: f64, b| {
+            if a.is_nan() || b.is_nan() {
+                f64::NAN
+            } else {
+                a.max(b)
+            }
+        })
+    };
+    Some(PulseScore {
+        through_gate: gated.len(),
+        withheld: r.withheld_pulses,
+        error_mm_max: m_to_mm(most(&|p| p.truth.0)),
+        error_deg_max: rad_to_deg(most(&|p| p.truth.1)),
+        dose_error_pct_max: cfg
+            .dose
+            .is_some()
+            .then(|| most(&|p| (p.dose_pct - 100.0).abs())),
+    })
 }
 
 /// A share of the error: RMS and 95th percentile, mm.
@@ -162,6 +211,7 @@ pub fn summary(o: &Outcome, cfg: &ExperimentConfig) -> Summary {
                 dose_error_pct_rms: r.dose_error_pct.map(|d| d.rms),
                 dose_error_pct_p95: r.dose_error_pct.map(|d| d.p95),
                 dose_error_pct_max: r.dose_error_pct.map(|d| d.max),
+                pulses: pulse_score(r, cfg),
             }
         })
         .collect();
@@ -279,6 +329,7 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
     }
     t.push('\n');
     t.push_str(&dose_table(s, cfg));
+    t.push_str(&pulse_lines(s));
     if let (Some(a), Some(b)) = (s.ratio_d_rms, s.ratio_d_max) {
         t.push_str(&format!("paper ÷ mocomp: d RMS {a:.1}×, d max {b:.1}×.\n"));
     }
@@ -351,6 +402,25 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
 }
 
 /// The dose's table, when the experiment had a coil model (else nothing).
+/// A line per run with pulses: how many the gate let through and how good the worst was.
+fn pulse_lines(s: &Summary) -> String {
+    let mut t = String::new();
+    for r in &s.controllers {
+        let Some(p) = r.pulses else { continue };
+        t.push_str(&format!(
+            "Pulses ({}): {} through the gate, {} withheld by it; at a pulse the true coil was at most {:.2} mm and {:.2}° from the goal{}.\n\n",
+            r.controller,
+            p.through_gate,
+            p.withheld,
+            p.error_mm_max,
+            p.error_deg_max,
+            p.dose_error_pct_max
+                .map_or(String::new(), |d| format!(", the dose at most {d:.2} % from the planned"))
+        ));
+    }
+    t
+}
+
 fn dose_table(s: &Summary, cfg: &ExperimentConfig) -> String {
     let Some(model) = &cfg.dose else {
         return String::new();
