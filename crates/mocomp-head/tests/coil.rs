@@ -74,7 +74,7 @@ fn the_sampled_clearance_is_the_exact_one_within_what_the_scalp_bulges_between_s
     );
 }
 
-/// The same for SimNIBS's D70 casing: its hull sampled 7 mm apart on the face and 12 mm
+/// The same for SimNIBS's D70 casing: its hull sampled 3 mm apart along the face's rim, 8 mm on the face and 12 mm
 /// elsewhere (at most 512 points).
 #[test]
 fn a_casing_s_sampled_clearance_is_the_exact_one_within_what_the_scalp_bulges_between_samples() {
