@@ -186,7 +186,9 @@ def dp(req=None):
 
 def qos(reliable):
     if reliable:
-        return Qos(Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)), Policy.History.KeepLast(100))
+        # Keep all: the instrument must not drop what reached it while this process was not
+        # scheduled (a busy machine); what it counts is then what the writer delivered.
+        return Qos(Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)), Policy.History.KeepAll)
     return Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(100))
 
 

@@ -94,8 +94,33 @@ fn cyclone_receives_our_topics_with_their_values_and_rates_and_we_take_its_head_
             }
         })
     };
+    // Cyclone's process not scheduled for 0.4 s mid-stream (its receive threads too: nothing is
+    // acknowledged): what a busy machine does to a subscriber, here on purpose. The reliable
+    // topics must come through whole all the same.
+    let stalled = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let staller = {
+        let (pid, stalled) = (py.pid().to_string(), Arc::clone(&stalled));
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(1200));
+            let signal = |s: &str| {
+                std::process::Command::new("kill")
+                    .args([s, &pid])
+                    .status()
+                    .is_ok_and(|st| st.success())
+            };
+            if signal("-STOP") {
+                std::thread::sleep(Duration::from_millis(400));
+                stalled.store(signal("-CONT"), std::sync::atomic::Ordering::Relaxed);
+            }
+        })
+    };
     let seen = py.request(&json!({"op": "listen", "seconds": 120.0, "wait": 60, "idle": 2.0}));
     sender.join().unwrap();
+    staller.join().unwrap();
+    assert!(
+        stalled.load(std::sync::atomic::Ordering::Relaxed),
+        "the peer was stopped and continued"
+    );
     eprintln!(
         "cyclone saw: counts {} rates {} latency {}; handed to the node {}, dropped {}",
         seen["counts"],
@@ -106,7 +131,8 @@ fn cyclone_receives_our_topics_with_their_values_and_rates_and_we_take_its_head_
     );
     // The loop's queue to the node is never full at 500 Hz (it would drop, not block).
     assert_eq!(bridge.dropped(), 0, "{seen}");
-    // Every cycle reaches Cyclone (joint states and TF are reliable) from the first it got on
+    // Every cycle reaches Cyclone (joint states and TF are reliable; its readers keep all, so a
+    // busy machine that leaves it unscheduled, as above, loses nothing) from the first it got on
     // each topic (the ones before its reader was discovered are gone, as ROS 2's volatile topics
     // lose them): the stamp says which cycle a message is.
     let cycle_of = |header: &Value| {

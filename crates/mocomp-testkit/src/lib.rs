@@ -101,6 +101,12 @@ impl PythonPeer {
         Self::start_with(&k4a_python(), helper, peer, version)
     }
 
+    /// The helper's process id: a test may stop and continue it (`kill -STOP`), a peer that is
+    /// not scheduled for a while.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     fn start_with(python: &std::path::Path, helper: &str, peer: &str, version: &str) -> PythonPeer {
         let root = workspace_root();
         let mut child = Command::new(python)
