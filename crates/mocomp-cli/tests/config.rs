@@ -21,7 +21,7 @@ fn config_print_gives_every_key_and_check_names_what_is_wrong() {
         "[robot]",
         "simulate = true",
         "[experiment.paper]",
-        "max_joint_accel_rad_s2 = 60.0",
+        "max_joint_accel_rad_s2 = 120.0",
     ] {
         assert!(text.contains(key), "{key}: {text}");
     }

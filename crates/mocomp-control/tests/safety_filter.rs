@@ -562,14 +562,17 @@ fn a_held_coil_gives_way_to_a_head_moving_into_it_and_holds_again() {
         .filter(|(_, e)| matches!(e, Event::Retreat(_) | Event::Hold(_)))
         .count();
     assert!(switches <= 8, "{ev:?}");
-    // Once the head stops (at about 1.4 s) the coil holds again, further out than the goal.
+    // Once the head stops (at about 1.4 s) the coil holds again, further out than the goal by
+    // more than the scalp's give (not back at the goal, not against the scalp): how much
+    // further is the retreat's overshoot, which the command's acceleration budget sets (10.1 mm
+    // at 60 rad/s², 7.4 at 120, with the goal at 3).
     let end = r.records.last().unwrap();
     assert_eq!(end.mode, Mode::Holding(Reason::Operator), "{ev:?}");
     assert!(largest_step(&r, 2.2, 2.5) < 1e-9);
     // (The run starts with the coil on its goal.)
     let (goal_clearance, last_clearance) = (r.clearance[0], *r.clearance.last().unwrap());
     assert!(
-        last_clearance > goal_clearance + 0.005,
+        last_clearance > goal_clearance + p.coil_contact_tolerance_m,
         "{last_clearance} m, the goal's {goal_clearance} m"
     );
 }

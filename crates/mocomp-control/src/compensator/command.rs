@@ -608,10 +608,17 @@ mod tests {
         let q0 = [0.0, -1.3, 1.2, -1.87, -1.57, 0.0];
         let mut c = CommandState::new(CB3);
         let mut state = state_at(0.0, q0);
-        state.actual_qd = [0.0, 0.0, 0.8, 0.0, 0.0, 0.0];
+        // The arm moves as fast as two cycles of the budget take to stop, the goal stands: a
+        // catch-up, but none to take a change from.
+        state.actual_qd = [
+            0.0,
+            0.0,
+            2.0 * p.max_joint_accel_rad_s2 * CB3,
+            0.0,
+            0.0,
+            0.0,
+        ];
         c.step_time(&state, CB3, p.robot_stale_s);
-        // The arm moves, the goal stands: a catch-up of 0.8 rad/s, but none to take a change
-        // from.
         c.target_speed = Some([0.0; 6]);
         c.q = c.limit(&arm, &p, CB3, &q0, 1.0, None);
         assert_eq!(c.setpoint(&arm, SERVO, CB3, (0.3, 1.0), true), c.q);
