@@ -3,6 +3,7 @@
 use super::*;
 use crate::head_drive::HeadPlayer;
 use crate::oracle::{HeadTruth, OracleSource, TruthOracle};
+use crate::session_plan::SessionPlan;
 use mocomp_control::baseline::PaperPipeline;
 use mocomp_control::{Compensator, LoopConfig};
 use mocomp_frontend::Observer;
@@ -205,42 +206,9 @@ impl Rig {
         // The world's scalp, which the true coil is measured against.
         let (head, coil) = (cfg.head.clone(), loop_cfg.coil.clone());
         let loop_frames = (loop_cfg.base_from_tracker, loop_cfg.flange_from_coil);
-        let mut oracle_source = None;
-        let mut ctl: Box<dyn mocomp_control::Controller> = match (controller, truth) {
-            (Controller::Oracle, Some(truth)) => {
-                let oracle = TruthOracle { truth, t0 };
-                // Its tracker is perfect: a still head gives identical samples, which from a
-                // real tracker only a frozen stream does.
-                let mut loop_cfg = loop_cfg;
-                loop_cfg.params.frozen_samples = u32::MAX;
-                let clock: Arc<dyn Clock> = self.clock.clone();
-                oracle_source = Some(OracleSource::new(oracle.clone(), clock));
-                Box::new(
-                    Compensator::new(loop_cfg, self.arm1, self.period)
-                        .with_head_oracle(Arc::new(oracle)),
-                )
-            }
-            (Controller::Mocomp | Controller::Oracle, _) => {
-                Box::new(Compensator::new(loop_cfg, self.arm1, self.period))
-            }
-            (Controller::Paper, _) => Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
-        };
+        let (mut ctl, oracle_source) = self.controller(controller, truth, cfg, loop_cfg, t0);
         let n = (cfg.duration_s / self.period).round() as usize;
-        let dose = cfg
-            .dose
-            .as_ref()
-            .map(|model| {
-                let targets: Vec<Isometry3<f64>> = plan
-                    .map(|p| p.targets.iter().map(|t| t.1).collect())
-                    .unwrap_or_default();
-                mocomp_efield::DosePlans::new(
-                    model,
-                    cfg.head.shape(),
-                    Some(&goal_head_from_coil),
-                    &targets,
-                )
-            })
-            .transpose()?;
+        let dose = dose_plans(cfg, plan, &goal_head_from_coil)?;
         let mut pace = Lockstep {
             dose,
             player: self.head_player(cfg),
@@ -278,19 +246,7 @@ impl Rig {
             w.observer.finish();
         }
         driven?;
-        if pace.gate_level
-            && let Some(bit) = pace.session.params().gate_output
-        {
-            // The run is over: the stimulator's trigger is shut again.
-            let (robot1, sim1) = (&mut pace.world.robot1, &pace.world.sim1);
-            let n = sim1.stats().inputs;
-            robot1
-                .set_digital_output(bit, false)
-                .map_err(|e| io("shutting the gate output", e))?;
-            spin(Duration::from_secs(5), "the gate output to arrive", || {
-                sim1.stats().inputs > n
-            })?;
-        }
+        shut_gate(&mut pace)?;
         let (pulses, withheld) = (std::mem::take(&mut pace.pulses), pace.withheld);
         let head_lags = pace.player.lags(cfg.duration_s);
         let records = pace.records;
@@ -307,4 +263,84 @@ impl Rig {
         });
         Ok(run)
     }
+}
+
+impl Rig {
+    /// The controller a run drives, and for the oracle the pose source that knows the head's
+    /// true future.
+    fn controller(
+        &self,
+        controller: Controller,
+        truth: Option<Arc<HeadTruth>>,
+        cfg: &ExperimentConfig,
+        loop_cfg: LoopConfig,
+        t0: f64,
+    ) -> (Box<dyn mocomp_control::Controller>, Option<OracleSource>) {
+        match (controller, truth) {
+            (Controller::Oracle, Some(truth)) => {
+                let oracle = TruthOracle { truth, t0 };
+                // Its tracker is perfect: a still head gives identical samples, which from a
+                // real tracker only a frozen stream does.
+                let mut loop_cfg = loop_cfg;
+                loop_cfg.params.frozen_samples = u32::MAX;
+                let clock: Arc<dyn Clock> = self.clock.clone();
+                let source = OracleSource::new(oracle.clone(), clock);
+                (
+                    Box::new(
+                        Compensator::new(loop_cfg, self.arm1, self.period)
+                            .with_head_oracle(Arc::new(oracle)),
+                    ),
+                    Some(source),
+                )
+            }
+            (Controller::Mocomp | Controller::Oracle, _) => (
+                Box::new(Compensator::new(loop_cfg, self.arm1, self.period)),
+                None,
+            ),
+            (Controller::Paper, _) => (
+                Box::new(PaperPipeline::new(cfg.paper, self.arm1, &loop_cfg)),
+                None,
+            ),
+        }
+    }
+}
+
+/// With a coil model, the dose's plans for the run's goal and the session's targets.
+fn dose_plans(
+    cfg: &ExperimentConfig,
+    plan: Option<&SessionPlan>,
+    goal_head_from_coil: &Isometry3<f64>,
+) -> Result<Option<mocomp_efield::DosePlans>, ExperimentError> {
+    Ok(cfg
+        .dose
+        .as_ref()
+        .map(|model| {
+            let targets: Vec<Isometry3<f64>> = plan
+                .map(|p| p.targets.iter().map(|t| t.1).collect())
+                .unwrap_or_default();
+            mocomp_efield::DosePlans::new(
+                model,
+                cfg.head.shape(),
+                Some(goal_head_from_coil),
+                &targets,
+            )
+        })
+        .transpose()?)
+}
+
+/// The run is over: the stimulator's trigger is shut again.
+fn shut_gate(pace: &mut Lockstep<'_, '_>) -> Result<(), ExperimentError> {
+    if pace.gate_level
+        && let Some(bit) = pace.session.params().gate_output
+    {
+        let (robot1, sim1) = (&mut pace.world.robot1, &pace.world.sim1);
+        let n = sim1.stats().inputs;
+        robot1
+            .set_digital_output(bit, false)
+            .map_err(|e| io("shutting the gate output", e))?;
+        spin(Duration::from_secs(5), "the gate output to arrive", || {
+            sim1.stats().inputs > n
+        })?;
+    }
+    Ok(())
 }

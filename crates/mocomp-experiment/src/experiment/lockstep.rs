@@ -121,6 +121,179 @@ pub(super) struct DriftWatch {
     pub(super) q1: JointHistory,
 }
 
+/// The truth at a cycle's time (the joints before this tick's step): the target selected, the
+/// true coil, and the true coil against that target on the true head (m, rad).
+pub(super) struct Truth {
+    target: usize,
+    true_coil: Isometry3<f64>,
+    target_error: (f64, f64),
+}
+
+impl Lockstep<'_, '_> {
+    /// The cycle's command taken by the coil robot's simulator, then both simulators stepped.
+    fn step_world(&mut self, rec: &CycleRecord) -> Result<(), ExperimentError> {
+        let w = &mut *self.world;
+        if matches!(rec.mode, Mode::Faulted(_)) {
+            w.robot1
+                .keep_alive()
+                .map_err(|e| io("commanding the coil robot", e))?;
+        }
+        let (sim1, inputs) = (&w.sim1, self.inputs);
+        spin(Duration::from_secs(5), "a command to arrive", || {
+            sim1.stats().inputs > inputs
+        })?;
+        w.advance()
+    }
+
+    /// The drift monitor: every coil-marker sample against the robot at its acquisition; its
+    /// verdict when it changed.
+    fn watch_drift(&mut self) -> Option<mocomp_session::Drift> {
+        let w = &mut *self.world;
+        let d = &mut self.drift;
+        d.q1.push(w.clock.now_s(), w.q_now.0);
+        let mut drift = None;
+        while let Some(s) = w.coil_source.latest() {
+            if let (true, Some(q)) = (s.valid, d.q1.at(s.acquired_s)) {
+                let tracked = d.base_from_tracker * s.tracker_from_marker;
+                let robot = w.arm1.fk_flange(&q) * d.flange_from_marker;
+                drift = self
+                    .session
+                    .marker(s.acquired_s, &tracked, &robot)
+                    .or(drift);
+            }
+        }
+        drift
+    }
+
+    fn truth(&self) -> Truth {
+        let w = &*self.world;
+        let target = self.session.target();
+        let head_from_coil_target = self
+            .plan
+            .and_then(|p| p.targets.get(target))
+            .map_or(self.goal_head_from_coil, |t| t.1);
+        let true_coil = w.world_from_e1(&w.q_prev.0) * w.scene.e1_from_coil;
+        let true_target =
+            w.world_from_e2(&w.q_prev.1) * w.scene.e2_from_head * head_from_coil_target;
+        let target_error = (
+            (true_coil.translation.vector - true_target.translation.vector).norm(),
+            true_coil.rotation.angle_to(&true_target.rotation),
+        );
+        Truth {
+            target,
+            true_coil,
+            target_error,
+        }
+    }
+
+    /// The session on this cycle: the gate (to the coil robot's output) and a pulse on its input
+    /// (the state after this tick's step carries it), logged with its truth. Whether the gate
+    /// is open.
+    fn session_cycle(&mut self, rec: &CycleRecord, truth: &Truth) -> Result<bool, ExperimentError> {
+        let w = &mut *self.world;
+        let inputs = w.robot1.state().map(|s| s.digital_inputs);
+        let step = self.session.cycle(rec, inputs);
+        if let Some(p) = step.pulse {
+            let true_head = w.world_from_e2(&w.q_prev.1) * w.scene.e2_from_head;
+            let dose_target = dose_target(self.plan, truth.target);
+            let dose_pct = self.dose.as_mut().map_or(f64::NAN, |d| {
+                d.dose(dose_target, &(true_head.inverse() * truth.true_coil))
+                    .pct
+            });
+            self.pulses.push(LoggedPulse {
+                pulse: PulseAt {
+                    t_s: p.t_s - self.t0,
+                    ..p
+                },
+                truth: truth.target_error,
+                by_hand: self.by_hand,
+                dose_pct,
+            });
+        }
+        if step.gate_open != self.gate_level
+            && let Some(bit) = self.session.params().gate_output
+        {
+            let (robot1, sim1) = (&mut w.robot1, &w.sim1);
+            let n = sim1.stats().inputs;
+            robot1
+                .set_digital_output(bit, step.gate_open)
+                .map_err(|e| io("setting the gate output", e))?;
+            // Taken before the next cycle's command is counted.
+            spin(Duration::from_secs(5), "the gate output to arrive", || {
+                sim1.stats().inputs > n
+            })?;
+            self.gate_level = step.gate_open;
+        }
+        Ok(step.gate_open)
+    }
+
+    /// The tick's record: the score against the paper's goal after this tick's step, the coil's
+    /// error in the loop's own frames for its split into prediction and execution
+    /// ([`split_errors`]), its clearance, contact force and dose.
+    fn record(
+        &mut self,
+        rec: &CycleRecord,
+        drift: Option<mocomp_session::Drift>,
+        truth: &Truth,
+        gate_open: bool,
+    ) {
+        let w = &*self.world;
+        let tr = self.t - self.t0;
+        let e2 = w.world_from_e2(&w.q_now.1);
+        let e1 = w.world_from_e1(&w.q_now.0);
+        let actual = e2.inverse() * e1;
+        let (base_from_tracker, flange_from_coil) = self.loop_frames;
+        let tracker_from_head = w.scene.world_from_tracker.inverse() * e2 * w.scene.e2_from_head;
+        let goal_coil = (base_from_tracker * tracker_from_head * rec.head_from_coil_goal)
+            .translation
+            .vector;
+        let model_coil = (w.arm1.fk_flange(&w.q_now.0) * flange_from_coil)
+            .translation
+            .vector;
+        let aimed_coil = match (rec.mode, rec.head_at_target) {
+            (Mode::Tracking, Some((t, head))) => Some((
+                t - self.t0,
+                (base_from_tracker * head * rec.head_from_coil_goal)
+                    .translation
+                    .vector,
+            )),
+            _ => None,
+        };
+        let goal = self.cfg.goal_e2_from_e1;
+        let head_from_coil = (e2 * w.scene.e2_from_head).inverse() * e1 * w.scene.e1_from_coil;
+        let dose_target = dose_target(self.plan, truth.target);
+        let dose_pct = self
+            .dose
+            .as_mut()
+            .map_or(f64::NAN, |d| d.dose(dose_target, &head_from_coil).pct);
+        self.records.push(Record {
+            t: tr + w.period,
+            d: frobenius_deviation(&goal, &actual, LengthUnit::Millimetre),
+            translation_m: translation_error(&goal, &actual),
+            rotation_rad: rotation_error(&goal, &actual),
+            head_speed: self.player.trajectory().speed_at(tr + w.period),
+            sample_age_s: rec.sample_age_s,
+            horizon_s: rec.horizon_s,
+            mode: rec.mode,
+            event: rec.event,
+            coil_clearance_m: self.coil.measured_distance(&self.head, &head_from_coil),
+            contact_force_n: w.contact.force_n(&head_from_coil),
+            drift,
+            target: truth.target,
+            target_error: truth.target_error,
+            measured_error: rec.coil_error,
+            gate_open,
+            aimed_coil,
+            goal_coil,
+            model_coil,
+            prediction_m: f64::NAN,
+            execution_m: f64::NAN,
+            standoff_m: rec.standoff_m + rec.filtered_m,
+            dose_pct,
+        });
+    }
+}
+
 impl crate::driver::Pace for Lockstep<'_, '_> {
     type Error = ExperimentError;
 
@@ -171,134 +344,11 @@ impl crate::driver::Pace for Lockstep<'_, '_> {
             let m = d.dose_at_goal(&rec.head_from_coil_goal, &coil);
             (rec.dose_v_per_m, rec.dose_pct) = (m.v_per_m, m.pct);
         }
-        let w = &mut *self.world;
-        if matches!(rec.mode, Mode::Faulted(_)) {
-            w.robot1
-                .keep_alive()
-                .map_err(|e| io("commanding the coil robot", e))?;
-        }
-        let (sim1, inputs) = (&w.sim1, self.inputs);
-        spin(Duration::from_secs(5), "a command to arrive", || {
-            sim1.stats().inputs > inputs
-        })?;
-        w.advance()?;
-        // The drift monitor: every coil-marker sample against the robot at its acquisition.
-        let d = &mut self.drift;
-        d.q1.push(w.clock.now_s(), w.q_now.0);
-        let mut drift = None;
-        while let Some(s) = w.coil_source.latest() {
-            if let (true, Some(q)) = (s.valid, d.q1.at(s.acquired_s)) {
-                let tracked = d.base_from_tracker * s.tracker_from_marker;
-                let robot = w.arm1.fk_flange(&q) * d.flange_from_marker;
-                drift = self
-                    .session
-                    .marker(s.acquired_s, &tracked, &robot)
-                    .or(drift);
-            }
-        }
-        let tr = self.t - self.t0;
-        // The truth at the cycle's time (the joints before this tick's step): the true coil
-        // against the selected target on the true head.
-        let target = self.session.target();
-        let head_from_coil_target = self
-            .plan
-            .and_then(|p| p.targets.get(target))
-            .map_or(self.goal_head_from_coil, |t| t.1);
-        let true_coil = w.world_from_e1(&w.q_prev.0) * w.scene.e1_from_coil;
-        let true_target =
-            w.world_from_e2(&w.q_prev.1) * w.scene.e2_from_head * head_from_coil_target;
-        let target_error = (
-            (true_coil.translation.vector - true_target.translation.vector).norm(),
-            true_coil.rotation.angle_to(&true_target.rotation),
-        );
-        // The session on this cycle: the gate (to the coil robot's output) and a pulse on its
-        // input (the state after this tick's step carries it).
-        let inputs = w.robot1.state().map(|s| s.digital_inputs);
-        let step = self.session.cycle(&rec, inputs);
-        if let Some(p) = step.pulse {
-            let true_head = w.world_from_e2(&w.q_prev.1) * w.scene.e2_from_head;
-            let dose_target = dose_target(self.plan, target);
-            let dose_pct = self.dose.as_mut().map_or(f64::NAN, |d| {
-                d.dose(dose_target, &(true_head.inverse() * true_coil)).pct
-            });
-            self.pulses.push(LoggedPulse {
-                pulse: PulseAt {
-                    t_s: p.t_s - self.t0,
-                    ..p
-                },
-                truth: target_error,
-                by_hand: self.by_hand,
-                dose_pct,
-            });
-        }
-        if step.gate_open != self.gate_level
-            && let Some(bit) = self.session.params().gate_output
-        {
-            let (robot1, sim1) = (&mut w.robot1, &w.sim1);
-            let n = sim1.stats().inputs;
-            robot1
-                .set_digital_output(bit, step.gate_open)
-                .map_err(|e| io("setting the gate output", e))?;
-            // Taken before the next cycle's command is counted.
-            spin(Duration::from_secs(5), "the gate output to arrive", || {
-                sim1.stats().inputs > n
-            })?;
-            self.gate_level = step.gate_open;
-        }
-        let e2 = w.world_from_e2(&w.q_now.1);
-        let e1 = w.world_from_e1(&w.q_now.0);
-        let actual = e2.inverse() * e1;
-        // The coil's error in the loop's own frames, for its split into prediction and
-        // execution ([`split_errors`]).
-        let (base_from_tracker, flange_from_coil) = self.loop_frames;
-        let tracker_from_head = w.scene.world_from_tracker.inverse() * e2 * w.scene.e2_from_head;
-        let goal_coil = (base_from_tracker * tracker_from_head * rec.head_from_coil_goal)
-            .translation
-            .vector;
-        let model_coil = (w.arm1.fk_flange(&w.q_now.0) * flange_from_coil)
-            .translation
-            .vector;
-        let aimed_coil = match (rec.mode, rec.head_at_target) {
-            (Mode::Tracking, Some((t, head))) => Some((
-                t - self.t0,
-                (base_from_tracker * head * rec.head_from_coil_goal)
-                    .translation
-                    .vector,
-            )),
-            _ => None,
-        };
-        let goal = self.cfg.goal_e2_from_e1;
-        let head_from_coil = (e2 * w.scene.e2_from_head).inverse() * e1 * w.scene.e1_from_coil;
-        self.records.push(Record {
-            t: tr + w.period,
-            d: frobenius_deviation(&goal, &actual, LengthUnit::Millimetre),
-            translation_m: translation_error(&goal, &actual),
-            rotation_rad: rotation_error(&goal, &actual),
-            head_speed: self.player.trajectory().speed_at(tr + w.period),
-            sample_age_s: rec.sample_age_s,
-            horizon_s: rec.horizon_s,
-            mode: rec.mode,
-            event: rec.event,
-            coil_clearance_m: self.coil.measured_distance(&self.head, &head_from_coil),
-            contact_force_n: w.contact.force_n(&head_from_coil),
-            drift,
-            target,
-            target_error,
-            measured_error: rec.coil_error,
-            gate_open: step.gate_open,
-            aimed_coil,
-            goal_coil,
-            model_coil,
-            prediction_m: f64::NAN,
-            execution_m: f64::NAN,
-            standoff_m: rec.standoff_m + rec.filtered_m,
-            dose_pct: {
-                let dose_target = dose_target(self.plan, target);
-                self.dose
-                    .as_mut()
-                    .map_or(f64::NAN, |d| d.dose(dose_target, &head_from_coil).pct)
-            },
-        });
+        self.step_world(&rec)?;
+        let drift = self.watch_drift();
+        let truth = self.truth();
+        let gate_open = self.session_cycle(&rec, &truth)?;
+        self.record(&rec, drift, &truth, gate_open);
         if let Some(watching) = self.watching.as_mut() {
             watching.observer.cycle(&rec, 0.0);
             if let Some(e) = &rec.event {

@@ -60,8 +60,6 @@ pub(super) struct Rig {
 
 impl Rig {
     pub(super) fn start(cfg: &ExperimentConfig, scene: Scene) -> Result<Self, ExperimentError> {
-        let mut c1 = ControllerConfig::new(cfg.coil_robot);
-        c1.initial_q = scene.q1_start;
         let base1_from_head = Arc::new(Mutex::new(
             scene.world_from_base1.inverse() * scene.world_from_head_rest,
         ));
@@ -71,92 +69,11 @@ impl Rig {
             cfg.coil.clone(),
             cfg.tracker.seed,
         )));
-        let (head, law) = (Arc::clone(&base1_from_head), Arc::clone(&sensor));
-        let tcp_from_coil = scene.e1_from_coil;
-        c1.tool_load = Some(ToolLoad::new(move |t, base_from_tcp| {
-            let base_from_head = *head
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner);
-            law.lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .wrench(t, &(base_from_tcp * tcp_from_coil), &base_from_head)
-        }));
-        let mut c2 = ControllerConfig::new(cfg.head_robot);
-        c2.initial_q = scene.q2_start;
-        let mut s1 = SimConfig::new(c1, cfg.coil_host);
-        s1.clock = mocomp_ursim::SimClock::Stepped;
-        let mut s2 = SimConfig::new(c2, cfg.head_host);
-        s2.clock = mocomp_ursim::SimClock::Stepped;
-        let sim1 = Sim::start(s1).map_err(|e| io("starting the coil robot's simulator", e))?;
-        let sim2 = Sim::start(s2).map_err(|e| io("starting the head robot's simulator", e))?;
+        let (sim1, sim2) = start_simulators(cfg, &scene, &base1_from_head, &sensor)?;
         let period = cfg.coil_robot.spec().series.period_s();
         let clock = Arc::new(SteppedClock::new(0.0));
-        // Connect both while stepping the simulators at most at real time (the client feeds the
-        // program's watchdog on the machine's clock, so a faster simulator would stop a client
-        // that a busy machine delayed for a few milliseconds; the clock stays at 0 meanwhile).
-        // Both at once, and a simulator stops stepping once its robot is connected: a connected
-        // robot whose program is not fed would stop on its watchdog.
-        let done = [AtomicBool::new(false), AtomicBool::new(false)];
-        let slowest = period.max(cfg.head_robot.spec().series.period_s());
-        let (r1, r2) = std::thread::scope(|s| {
-            s.spawn(|| {
-                while !(done[0].load(Ordering::Relaxed) && done[1].load(Ordering::Relaxed)) {
-                    if !done[0].load(Ordering::Relaxed) {
-                        sim1.step();
-                    }
-                    if !done[1].load(Ordering::Relaxed) {
-                        sim2.step();
-                    }
-                    std::thread::sleep(Duration::from_secs_f64(slowest));
-                }
-            });
-            let c: Arc<dyn Clock> = clock.clone();
-            let c2 = Arc::clone(&c);
-            let h2 = s.spawn(|| {
-                let r = UrRobot::connect(sim2.ur_config(), c2);
-                done[1].store(true, Ordering::Relaxed);
-                r
-            });
-            let r1 = UrRobot::connect(sim1.ur_config(), c);
-            done[0].store(true, Ordering::Relaxed);
-            let r2 = h2.join();
-            done[1].store(true, Ordering::Relaxed);
-            (r1, r2)
-        });
-        // A failed connection says what the simulator saw.
-        let events = |sim: &Sim| {
-            let (ev, _) = sim.with(|c| c.events());
-            ev.iter()
-                .map(|e| format!("{:.3} s {}", e.time_s, e.text))
-                .collect::<Vec<_>>()
-                .join("; ")
-        };
-        let robot1 = r1.map_err(|e| ExperimentError::Io {
-            what: "connecting to the coil robot",
-            simulators: Some(events(&sim1)),
-            source: Box::new(e),
-        })?;
-        let r2 = r2.map_err(|_| io("connecting to the head robot", "the thread panicked"))?;
-        let robot2 = r2.map_err(|e| ExperimentError::Io {
-            what: "connecting to the head robot",
-            simulators: Some(events(&sim2)),
-            source: Box::new(e),
-        })?;
-        let server = Server::bind("127.0.0.1:0", ServerConfig::default())
-            .map_err(|e| io("starting the tracker's OpenIGTLink server", e))?;
-        let client = |device: &str| {
-            let mut c = ClientConfig::new(&server.local_addr().to_string());
-            c.device = Some(device.to_string());
-            c.timestamps = TimestampMode::Known(-EPOCH_S);
-            Client::start(c, clock.clone())
-        };
-        let head_client = client(HEAD_DEVICE);
-        let coil_client = client(COIL_DEVICE);
-        spin(
-            Duration::from_secs(5),
-            "the tracker clients to connect",
-            || server.client_count() == 2,
-        )?;
+        let (robot1, robot2) = connect_both(cfg, &sim1, &sim2, &clock)?;
+        let (server, head_client, coil_client) = tracker_link(&clock)?;
         let q = (scene.q1_start, scene.q2_start);
         let mut w = Self {
             clock,
@@ -523,4 +440,117 @@ impl crate::calibration::Station for CalibrationStation<'_> {
             mocomp_geom::average(&seen, None).map_err(|e| io("averaging the marker samples", e))?;
         Ok(Some((q, marker)))
     }
+}
+
+/// Both robots' simulated controllers on the stepped clock, the coil robot's with the contact
+/// law's wrench on its tool.
+fn start_simulators(
+    cfg: &ExperimentConfig,
+    scene: &Scene,
+    base1_from_head: &Arc<Mutex<Isometry3<f64>>>,
+    sensor: &Arc<Mutex<Contact>>,
+) -> Result<(Sim, Sim), ExperimentError> {
+    let mut c1 = ControllerConfig::new(cfg.coil_robot);
+    c1.initial_q = scene.q1_start;
+    let (head, law) = (Arc::clone(base1_from_head), Arc::clone(sensor));
+    let tcp_from_coil = scene.e1_from_coil;
+    c1.tool_load = Some(ToolLoad::new(move |t, base_from_tcp| {
+        let base_from_head = *head
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        law.lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .wrench(t, &(base_from_tcp * tcp_from_coil), &base_from_head)
+    }));
+    let mut c2 = ControllerConfig::new(cfg.head_robot);
+    c2.initial_q = scene.q2_start;
+    let mut s1 = SimConfig::new(c1, cfg.coil_host);
+    s1.clock = mocomp_ursim::SimClock::Stepped;
+    let mut s2 = SimConfig::new(c2, cfg.head_host);
+    s2.clock = mocomp_ursim::SimClock::Stepped;
+    let sim1 = Sim::start(s1).map_err(|e| io("starting the coil robot's simulator", e))?;
+    let sim2 = Sim::start(s2).map_err(|e| io("starting the head robot's simulator", e))?;
+    Ok((sim1, sim2))
+}
+
+/// mocomp's RTDE client connected to both simulators.
+fn connect_both(
+    cfg: &ExperimentConfig,
+    sim1: &Sim,
+    sim2: &Sim,
+    clock: &Arc<SteppedClock>,
+) -> Result<(UrRobot, UrRobot), ExperimentError> {
+    let period = cfg.coil_robot.spec().series.period_s();
+    // Connect both while stepping the simulators at most at real time (the client feeds the
+    // program's watchdog on the machine's clock, so a faster simulator would stop a client
+    // that a busy machine delayed for a few milliseconds; the clock stays at 0 meanwhile).
+    // Both at once, and a simulator stops stepping once its robot is connected: a connected
+    // robot whose program is not fed would stop on its watchdog.
+    let done = [AtomicBool::new(false), AtomicBool::new(false)];
+    let slowest = period.max(cfg.head_robot.spec().series.period_s());
+    let (r1, r2) = std::thread::scope(|s| {
+        s.spawn(|| {
+            while !(done[0].load(Ordering::Relaxed) && done[1].load(Ordering::Relaxed)) {
+                if !done[0].load(Ordering::Relaxed) {
+                    sim1.step();
+                }
+                if !done[1].load(Ordering::Relaxed) {
+                    sim2.step();
+                }
+                std::thread::sleep(Duration::from_secs_f64(slowest));
+            }
+        });
+        let c: Arc<dyn Clock> = clock.clone();
+        let c2 = Arc::clone(&c);
+        let h2 = s.spawn(|| {
+            let r = UrRobot::connect(sim2.ur_config(), c2);
+            done[1].store(true, Ordering::Relaxed);
+            r
+        });
+        let r1 = UrRobot::connect(sim1.ur_config(), c);
+        done[0].store(true, Ordering::Relaxed);
+        let r2 = h2.join();
+        done[1].store(true, Ordering::Relaxed);
+        (r1, r2)
+    });
+    // A failed connection says what the simulator saw.
+    let events = |sim: &Sim| {
+        let (ev, _) = sim.with(|c| c.events());
+        ev.iter()
+            .map(|e| format!("{:.3} s {}", e.time_s, e.text))
+            .collect::<Vec<_>>()
+            .join("; ")
+    };
+    let robot1 = r1.map_err(|e| ExperimentError::Io {
+        what: "connecting to the coil robot",
+        simulators: Some(events(sim1)),
+        source: Box::new(e),
+    })?;
+    let r2 = r2.map_err(|_| io("connecting to the head robot", "the thread panicked"))?;
+    let robot2 = r2.map_err(|e| ExperimentError::Io {
+        what: "connecting to the head robot",
+        simulators: Some(events(sim2)),
+        source: Box::new(e),
+    })?;
+    Ok((robot1, robot2))
+}
+
+/// The tracker's OpenIGTLink server and mocomp's clients of it, one per marker.
+fn tracker_link(clock: &Arc<SteppedClock>) -> Result<(Server, Client, Client), ExperimentError> {
+    let server = Server::bind("127.0.0.1:0", ServerConfig::default())
+        .map_err(|e| io("starting the tracker's OpenIGTLink server", e))?;
+    let client = |device: &str| {
+        let mut c = ClientConfig::new(&server.local_addr().to_string());
+        c.device = Some(device.to_string());
+        c.timestamps = TimestampMode::Known(-EPOCH_S);
+        Client::start(c, clock.clone())
+    };
+    let head_client = client(HEAD_DEVICE);
+    let coil_client = client(COIL_DEVICE);
+    spin(
+        Duration::from_secs(5),
+        "the tracker clients to connect",
+        || server.client_count() == 2,
+    )?;
+    Ok((server, head_client, coil_client))
 }

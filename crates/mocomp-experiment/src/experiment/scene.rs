@@ -145,18 +145,49 @@ pub(super) const MOTION_SAMPLES: u32 = 300;
 /// Chooses the phantom's mounting from the paper's goal and the coil's design pose, then places
 /// the head and both robots so that the start is well inside both arms' workspaces.
 pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
-    let arm1 = Arm::new(cfg.coil_robot);
-    let arm2 = Arm::new(cfg.head_robot);
     // The coil 8 cm out along U1's flange axis; the phantom mounted so that the paper's goal puts
     // the coil on top of the head.
     let e1_from_coil = Isometry3::translation(0.0, 0.0, 0.08);
     let e2_from_head = cfg.goal_e2_from_e1 * e1_from_coil * cfg.coil_design.inverse();
-    let seed = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0];
-    let select = Selection {
+    let (world_from_head_rest, q2_start) = place_head(cfg, &e2_from_head)?;
+    let (world_from_base1, q1_start) = place_coil_robot(cfg, &world_from_head_rest, &e2_from_head)?;
+    // The tracker 1.3 m from the head, above and in front, looking at it.
+    let h = world_from_head_rest.translation.vector;
+    let world_from_tracker = look_at(h + Vector3::new(0.9, 0.5, 0.8), h);
+    Ok(Scene {
+        world_from_base1,
+        world_from_tracker,
+        e2_from_head,
+        e1_from_coil,
+        q1_start,
+        q2_start,
+        world_from_head_rest,
+    })
+}
+
+/// Both robots' starts are searched from this pose, a joint limit at least this far away.
+const START_SEED: [f64; 6] = [0.0, -1.57, 1.57, -1.57, -1.57, 0.0];
+
+fn start_selection() -> Selection {
+    Selection {
         limit_margin: 0.3,
         ..Selection::default()
-    };
-    let yaws = || (0..24).map(|k| f64::from(k) * std::f64::consts::TAU / 24.0);
+    }
+}
+
+/// The yaws a placement tries, 15° apart.
+fn yaws() -> impl Iterator<Item = f64> + Clone {
+    (0..24).map(|k| f64::from(k) * std::f64::consts::TAU / 24.0)
+}
+
+/// The head robot U2 and the phantom on it: the head at rest in the world and U2's start.
+fn place_head(
+    cfg: &ExperimentConfig,
+    e2_from_head: &Isometry3<f64>,
+) -> Result<(Isometry3<f64>, [f64; 6]), ExperimentError> {
+    let arm2 = Arm::new(cfg.head_robot);
+    let e2_from_head = *e2_from_head;
+    let (seed, select) = (START_SEED, start_selection());
     // The head upright in front of U2: search its yaw and place for U2's best start.
     let heads = yaws().flat_map(|yaw| {
         [
@@ -196,7 +227,18 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
                 })
                 .max_by(|a, b| a.0.total_cmp(&b.0))
         });
-    let (world_from_head_rest, q2_start) = placed(best, cfg.head_robot, "hold the phantom")?;
+    placed(best, cfg.head_robot, "hold the phantom")
+}
+
+/// The coil robot U1 beside the head: its base in the world and its start.
+fn place_coil_robot(
+    cfg: &ExperimentConfig,
+    world_from_head_rest: &Isometry3<f64>,
+    e2_from_head: &Isometry3<f64>,
+) -> Result<(Isometry3<f64>, [f64; 6]), ExperimentError> {
+    let arm1 = Arm::new(cfg.coil_robot);
+    let (world_from_head_rest, e2_from_head) = (*world_from_head_rest, *e2_from_head);
+    let (seed, select) = (START_SEED, start_selection());
     // U1 upright, beside the head: search its yaw, distance and height, for the start pose
     // farthest from a singularity over the whole head motion, its links clear of the head all
     // the way (the coil follows the head through all of it: a start chosen alone can put the
@@ -273,17 +315,5 @@ pub fn build_scene(cfg: &ExperimentConfig) -> Result<Scene, ExperimentError> {
             }
         }
     }
-    let (world_from_base1, q1_start) = placed(best, cfg.coil_robot, "reach the goal")?;
-    // The tracker 1.3 m from the head, above and in front, looking at it.
-    let h = world_from_head_rest.translation.vector;
-    let world_from_tracker = look_at(h + Vector3::new(0.9, 0.5, 0.8), h);
-    Ok(Scene {
-        world_from_base1,
-        world_from_tracker,
-        e2_from_head,
-        e1_from_coil,
-        q1_start,
-        q2_start,
-        world_from_head_rest,
-    })
+    placed(best, cfg.coil_robot, "reach the goal")
 }
