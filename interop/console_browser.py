@@ -331,7 +331,12 @@ def session_session(url, shots):
         rows = lambda: d.execute_script(
             "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
         wait("the selection in the events", lambda: any("target beside selected" in r for r in rows()))
-        pulse = wait("a pulse in the events", lambda: next((r for r in rows() if "pulse on beside" in r), None))
+        # A gated pulse on the new target. Not simply the first pulse on it: one the stimulator
+        # fired through the old target's open gate can reach the robot's input just after the
+        # switch, and is rightly logged on the new target as off target (a busy machine widens
+        # that window).
+        pulse = wait("a gated pulse in the events", lambda: next(
+            (r for r in rows() if "pulse on beside" in r and "gate open" in r), None))
         seen["pulse_row"] = pulse
         # The tiles: the gate open, the pulses counted with the last one's error.
         wait("the gate tile open", lambda: text(d, "gate") == "open")
