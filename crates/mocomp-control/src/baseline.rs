@@ -6,7 +6,7 @@ use crate::{Controller, CycleRecord, Event, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSample, PoseSource};
 use mocomp_kin::{Arm, BranchPolicy, Metric, Selection};
-use mocomp_ur::Robot;
+use mocomp_robot::Robot;
 
 /// The `paper` controller's model of the original pipeline.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

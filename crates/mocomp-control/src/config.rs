@@ -5,7 +5,7 @@
 use crate::geometry::{CoilModel, HeadModel};
 use crate::predict::PredictorConfig;
 use mocomp_geom::nalgebra::Isometry3;
-use mocomp_ur::ServoParams;
+use mocomp_robot::ServoParams;
 use serde::{Deserialize, Serialize};
 
 /// A parameter out of its range, named by its key.

@@ -7,7 +7,7 @@ use crate::compensator::{Compensator, CycleRecord};
 use crate::config::LoopParams;
 use mocomp_geom::PoseSource;
 use mocomp_geom::nalgebra::Isometry3;
-use mocomp_ur::Robot;
+use mocomp_robot::Robot;
 
 /// A controller of the coil robot.
 pub trait Controller {

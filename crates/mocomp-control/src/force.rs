@@ -2,7 +2,7 @@
 //! light contact along the coil's axis.
 //!
 //! The wrench is the robot state's `actual_TCP_force` (base frame; an e-Series' flange sensor or
-//! a CB3's estimate, see [`mocomp_ur::ForceSource`]). Each state it is low-pass filtered
+//! a CB3's estimate, see [`mocomp_robot::ForceSource`]). Each state it is low-pass filtered
 //! (`force_filter_s`), and four rules judge it, in order ([`force_rules`]):
 //!
 //! | rule ([`Reason`]) | fires when | reaction |

@@ -4,7 +4,7 @@
 //! head, the coil and the arm. Beside it, behind the same [`Controller`] trait, the paper's own
 //! pipeline ([`baseline`]), the reference the experiment scores it against.
 //!
-//! It talks to the robot and the tracker only through [`mocomp_ur::Robot`] and
+//! It talks to the robot and the tracker only through [`mocomp_robot::Robot`] and
 //! [`mocomp_geom::PoseSource`], and takes the time as an argument, so the simulator steps it
 //! deterministically and the live binary drives it from the monotonic clock.
 //!

@@ -62,7 +62,7 @@
 
 use crate::config::LoopParams;
 use crate::goal::GoalError;
-use mocomp_ur::{RobotFault, RobotState};
+use mocomp_robot::{RobotFault, RobotState};
 
 /// Why the loop does not simply track. Each is a named, tested rule.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -371,7 +371,7 @@ pub fn robot_rules(state: Option<&RobotState>, now_s: f64, p: &LoopParams) -> Op
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
-    use mocomp_ur::SafetyMode;
+    use mocomp_robot::SafetyMode;
 
     fn fresh() -> TrackerInputs {
         TrackerInputs {
@@ -515,7 +515,7 @@ mod tests {
             RobotFault::EmergencyStop,
             RobotFault::ProtectiveStop,
             RobotFault::ProgramStopped,
-            RobotFault::NotRunning(mocomp_ur::RobotMode::PowerOff),
+            RobotFault::NotRunning(mocomp_robot::RobotMode::PowerOff),
         ] {
             assert!(latches(&Reason::Robot(f), 0.0, &p), "{f:?}");
         }

@@ -214,7 +214,7 @@ impl fmt::Display for Event {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mocomp_ur::RobotFault;
+    use mocomp_robot::RobotFault;
 
     fn every_reason() -> Vec<Reason> {
         vec![

@@ -9,8 +9,8 @@ mod common;
 use common::mem::{PERIOD, World};
 use mocomp_control::{Mode, Reason};
 use mocomp_kin::{Arm, Model};
+use mocomp_robot::SafetyMode;
 use mocomp_ur::RobotFault;
-use mocomp_ur::robot::SafetyMode;
 
 /// URControl's C204A3 check as the simulator models it: a setpoint change over `dt` implying more
 /// than 1.2 × the joint's maximum speed.

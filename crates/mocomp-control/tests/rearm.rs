@@ -9,7 +9,7 @@
 mod common;
 use common::mem::{PERIOD, World};
 use mocomp_control::{Event, Mode, Reason};
-use mocomp_ur::robot::{RuntimeState, SafetyMode};
+use mocomp_robot::{RuntimeState, SafetyMode};
 use mocomp_ur::{RobotFault, program};
 
 /// One second of a healthy robot after a fault: the loop stays in `mode`, sending no motion

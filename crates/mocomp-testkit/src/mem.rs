@@ -3,7 +3,7 @@
 
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, MonotonicClock, PoseSample, PoseSource};
-use mocomp_ur::{Robot, RobotState, ServoParams, UrError};
+use mocomp_robot::{Robot, RobotError, RobotState, ServoParams};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The machine's monotonic clock, except that its `n`-th reading panics (once): a fault injected
@@ -86,22 +86,22 @@ impl Robot for MemRobot {
     fn period_s(&self) -> f64 {
         self.period_s
     }
-    fn servo(&mut self, q: &[f64; 6], _: &ServoParams) -> Result<i32, UrError> {
+    fn servo(&mut self, q: &[f64; 6], _: &ServoParams) -> Result<i32, RobotError> {
         self.seq += 1;
         self.state.actual_q = *q;
         self.state.target_q = *q;
         self.state.acked_seq = self.seq;
         Ok(self.seq)
     }
-    fn move_joints(&mut self, q: &[f64; 6], _: f64, _: f64) -> Result<i32, UrError> {
+    fn move_joints(&mut self, q: &[f64; 6], _: f64, _: f64) -> Result<i32, RobotError> {
         self.seq += 1;
         self.last_move = Some(*q);
         Ok(self.seq)
     }
-    fn speed_joints(&mut self, _: &[f64; 6], _: f64) -> Result<i32, UrError> {
+    fn speed_joints(&mut self, _: &[f64; 6], _: f64) -> Result<i32, RobotError> {
         Ok(self.seq)
     }
-    fn stop(&mut self, _: f64) -> Result<i32, UrError> {
+    fn stop(&mut self, _: f64) -> Result<i32, RobotError> {
         // A command of its own, taken at once (a test that plays a slow controller sets
         // `state.acked_seq` back).
         self.stops += 1;
@@ -109,11 +109,11 @@ impl Robot for MemRobot {
         self.state.acked_seq = self.seq;
         Ok(self.seq)
     }
-    fn keep_alive(&mut self) -> Result<(), UrError> {
+    fn keep_alive(&mut self) -> Result<(), RobotError> {
         self.keep_alives += 1;
         Ok(())
     }
-    fn freedrive(&mut self) -> Result<i32, UrError> {
+    fn freedrive(&mut self) -> Result<i32, RobotError> {
         self.seq += 1;
         self.freedrives += 1;
         self.state.acked_seq = self.seq;

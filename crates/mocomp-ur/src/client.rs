@@ -8,15 +8,16 @@
 //! socket (one small package each, no allocation, no lock).
 
 use crate::codec::{ControllerVersion, Recipe};
-use crate::command::{Robot, ServoParams, range};
 use crate::connection::{RTDE_PORT, RtdeConnection};
 use crate::dashboard::{DASHBOARD_PORT, Dashboard};
 use crate::error::UrError;
+use crate::error::range;
 use crate::program::{self, INPUT_NAMES, OUTPUT_REGISTER_NAMES, PROTOCOL_ID, cmd};
 use crate::recovery::{self, Recovered, RecoveryError, Step};
-use crate::robot::{RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode};
 use crate::types::Value;
 use mocomp_geom::{Clock, SeqLock, iso_from_ur_pose, ur_pose_from_iso};
+use mocomp_robot::{Robot, RobotError, ServoParams};
+use mocomp_robot::{RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode};
 use std::io::{Read, Write};
 use std::net::{IpAddr, SocketAddr, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -577,7 +578,7 @@ impl UrRobot {
                     ms: limit.as_millis(),
                 });
             }
-            self.keep_alive()?;
+            self.send()?;
             std::thread::sleep(Duration::from_secs_f64(self.period_s.max(0.002)));
         }
     }
@@ -701,41 +702,41 @@ impl Robot for UrRobot {
         self.period_s
     }
 
-    fn servo(&mut self, q: &[f64; 6], p: &ServoParams) -> Result<i32, UrError> {
+    fn servo(&mut self, q: &[f64; 6], p: &ServoParams) -> Result<i32, RobotError> {
         p.validate()?;
         finite6("servo target", q)?;
         self.check_motion_allowed()?;
-        self.command(cmd::SERVOJ, *q, [p.time_s, p.lookahead_s, p.gain])
+        Ok(self.command(cmd::SERVOJ, *q, [p.time_s, p.lookahead_s, p.gain])?)
     }
 
-    fn move_joints(&mut self, q: &[f64; 6], speed: f64, accel: f64) -> Result<i32, UrError> {
+    fn move_joints(&mut self, q: &[f64; 6], speed: f64, accel: f64) -> Result<i32, RobotError> {
         finite6("move target", q)?;
         range("move speed", speed, 1e-6, MAX_JOINT_SPEED)?;
         range("move acceleration", accel, 1e-6, 40.0)?;
         self.check_motion_allowed()?;
-        self.command(cmd::MOVEJ, *q, [speed, accel, 0.0])
+        Ok(self.command(cmd::MOVEJ, *q, [speed, accel, 0.0])?)
     }
 
-    fn speed_joints(&mut self, qd: &[f64; 6], accel: f64) -> Result<i32, UrError> {
+    fn speed_joints(&mut self, qd: &[f64; 6], accel: f64) -> Result<i32, RobotError> {
         for x in qd {
             range("joint speed", *x, -MAX_JOINT_SPEED, MAX_JOINT_SPEED)?;
         }
         range("speed acceleration", accel, 1e-6, 40.0)?;
         self.check_motion_allowed()?;
-        self.command(cmd::SPEEDJ, *qd, [accel, 0.0, 0.0])
+        Ok(self.command(cmd::SPEEDJ, *qd, [accel, 0.0, 0.0])?)
     }
 
-    fn stop(&mut self, decel: f64) -> Result<i32, UrError> {
+    fn stop(&mut self, decel: f64) -> Result<i32, RobotError> {
         range("stop deceleration", decel, 0.1, 40.0)?;
-        self.command(cmd::STOPJ, [0.0; 6], [decel, 0.0, 0.0])
+        Ok(self.command(cmd::STOPJ, [0.0; 6], [decel, 0.0, 0.0])?)
     }
 
-    fn freedrive(&mut self) -> Result<i32, UrError> {
-        UrRobot::freedrive(self)
+    fn freedrive(&mut self) -> Result<i32, RobotError> {
+        Ok(UrRobot::freedrive(self)?)
     }
 
-    fn keep_alive(&mut self) -> Result<(), UrError> {
-        self.send()
+    fn keep_alive(&mut self) -> Result<(), RobotError> {
+        Ok(self.send()?)
     }
 }
 

@@ -4,7 +4,7 @@
 
 use crate::error::UrError;
 use crate::line::{LineRead, read_line_bounded};
-use crate::robot::{RobotMode, SafetyMode};
+use mocomp_robot::{RobotMode, SafetyMode};
 use std::io::{BufReader, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::time::Duration;

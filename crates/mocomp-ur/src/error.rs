@@ -143,7 +143,7 @@ pub enum UrError {
     },
     /// The robot is in a state that forbids the command.
     #[error("command refused: {0}")]
-    Fault(crate::robot::RobotFault),
+    Fault(mocomp_robot::RobotFault),
     /// A command argument is out of range.
     #[error("{field} = {value} is outside [{min}, {max}]")]
     OutOfRange {
@@ -164,5 +164,66 @@ impl UrError {
             context: context.into(),
             cause,
         }
+    }
+}
+
+pub(crate) fn range(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), UrError> {
+    mocomp_robot::check_range(field, value, min, max).map_err(|_| UrError::OutOfRange {
+        field,
+        value,
+        min,
+        max,
+    })
+}
+
+/// What the loop sees of a UR failure: a fault and a range keep their kind, the rest is the
+/// link's, with this error as its source.
+impl From<UrError> for mocomp_robot::RobotError {
+    fn from(e: UrError) -> Self {
+        match e {
+            UrError::Fault(f) => Self::Fault(f),
+            UrError::OutOfRange {
+                field,
+                value,
+                min,
+                max,
+            } => Self::OutOfRange {
+                field,
+                value,
+                min,
+                max,
+            },
+            other => Self::Link(Box::new(other)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mocomp_robot::{RobotError, RobotFault};
+    use std::error::Error;
+
+    #[test]
+    fn the_loop_sees_a_fault_and_a_range_as_such_and_the_rest_as_the_link_with_its_cause() {
+        let e: RobotError = UrError::Fault(RobotFault::ProtectiveStop).into();
+        assert!(matches!(e, RobotError::Fault(RobotFault::ProtectiveStop)));
+        let e: RobotError = range("servo gain", 5.0, 100.0, 2000.0).unwrap_err().into();
+        assert!(
+            matches!(
+                e,
+                RobotError::OutOfRange {
+                    field: "servo gain",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let cause = std::io::Error::new(std::io::ErrorKind::BrokenPipe, "peer gone");
+        let e: RobotError = UrError::io("sending a command to 127.0.0.1", cause).into();
+        assert!(matches!(e, RobotError::Link(_)));
+        let src = e.source().expect("the UR error is the source");
+        // The socket's cause is part of the UR error's message, so a chain prints it once.
+        assert_eq!(src.to_string(), "sending a command to 127.0.0.1: peer gone");
     }
 }

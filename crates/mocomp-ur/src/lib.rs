@@ -10,9 +10,8 @@
 //! - [`recovery`]: what a re-arm does after the controller stopped the arm (reconnect, unlock a
 //!   protective stop, restart the program, or refuse with what the operator must do), decided
 //!   without sockets.
-//! - [`robot`]: the [`Robot`] trait the control loop uses, the robot state and faults;
-//!   [`client`]: [`UrRobot`], its implementation over RTDE (state on its own thread, newest state
-//!   readable without blocking or locks).
+//! - [`client`]: [`UrRobot`], the implementation of `mocomp_robot`'s [`Robot`] over RTDE (state
+//!   on its own thread, newest state readable without blocking or locks).
 //!
 //! Units: radians, metres, seconds everywhere; TCP poses as `base_from_tcp` isometries.
 //!
@@ -21,19 +20,20 @@
 
 pub mod client;
 pub mod codec;
-pub mod command;
 pub mod connection;
 pub mod dashboard;
 pub mod error;
 pub mod line;
 pub mod program;
 pub mod recovery;
-pub mod robot;
 pub mod types;
 
 pub use client::{UrConfig, UrRobot};
 pub use codec::{ControllerVersion, Recipe};
-pub use command::{Robot, ServoParams};
 pub use error::{RtdeError, UrError};
-pub use robot::{ForceSource, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode};
+// The interface UrRobot implements, for callers that hold one.
+pub use mocomp_robot::{
+    ForceSource, Robot, RobotError, RobotFault, RobotMode, RobotState, RuntimeState, SafetyMode,
+    ServoParams,
+};
 pub use types::{DataType, Value};

@@ -69,23 +69,9 @@ pub mod cmd {
     pub const FREEDRIVE: i32 = 7;
 }
 
-/// Program modes (`output_int_register_24`).
-pub mod mode {
-    /// Not running.
-    pub const NOT_RUNNING: i32 = 0;
-    /// Idle.
-    pub const IDLE: i32 = 1;
-    /// Servoing.
-    pub const SERVO: i32 = 2;
-    /// Executing a MOVEJ.
-    pub const MOVING: i32 = 3;
-    /// Speed control.
-    pub const SPEED: i32 = 4;
-    /// Decelerating after STOPJ.
-    pub const STOPPING: i32 = 5;
-    /// In free-drive.
-    pub const FREEDRIVE: i32 = 6;
-}
+/// Program modes (`output_int_register_24`): the interface's [`mocomp_robot::mode`], which this
+/// program reports.
+pub use mocomp_robot::mode;
 
 /// The first register of the protocol (external-client range).
 pub const REGISTER_BASE: u32 = 24;

@@ -9,7 +9,7 @@
 //! a brake release moves the arm).
 
 use crate::error::UrError;
-use crate::robot::{RobotFault, RobotMode, RobotState, SafetyMode};
+use mocomp_robot::{RobotFault, RobotMode, RobotState, SafetyMode};
 
 /// What a re-arm does first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -133,8 +133,9 @@ impl std::fmt::Display for Recovered {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
-    use crate::robot::{RuntimeState, SAFETY_BIT_EMERGENCY_STOP};
     use mocomp_geom::nalgebra::Isometry3;
+    use mocomp_robot::RuntimeState;
+    use mocomp_robot::state::SAFETY_BIT_EMERGENCY_STOP;
 
     fn healthy() -> RobotState {
         RobotState {

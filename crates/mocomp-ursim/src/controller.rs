@@ -25,9 +25,9 @@
 use mocomp_geom::nalgebra::{Isometry3, Vector6};
 use mocomp_geom::ur_pose_from_iso;
 use mocomp_kin::{Arm, Model, ModelSpec};
+use mocomp_robot::{RobotMode, RuntimeState, SafetyMode};
 use mocomp_ur::codec::ControllerVersion;
 use mocomp_ur::program::{self as mp, cmd as mcmd, mode as mmode};
-use mocomp_ur::robot::{RobotMode, RuntimeState, SafetyMode};
 use mocomp_ur::types::{DataType, REGISTERS, Value, input_type, output_type};
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};

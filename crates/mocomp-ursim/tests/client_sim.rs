@@ -3,10 +3,10 @@
 
 use mocomp_geom::{Clock, MonotonicClock, translation_error};
 use mocomp_kin::{Arm, Model};
+use mocomp_robot::{RobotError, RobotFault, RuntimeState, SafetyMode};
 use mocomp_testkit::{spin_until, wait_until};
 use mocomp_ur::connection::RtdeConnection;
-use mocomp_ur::robot::{RobotFault, RuntimeState, SafetyMode};
-use mocomp_ur::{Robot, ServoParams, UrConfig, UrError, UrRobot};
+use mocomp_ur::{Robot, ServoParams, UrConfig, UrRobot};
 use mocomp_ursim::{ControllerConfig, Sim, SimClock, SimConfig};
 use std::sync::Arc;
 use std::time::Duration;
@@ -286,7 +286,7 @@ fn the_watchdog_stops_the_program_when_the_client_goes_silent() {
     // Commands are refused while the program is stopped, then it restarts on request.
     assert!(matches!(
         robot.servo(&q, &p),
-        Err(UrError::Fault(RobotFault::ProgramStopped))
+        Err(RobotError::Fault(RobotFault::ProgramStopped))
     ));
     robot.restart_program().unwrap();
     assert!(robot.state().unwrap().fault().is_none());
@@ -389,7 +389,7 @@ fn a_setpoint_jump_is_a_protective_stop_detected_at_once_and_recovered_via_the_d
     assert_eq!(s.fault(), Some(RobotFault::ProtectiveStop));
     assert!(matches!(
         robot.servo(&q, &p),
-        Err(UrError::Fault(RobotFault::ProtectiveStop))
+        Err(RobotError::Fault(RobotFault::ProtectiveStop))
     ));
     let (ev, _) = sim.with(|c| c.events());
     assert!(ev.iter().any(|e| e.text.contains("C204A3")), "{ev:?}");

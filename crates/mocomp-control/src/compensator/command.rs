@@ -8,7 +8,7 @@ use super::in_flight::InFlight;
 use crate::config::LoopParams;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
-use mocomp_ur::RobotState;
+use mocomp_robot::RobotState;
 
 /// Commands remembered for the delay estimate.
 const ACK_RING: usize = 64;
@@ -111,7 +111,7 @@ impl CommandState {
         };
         self.last_controller_s = state.controller_s;
         if !self.have {
-            if state.program_mode == mocomp_ur::program::mode::SERVO && self.servo_sent {
+            if state.program_mode == mocomp_robot::mode::SERVO && self.servo_sent {
                 // The controller still servoes to the last setpoint (a stop that never reached
                 // it): it judges the next one against that, so the command goes on from there,
                 // standing (its lead, too, shrinks from there within the setpoint's speed).

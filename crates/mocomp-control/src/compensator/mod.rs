@@ -49,7 +49,7 @@ use command::CommandState;
 use mocomp_geom::PoseSource;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
-use mocomp_ur::Robot;
+use mocomp_robot::Robot;
 use plan::ApproachState;
 pub use record::CycleRecord;
 use robot::{FaultState, RobotStep};
@@ -216,7 +216,7 @@ impl Compensator {
             head: HeadState::new(cfg.predictor),
             force: ForceState {
                 monitor: crate::force::ForceMonitor::new(),
-                range: mocomp_ur::ForceSource::range_n(arm.model()),
+                range: mocomp_robot::ForceSource::range_n(arm.model()),
                 axial_n: 0.0,
             },
             standoff: StandoffState::new(cfg.head_from_coil_goal),

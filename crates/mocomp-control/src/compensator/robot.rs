@@ -5,7 +5,7 @@
 
 use super::{Compensator, CycleRecord, Mode};
 use crate::supervisor::{Reason, latches, robot_rules};
-use mocomp_ur::{Robot, RobotState};
+use mocomp_robot::{Robot, RobotState};
 
 /// The robot's side of a fault: what latched and the stop sent for it.
 #[derive(Debug, Clone, Default)]
@@ -79,7 +79,7 @@ impl Compensator {
             && !self.cmd.have
         {
             if state.acked_seq.wrapping_sub(seq) < 0
-                || state.program_mode == mocomp_ur::program::mode::STOPPING
+                || state.program_mode == mocomp_robot::mode::STOPPING
             {
                 // Healthy again, but the controller has not yet taken the stop, or is still in it:
                 // commands go into registers, so a command sent before it read the stop would
@@ -134,7 +134,7 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::super::tests::fixture;
     use super::*;
-    use mocomp_ur::SafetyMode;
+    use mocomp_robot::SafetyMode;
 
     #[test]
     fn a_protective_stop_stops_once_latches_and_ends_the_cycle() {

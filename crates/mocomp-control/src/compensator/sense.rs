@@ -10,7 +10,7 @@ use crate::safety::required_clearance;
 use crate::supervisor::{Reaction, Reason, TrackerInputs, TrackerVerdict, reaction, tracker_rules};
 use mocomp_geom::PoseSample;
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
-use mocomp_ur::RobotState;
+use mocomp_robot::RobotState;
 
 /// Where the arm's state puts the flange and the coil against the goal for a head estimate.
 #[derive(Debug, Clone, Copy)]

@@ -213,7 +213,7 @@ impl Rig {
     /// Sends a command on a robot and waits until its simulator has it.
     pub(super) fn sent(
         sim: &Sim,
-        f: impl FnOnce() -> Result<(), mocomp_ur::UrError>,
+        f: impl FnOnce() -> Result<(), mocomp_robot::RobotError>,
     ) -> Result<(), ExperimentError> {
         let inputs = sim.stats().inputs;
         f().map_err(|e| io("commanding a robot", e))?;

@@ -1,8 +1,8 @@
 //! What the control loop commands: the [`Robot`] trait (servoj, movej, speedj, stopj, the
 //! keep-alive, free-drive) and the parameters of `servoj`, checked.
 
-use crate::error::UrError;
-use crate::robot::RobotState;
+use crate::error::{RobotError, check_range};
+use crate::state::RobotState;
 
 /// The parameters of `servoj`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -26,23 +26,10 @@ impl ServoParams {
     }
 
     /// Checks the ranges the controller accepts (URScript manual, ur_rtde's limits).
-    pub fn validate(&self) -> Result<(), UrError> {
-        range("servo time_s", self.time_s, 0.001, 1.0)?;
-        range("servo lookahead_s", self.lookahead_s, 0.03, 0.2)?;
-        range("servo gain", self.gain, 100.0, 2000.0)
-    }
-}
-
-pub(crate) fn range(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), UrError> {
-    if value.is_finite() && value >= min && value <= max {
-        Ok(())
-    } else {
-        Err(UrError::OutOfRange {
-            field,
-            value,
-            min,
-            max,
-        })
+    pub fn validate(&self) -> Result<(), RobotError> {
+        check_range("servo time_s", self.time_s, 0.001, 1.0)?;
+        check_range("servo lookahead_s", self.lookahead_s, 0.03, 0.2)?;
+        check_range("servo gain", self.gain, 100.0, 2000.0)
     }
 }
 
@@ -68,17 +55,17 @@ pub trait Robot {
     /// The controller period, s.
     fn period_s(&self) -> f64;
     /// Streams one servo target (call every cycle). Returns the command's sequence number.
-    fn servo(&mut self, q: &[f64; 6], params: &ServoParams) -> Result<i32, UrError>;
+    fn servo(&mut self, q: &[f64; 6], params: &ServoParams) -> Result<i32, RobotError>;
     /// Starts a point-to-point joint move (`movej`); its completion shows as
     /// [`RobotState::move_done_seq`] reaching the returned sequence number.
-    fn move_joints(&mut self, q: &[f64; 6], speed: f64, accel: f64) -> Result<i32, UrError>;
+    fn move_joints(&mut self, q: &[f64; 6], speed: f64, accel: f64) -> Result<i32, RobotError>;
     /// Joint speed control (`speedj`), until the next command or stop.
-    fn speed_joints(&mut self, qd: &[f64; 6], accel: f64) -> Result<i32, UrError>;
+    fn speed_joints(&mut self, qd: &[f64; 6], accel: f64) -> Result<i32, RobotError>;
     /// Decelerates to standstill (`stopj`). Sent even when the robot reports a fault.
-    fn stop(&mut self, decel: f64) -> Result<i32, UrError>;
+    fn stop(&mut self, decel: f64) -> Result<i32, RobotError>;
     /// Repeats the last command (keeps the watchdog fed while nothing new is commanded).
-    fn keep_alive(&mut self) -> Result<(), UrError>;
+    fn keep_alive(&mut self) -> Result<(), RobotError>;
     /// Free-drive: the arm yields to a hand for as long as this is sent each cycle (its
     /// keep-alive is the dead-man switch); any other command ends it.
-    fn freedrive(&mut self) -> Result<i32, UrError>;
+    fn freedrive(&mut self) -> Result<i32, RobotError>;
 }

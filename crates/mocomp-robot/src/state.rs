@@ -228,7 +228,7 @@ pub struct RobotState {
     pub safety_status_bits: u32,
     /// Actual speed scaling (0..1).
     pub speed_scaling: f64,
-    /// Our program's mode register (see [`crate::program`]): 0 not running, 1 idle, …
+    /// The control program's mode ([`crate::mode`]): 0 not running, 1 idle, …
     pub program_mode: i32,
     /// The sequence number of the newest command our program has taken.
     pub acked_seq: i32,
@@ -240,7 +240,7 @@ pub struct RobotState {
     pub connected: bool,
     /// The wrench on the tool, `actual_TCP_force`: force (N) and torque (N·m) in the base
     /// frame. A CB3 estimates it from the joint currents; an e-Series measures it with the
-    /// force/torque sensor in its tool flange ([`crate::types`]' model table says which).
+    /// force/torque sensor in its tool flange ([`ForceSource::of`] says which).
     pub tcp_force: [f64; 6],
     /// `actual_digital_input_bits`: 0-7 standard, 8-15 configurable, 16-17 tool.
     pub digital_inputs: u64,
@@ -269,7 +269,7 @@ impl RobotState {
             robot_status_bits: 0,
             safety_status_bits: 0,
             speed_scaling: 1.0,
-            program_mode: crate::program::mode::IDLE,
+            program_mode: crate::mode::IDLE,
             acked_seq: 0,
             move_done_seq: 0,
             program_ours: true,
