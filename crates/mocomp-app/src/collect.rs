@@ -2,12 +2,12 @@
 //! planner's poses on the robot, records the tracker's measurement of the flange's marker at each,
 //! solves `AX = YB`, and saves the calibration (and the pairs, for `calibrate solve`).
 
-use crate::calibration::{self, Measurement, MoveState, Station, move_state};
 use crate::config::{CollectSection, Setup, TrackerSource};
 use crate::frontend::Controls;
 use crate::world::World;
 use crate::{AppError, Context};
 use mocomp_calib::plan::{PlanOptions, TrackerView, plan};
+use mocomp_calib::procedure::{self as calibration, Measurement, MoveState, Station, move_state};
 use mocomp_calib::{
     Calibration, NoiseModel, Pair, PairsFormat, SolveOptions, solve, write_pairs_csv,
 };

@@ -72,7 +72,7 @@ pub mod world;
 
 /// The experiment, the driver and the calibration procedure, from their own crate (the live
 /// session uses the driver and the calibration procedure too).
-pub use mocomp_experiment::{calibration, driver, experiment, session_plan};
+pub use mocomp_experiment::{experiment, session_plan};
 
 /// The front ends' contract, from its own crate (the experiment speaks it too).
 pub use mocomp_frontend as frontend;

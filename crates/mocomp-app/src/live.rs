@@ -14,7 +14,6 @@
 //! parameters.
 
 use crate::config::Setup;
-use crate::driver::Requests;
 use crate::frontend::{Controls, Note, Observer, RearmOutcome, Selection};
 pub use crate::live_log::{RecordOutcome, Ros2Figures, RunReport, StopOutcome, TrackerFigures};
 use crate::live_log::{Summary, logger};
@@ -22,6 +21,7 @@ use crate::live_session::{LoopSession, SessionReport};
 use crate::session_link::{SessionLogSide, SessionStart};
 use crate::world::World;
 use crate::{AppError, Context};
+use mocomp_control::drive::Requests;
 use mocomp_control::{Compensator, CycleRecord, LoopParams, Mode};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, PoseSource};
@@ -114,7 +114,7 @@ impl Live<'_> {
     }
 }
 
-impl crate::driver::Pace for Live<'_> {
+impl mocomp_control::drive::Pace for Live<'_> {
     type Error = std::convert::Infallible;
 
     fn next_cycle(&mut self) -> Result<Option<f64>, Self::Error> {
@@ -276,7 +276,7 @@ pub fn run(
     };
     pace.start(period);
     // The live pace never fails: a late or missing state is the supervisor's to judge.
-    match crate::driver::drive(&mut comp, &mut pace) {
+    match mocomp_control::drive(&mut comp, &mut pace, &mocomp_geom::MonotonicClock::new()) {
         Ok(()) => {}
         Err(never) => match never {},
     }

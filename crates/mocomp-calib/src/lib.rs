@@ -6,12 +6,15 @@
 //! re-solved), [`Method::Shah`] (Kronecker product, rotations by SVD), [`Method::Refined`] (the
 //! default: weighted nonlinear least squares on SE(3) from the better closed form, robust to outlier
 //! pairs). Degenerate pose sets are named before anything is solved. [`plan`] proposes the robot
-//! poses of a calibration run; [`synth`] makes seeded synthetic pairs.
+//! poses of a calibration run; [`procedure`] is the one procedure that collects them (the live
+//! command's and the experiment's), through a [`procedure::Station`] the caller implements;
+//! [`synth`] makes seeded synthetic pairs.
 //!
 //! No I/O: pairs files are parsed from text the caller reads.
 //!
-//! **Limits.** No I/O (pairs files are text the caller reads and writes), no robot or tracker:
-//! poses in, transforms out.
+//! **Limits.** No I/O (pairs files are text the caller reads and writes); a robot and a tracker
+//! only through the caller's [`procedure::Station`] and the robot's state (`mocomp-robot`, no
+//! protocol): poses in, transforms out.
 
 pub mod checks;
 pub mod error;
@@ -19,6 +22,7 @@ pub mod linear;
 pub mod noise;
 pub mod pairs;
 pub mod plan;
+pub mod procedure;
 pub mod refine;
 pub mod report;
 pub mod solve;

@@ -240,7 +240,9 @@ impl Rig {
             pulses: Vec::new(),
             withheld: 0,
         };
-        let driven = crate::driver::drive(ctl.as_mut(), &mut pace);
+        // Compute time is the machine's, whatever clock the world steps on.
+        let stopwatch = mocomp_geom::MonotonicClock::new();
+        let driven = mocomp_control::drive(ctl.as_mut(), &mut pace, &stopwatch);
         if let Some(w) = pace.watching.as_mut() {
             // The run is over (or failed): a recording closes its part.
             w.observer.finish();

@@ -2,10 +2,10 @@
 //! one command, in order, on the stepped clock.
 
 use super::*;
-use crate::driver::Requests;
 use crate::head_drive::HeadPlayer;
 use crate::oracle::OracleSource;
 use crate::session_plan::SessionPlan;
+use mocomp_control::drive::Requests;
 use mocomp_control::{CycleRecord, Mode};
 use mocomp_frontend::Observer;
 use mocomp_geom::nalgebra::Isometry3;
@@ -294,7 +294,7 @@ impl Lockstep<'_, '_> {
     }
 }
 
-impl crate::driver::Pace for Lockstep<'_, '_> {
+impl mocomp_control::drive::Pace for Lockstep<'_, '_> {
     type Error = ExperimentError;
 
     fn next_cycle(&mut self) -> Result<Option<f64>, ExperimentError> {

@@ -2,8 +2,8 @@
 //! moved, and both hand-eye calibrations collected and solved.
 
 use super::*;
-use crate::calibration::MoveState;
 use mocomp_calib::plan::{PlanOptions, plan};
+use mocomp_calib::procedure::MoveState;
 use mocomp_calib::{Method, NoiseModel, SolveOptions, solve};
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{Clock, PoseSource, SteppedClock, rotation_error, translation_error};
@@ -223,7 +223,7 @@ impl Rig {
     }
 
     /// Moves one robot (U1 if `coil`) to `q` with movej while the other keeps still, ticking
-    /// until the move has arrived ([`crate::calibration::move_state`]).
+    /// until the move has arrived ([`mocomp_calib::procedure::move_state`]).
     pub(super) fn move_to(&mut self, coil: bool, q: &[f64; 6]) -> Result<(), ExperimentError> {
         let start = self.clock.now_s();
         let mut seq: Option<i32> = None;
@@ -260,7 +260,7 @@ impl Rig {
                 if let Some(f) = s.fault() {
                     return Err(io("a calibration move", f.to_string()));
                 }
-                match crate::calibration::move_state(&s, q, sent) {
+                match mocomp_calib::procedure::move_state(&s, q, sent) {
                     MoveState::Arrived => return Ok(()),
                     MoveState::Away => {
                         return Err(io(
@@ -334,7 +334,7 @@ impl Rig {
         let poses = plan(&arm, &o).map_err(|e| calib_err(e.to_string()))?;
         let n = poses.len() as f64;
         let mut station = CalibrationStation { world: self, coil };
-        let got = crate::calibration::collect(
+        let got = mocomp_calib::procedure::collect(
             &mut station,
             &arm,
             &poses,
@@ -394,7 +394,7 @@ pub(super) struct CalibrationStation<'a> {
     pub(super) coil: bool,
 }
 
-impl crate::calibration::Station for CalibrationStation<'_> {
+impl mocomp_calib::procedure::Station for CalibrationStation<'_> {
     type Error = ExperimentError;
 
     fn move_to(&mut self, q: &[f64; 6]) -> Result<(), ExperimentError> {
@@ -410,7 +410,7 @@ impl crate::calibration::Station for CalibrationStation<'_> {
     fn measure(
         &mut self,
         samples: usize,
-    ) -> Result<Option<crate::calibration::Measurement>, ExperimentError> {
+    ) -> Result<Option<mocomp_calib::procedure::Measurement>, ExperimentError> {
         let w = &mut *self.world;
         let after = w.clock.now_s();
         let mut seen = Vec::new();

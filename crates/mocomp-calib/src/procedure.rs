@@ -5,11 +5,11 @@
 //! commanded, how time passes and how a marker is measured belong to the [`Station`]; what counts
 //! as arrived, and the order of it all, are here.
 
-use mocomp_calib::Pair;
-use mocomp_calib::plan::PlannedPose;
+use crate::Pair;
+use crate::plan::PlannedPose;
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_kin::Arm;
-use mocomp_ur::RobotState;
+use mocomp_robot::RobotState;
 
 /// A joint closer than this to its target (rad) is there.
 pub const ARRIVED_RAD: f64 = 2e-3;
@@ -110,8 +110,8 @@ pub fn collect<S: Station>(
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
+    use mocomp_robot::Robot;
     use mocomp_testkit::mem::MemRobot;
-    use mocomp_ur::Robot;
 
     fn state(q: [f64; 6], qd: [f64; 6], done: i32) -> RobotState {
         let mut r = MemRobot::at(q, Isometry3::identity(), 0.008);

@@ -4,11 +4,10 @@
 //! happens after each cycle (the live one queues the record for its logger; the lockstep one
 //! steps the simulated world and scores it).
 
-use mocomp_control::{Controller, CycleRecord, LoopParams};
-use mocomp_geom::PoseSource;
+use crate::{Controller, CycleRecord, LoopParams};
 use mocomp_geom::nalgebra::Isometry3;
-use mocomp_ur::Robot;
-use std::time::Instant;
+use mocomp_geom::{Clock, PoseSource};
+use mocomp_robot::Robot;
 
 /// How a loop is paced.
 pub trait Pace {
@@ -47,11 +46,13 @@ pub struct Requests {
 }
 
 /// Runs `controller` at `pace` until the pace ends it. Each record carries the cycle's compute
-/// time (the command's socket write included). Allocates nothing, locks nothing and logs nothing
-/// itself: what a pace does around the cycle is its own.
+/// time (the command's socket write included) on `stopwatch`, the caller's monotonic clock: this
+/// crate reads no clock of its own. Allocates nothing, locks nothing and logs nothing itself: what
+/// a pace does around the cycle is its own.
 pub fn drive<P: Pace + ?Sized>(
     controller: &mut dyn Controller,
     pace: &mut P,
+    stopwatch: &dyn Clock,
 ) -> Result<(), P::Error> {
     while let Some(now) = pace.next_cycle()? {
         let requests = pace.requests();
@@ -73,13 +74,23 @@ pub fn drive<P: Pace + ?Sized>(
         if requests.calibration_invalid.is_some() {
             controller.set_calibration_invalid(requests.calibration_invalid);
         }
-        let started = Instant::now();
+        let started = stopwatch.now_s();
         let (robot, source) = pace.loop_io();
         let mut record = controller.cycle(now, robot, source);
-        record.compute_ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        record.compute_ns = seconds_to_ns(stopwatch.now_s() - started);
         pace.cycle_done(record)?;
     }
     Ok(())
+}
+
+/// A duration in whole nanoseconds, 0 for a clock that went back or gave no number.
+fn seconds_to_ns(s: f64) -> u64 {
+    if s.is_finite() && s > 0.0 {
+        // `as` saturates at u64::MAX, which no cycle reaches.
+        (s * 1e9).round() as u64
+    } else {
+        0
+    }
 }
 
 #[cfg(test)]
@@ -137,7 +148,7 @@ mod tests {
             assert!(robot.state().is_some());
             // Work that takes measurable time.
             std::thread::sleep(std::time::Duration::from_micros(50));
-            CycleRecord::new(now, mocomp_control::Mode::Tracking, [0.0; 6])
+            CycleRecord::new(now, crate::Mode::Tracking, [0.0; 6])
         }
 
         fn set_operator_hold(&mut self, hold: bool) {
@@ -159,7 +170,7 @@ mod tests {
             seen: Vec::new(),
         };
         let mut c = Counting(Vec::new(), Vec::new());
-        drive(&mut c, &mut pace).unwrap();
+        drive(&mut c, &mut pace, &mocomp_geom::MonotonicClock::new()).unwrap();
         let expected: Vec<f64> = (0..5).map(|k| f64::from(k) * 0.008).collect();
         assert_eq!(c.0.len(), 5);
         for (a, b) in c.0.iter().zip(&expected) {
@@ -213,7 +224,7 @@ mod tests {
         };
         let mut pace = Asking(stepped, 0);
         let mut c = Counting(Vec::new(), Vec::new());
-        drive(&mut c, &mut pace).unwrap();
+        drive(&mut c, &mut pace, &mocomp_geom::MonotonicClock::new()).unwrap();
         // (cycles run before the request, the request)
         assert_eq!(c.1, vec![(2, true), (4, false)]);
     }
