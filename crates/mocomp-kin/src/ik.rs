@@ -265,9 +265,12 @@ pub fn solve_with(
 ) -> Result<Solutions, Unreachable> {
     let m = base_from_flange.rotation.to_rotation_matrix();
     let m = m.matrix();
-    let x6 = [m[(0, 0)], m[(1, 0)], m[(2, 0)]];
-    let y6 = [m[(0, 1)], m[(1, 1)], m[(2, 1)]];
-    let z6 = [m[(0, 2)], m[(1, 2)], m[(2, 2)]];
+    let axes = [
+        [m[(0, 0)], m[(1, 0)], m[(2, 0)]],
+        [m[(0, 1)], m[(1, 1)], m[(2, 1)]],
+        [m[(0, 2)], m[(1, 2)], m[(2, 2)]],
+    ];
+    let z6 = axes[2];
     let p = base_from_flange.translation.vector;
     let p5 = [p.x - g.d6 * z6[0], p.y - g.d6 * z6[1], p.z - g.d6 * z6[2]];
 
@@ -291,15 +294,71 @@ pub fn solve_with(
     } else {
         rho
     };
-    let reach_max = g.a2.abs() + g.a3.abs();
-    let reach_min = (g.a2.abs() - g.a3.abs()).abs();
-    // The smallest reach violation seen, to report when nothing is reachable.
-    let mut worst: Option<Unreachable> = None;
-    let mut worst_excess = f64::INFINITY;
-
+    let reach = ((g.a2.abs() - g.a3.abs()).abs(), g.a2.abs() + g.a3.abs());
+    let mut worst = Worst::default();
     let shoulders: &[f64] = if rho == 0.0 { &[0.0] } else { &[1.0, -1.0] };
     for &sign in shoulders {
-        let rho_s = sign * rho;
+        let shoulder = ShoulderSide::new(g, &p5, &axes, sign * rho, reach, slack);
+        let (wrists, n_wrists) = shoulder.wrists(q6_hint, &mut out);
+        for wrist in &wrists[..n_wrists] {
+            shoulder.elbows(*wrist, &mut out, &mut worst);
+        }
+    }
+    if out.is_empty() {
+        // Every branch failed the planar reach check, so `worst` is set.
+        return Err(worst.why.unwrap_or(Unreachable::TooFar {
+            distance_m: f64::NAN,
+            reach_m: reach.1,
+        }));
+    }
+    Ok(out)
+}
+
+/// The smallest reach violation seen, to report when nothing is reachable.
+struct Worst {
+    excess: f64,
+    why: Option<Unreachable>,
+}
+
+impl Default for Worst {
+    fn default() -> Self {
+        Self {
+            excess: f64::INFINITY,
+            why: None,
+        }
+    }
+}
+
+/// One wrist solution: (q5, q6, q234, cos q234, sin q234, wrist sign).
+type WristSolution = (f64, f64, f64, f64, f64, f64);
+
+/// One shoulder branch: q1 and the target in frame 1, what its wrist and elbow solutions need.
+struct ShoulderSide<'a> {
+    g: &'a UrGeometry,
+    slack: &'a Slack,
+    rho_s: f64,
+    q1: f64,
+    /// The flange's x, y and z axes in frame 1.
+    x16: [f64; 3],
+    y16: [f64; 3],
+    z16: [f64; 3],
+    /// The wrist point in the arm plane.
+    px: f64,
+    py: f64,
+    /// (shortest, longest) reach of the planar pair.
+    reach: (f64, f64),
+}
+
+impl<'a> ShoulderSide<'a> {
+    #[inline]
+    fn new(
+        g: &'a UrGeometry,
+        p5: &[f64; 3],
+        axes: &[[f64; 3]; 3],
+        rho_s: f64,
+        reach: (f64, f64),
+        slack: &'a Slack,
+    ) -> Self {
         // q1 = ψ + atan2(d4, ρ) with ψ = atan2(p5y, p5x), so (cos q1, sin q1) ∝
         // (p5x ρ − p5y d4, p5y ρ + p5x d4): no trigonometry needed.
         let (mut c1, mut s1) = (p5[0] * rho_s - p5[1] * g.d4, p5[1] * rho_s + p5[0] * g.d4);
@@ -311,25 +370,38 @@ pub fn solve_with(
             // Only with calibration slack: the wrist point on the base axis, any q1 will do.
             (c1, s1) = (1.0, 0.0);
         }
-        let q1 = s1.atan2(c1);
         // Frame-1 components: x1 = (c1, s1, 0), y1 = (0, 0, 1), z1 = (s1, −c1, 0).
         let to1 = |v: &[f64; 3]| [v[0] * c1 + v[1] * s1, v[2], v[0] * s1 - v[1] * c1];
-        let x16 = to1(&x6);
-        let y16 = to1(&y6);
-        let z16 = to1(&z6);
-        // Wrist point in the arm plane (its z1 component is d4 by construction of q1).
-        let px = p5[0] * c1 + p5[1] * s1;
-        let py = p5[2] - g.d1;
+        Self {
+            g,
+            slack,
+            rho_s,
+            q1: s1.atan2(c1),
+            x16: to1(&axes[0]),
+            y16: to1(&axes[1]),
+            z16: to1(&axes[2]),
+            // WristSolution point in the arm plane (its z1 component is d4 by construction of q1).
+            px: p5[0] * c1 + p5[1] * s1,
+            py: p5[2] - g.d1,
+            reach,
+        }
+    }
 
-        let a = x16[2]; // sin q5 cos q6
-        let b = y16[2]; // −sin q5 sin q6
-        let c5 = z16[2];
-        let s5abs = (a * a + b * b).sqrt();
+    /// sin q5 cos q6, −sin q5 sin q6, cos q5, and |sin q5| (the wrist's tilt).
+    #[inline]
+    fn wrist_terms(&self) -> (f64, f64, f64, f64) {
+        let a = self.x16[2];
+        let b = self.y16[2];
+        (a, b, self.z16[2], (a * a + b * b).sqrt())
+    }
 
-        // (q5, q6, q234, cos q234, sin q234, wrist sign) for each wrist solution.
+    /// The wrist solutions (one at a wrist singularity, where `q6_hint` picks q6; else the
+    /// noflip and the flip).
+    #[inline]
+    fn wrists(&self, q6_hint: f64, out: &mut Solutions) -> ([WristSolution; 2], usize) {
+        let (g, x16, y16, z16) = (self.g, &self.x16, &self.y16, &self.z16);
+        let (a, b, c5, s5abs) = self.wrist_terms();
         let mut wrists = [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0); 2];
-        let tilt = s5abs;
-        let n_wrists;
         if s5abs < WRIST_SINGULAR_EPS {
             out.singular.wrist = true;
             // R16 = Rz(q234 ± q6) (·diag(−1, 1, −1) when q5 = π): only φ = q234 ± q6 is known.
@@ -340,115 +412,118 @@ pub fn solve_with(
             };
             // q234 = φ + s6dir·q6 for the hinted q6; move it to the nearest reachable value.
             let wanted = phi + s6dir * q6_hint;
-            let q234 = nearest_reachable_q234(g, px, py, wanted, reach_min, reach_max);
+            let (reach_min, reach_max) = self.reach;
+            let q234 = nearest_reachable_q234(g, self.px, self.py, wanted, reach_min, reach_max);
             let q6 = wrap_pi(s6dir * (q234 - phi));
             let (s234, c234) = q234.sin_cos();
             wrists[0] = (q5, q6, q234, c234, s234, 1.0);
-            n_wrists = 1;
-        } else {
-            // Wrist noflip (sin q5 > 0); the flip is q5 → −q5, q6 → q6 + π, q234 → q234 + π.
-            let q5 = s5abs.atan2(c5);
-            let (c6, s6) = (a / s5abs, -b / s5abs);
-            let q6 = (-b).atan2(a);
-            // First column of Rz(q234) = R16 · (c5 c6, −c5 s6, −s5).
-            let (u, v, w) = (c5 * c6, -c5 * s6, -s5abs);
-            let mut c234 = x16[0] * u + y16[0] * v + z16[0] * w;
-            let mut s234 = x16[1] * u + y16[1] * v + z16[1] * w;
-            let n = (c234 * c234 + s234 * s234).sqrt();
-            c234 /= n;
-            s234 /= n;
-            let q234 = s234.atan2(c234);
-            wrists[0] = (q5, q6, q234, c234, s234, 1.0);
-            wrists[1] = (-q5, flip_pi(q6), flip_pi(q234), -c234, -s234, -1.0);
-            n_wrists = 2;
+            return (wrists, 1);
         }
+        // WristSolution noflip (sin q5 > 0); the flip is q5 → −q5, q6 → q6 + π, q234 → q234 + π.
+        let q5 = s5abs.atan2(c5);
+        let (c6, s6) = (a / s5abs, -b / s5abs);
+        let q6 = (-b).atan2(a);
+        // First column of Rz(q234) = R16 · (c5 c6, −c5 s6, −s5).
+        let (u, v, w) = (c5 * c6, -c5 * s6, -s5abs);
+        let mut c234 = x16[0] * u + y16[0] * v + z16[0] * w;
+        let mut s234 = x16[1] * u + y16[1] * v + z16[1] * w;
+        let n = (c234 * c234 + s234 * s234).sqrt();
+        c234 /= n;
+        s234 /= n;
+        let q234 = s234.atan2(c234);
+        wrists[0] = (q5, q6, q234, c234, s234, 1.0);
+        wrists[1] = (-q5, flip_pi(q6), flip_pi(q234), -c234, -s234, -1.0);
+        (wrists, 2)
+    }
 
-        for &(q5, mut q6, mut q234, mut c234, mut s234, sign5) in &wrists[..n_wrists] {
-            let planar_cos = |s234: f64, c234: f64| {
-                let p4x = px - g.d5 * s234;
-                let p4y = py + g.d5 * c234;
-                let dist2 = p4x * p4x + p4y * p4y;
+    /// WristSolution 1's point in the arm plane for q234, its squared distance from the shoulder, and
+    /// the cosine of q3 that reaches it.
+    #[inline]
+    fn planar_cos(&self, s234: f64, c234: f64) -> (f64, f64, f64, f64) {
+        let g = self.g;
+        let p4x = self.px - g.d5 * s234;
+        let p4y = self.py + g.d5 * c234;
+        let dist2 = p4x * p4x + p4y * p4y;
+        (
+            p4x,
+            p4y,
+            dist2,
+            (dist2 - g.a2 * g.a2 - g.a3 * g.a3) / (2.0 * g.a2 * g.a3),
+        )
+    }
+
+    /// The elbow pair of one wrist solution into `out`, or its reach violation into `worst`.
+    #[inline]
+    fn elbows(&self, wrist: WristSolution, out: &mut Solutions, worst: &mut Worst) {
+        let (q5, mut q6, mut q234, mut c234, mut s234, sign5) = wrist;
+        let (g, slack) = (self.g, self.slack);
+        let (_, _, c5, tilt) = self.wrist_terms();
+        let (reach_min, reach_max) = self.reach;
+        let (mut p4x, mut p4y, mut dist2, mut c3) = self.planar_cos(s234, c234);
+        if c3.abs() > 1.0 + slack.cos3 && tilt > 0.0 && tilt < WRIST_NEAR_SINGULAR {
+            // Near a wrist singularity, q234 and q6 are split only to ~1e-16/tilt: move within
+            // that split to the nearest q234 that puts wrist 1 within reach, if the
+            // orientation error it costs (≈ tilt·|Δ|) is negligible.
+            let moved = nearest_reachable_q234(g, self.px, self.py, q234, reach_min, reach_max);
+            let delta = angle_diff(moved, q234);
+            if tilt * delta.abs() < WRIST_SPLIT_ERROR {
+                q234 = moved;
+                q6 = wrap_pi(if c5 >= 0.0 { q6 - delta } else { q6 + delta });
+                (s234, c234) = q234.sin_cos();
+                (p4x, p4y, dist2, c3) = self.planar_cos(s234, c234);
+            }
+        }
+        if c3.abs() > 1.0 + slack.cos3 {
+            let dist = dist2.sqrt();
+            let (excess, why) = if c3 > 0.0 {
                 (
-                    p4x,
-                    p4y,
-                    dist2,
-                    (dist2 - g.a2 * g.a2 - g.a3 * g.a3) / (2.0 * g.a2 * g.a3),
+                    dist - reach_max,
+                    Unreachable::TooFar {
+                        distance_m: dist,
+                        reach_m: reach_max,
+                    },
+                )
+            } else {
+                (
+                    reach_min - dist,
+                    Unreachable::TooClose {
+                        distance_m: dist,
+                        min_m: reach_min,
+                    },
                 )
             };
-            let (mut p4x, mut p4y, mut dist2, mut c3) = planar_cos(s234, c234);
-            if c3.abs() > 1.0 + slack.cos3 && tilt > 0.0 && tilt < WRIST_NEAR_SINGULAR {
-                // Near a wrist singularity, q234 and q6 are split only to ~1e-16/tilt: move within
-                // that split to the nearest q234 that puts wrist 1 within reach, if the
-                // orientation error it costs (≈ tilt·|Δ|) is negligible.
-                let moved = nearest_reachable_q234(g, px, py, q234, reach_min, reach_max);
-                let delta = angle_diff(moved, q234);
-                if tilt * delta.abs() < WRIST_SPLIT_ERROR {
-                    q234 = moved;
-                    q6 = wrap_pi(if c5 >= 0.0 { q6 - delta } else { q6 + delta });
-                    (s234, c234) = q234.sin_cos();
-                    (p4x, p4y, dist2, c3) = planar_cos(s234, c234);
-                }
+            if excess < worst.excess {
+                worst.excess = excess;
+                worst.why = Some(why);
             }
-            if c3.abs() > 1.0 + slack.cos3 {
-                let dist = dist2.sqrt();
-                let (excess, why) = if c3 > 0.0 {
-                    (
-                        dist - reach_max,
-                        Unreachable::TooFar {
-                            distance_m: dist,
-                            reach_m: reach_max,
-                        },
-                    )
-                } else {
-                    (
-                        reach_min - dist,
-                        Unreachable::TooClose {
-                            distance_m: dist,
-                            min_m: reach_min,
-                        },
-                    )
-                };
-                if excess < worst_excess {
-                    worst_excess = excess;
-                    worst = Some(why);
-                }
-                continue;
-            }
-            c3 = c3.clamp(-1.0, 1.0);
-            let mut s3abs = ((1.0 - c3) * (1.0 + c3)).sqrt();
-            if s3abs < slack.split_sin3 {
-                s3abs = slack.split_sin3;
-                c3 = c3.signum() * (1.0 - s3abs * s3abs).sqrt();
-            }
-            let merged = s3abs < ELBOW_MERGE_SIN;
-            if merged {
-                out.singular.elbow = true;
-                s3abs = 0.0;
-                c3 = c3.signum();
-            }
-            // The elbow pair: q3 = ±atan2(s3, c3), q2 = base ∓ atan2(a3 s3, a2 + a3 c3).
-            let base = p4y.atan2(p4x);
-            let q3p = s3abs.atan2(c3);
-            let off = (g.a3 * s3abs).atan2(g.a2 + g.a3 * c3);
-            let elbows: &[f64] = if merged { &[1.0] } else { &[1.0, -1.0] };
-            for &sign3 in elbows {
-                let q3 = sign3 * q3p;
-                let q2 = wrap_pi(base - sign3 * off);
-                let q4 = wrap_pi(q234 - q2 - q3);
-                let joints = [q1, q2, q3, q4, q5, q6];
-                let branch = label(rho_s, sign3 * s3abs, sign5);
-                push_distinct(&mut out, IkSolution { joints, branch });
-            }
+            return;
+        }
+        c3 = c3.clamp(-1.0, 1.0);
+        let mut s3abs = ((1.0 - c3) * (1.0 + c3)).sqrt();
+        if s3abs < slack.split_sin3 {
+            s3abs = slack.split_sin3;
+            c3 = c3.signum() * (1.0 - s3abs * s3abs).sqrt();
+        }
+        let merged = s3abs < ELBOW_MERGE_SIN;
+        if merged {
+            out.singular.elbow = true;
+            s3abs = 0.0;
+            c3 = c3.signum();
+        }
+        // The elbow pair: q3 = ±atan2(s3, c3), q2 = base ∓ atan2(a3 s3, a2 + a3 c3).
+        let base = p4y.atan2(p4x);
+        let q3p = s3abs.atan2(c3);
+        let off = (g.a3 * s3abs).atan2(g.a2 + g.a3 * c3);
+        let elbows: &[f64] = if merged { &[1.0] } else { &[1.0, -1.0] };
+        for &sign3 in elbows {
+            let q3 = sign3 * q3p;
+            let q2 = wrap_pi(base - sign3 * off);
+            let q4 = wrap_pi(q234 - q2 - q3);
+            let joints = [self.q1, q2, q3, q4, q5, q6];
+            let branch = label(self.rho_s, sign3 * s3abs, sign5);
+            push_distinct(out, IkSolution { joints, branch });
         }
     }
-    if out.is_empty() {
-        // Every branch failed the planar reach check, so `worst` is set.
-        return Err(worst.unwrap_or(Unreachable::TooFar {
-            distance_m: f64::NAN,
-            reach_m: reach_max,
-        }));
-    }
-    Ok(out)
 }
 
 /// `a + π` wrapped into `(−π, π]`, for `a` in `(−π, π]`.
