@@ -165,6 +165,22 @@ fn svg(fig: &PulseFigure<'_>) -> Result<String, PlotError> {
 
 /// The report's HTML.
 pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
+    let (errors, scalp) = figures(r)?;
+    let mut o = String::new();
+    facts(&mut o, r);
+    registration(&mut o, r);
+    targets(&mut o, r.pulses);
+    o.push_str("<h2>Figures</h2>\n");
+    for (id, fig) in [("errors", &errors), ("scalp", &scalp)] {
+        let _ = writeln!(o, "<figure id=\"figure-{id}\">{fig}</figure>");
+    }
+    pulses(&mut o, r.pulses);
+    o.push_str("</body>\n</html>\n");
+    Ok(o)
+}
+
+/// The two figures: each pulse's errors against the gate, and its scalp distance and output.
+fn figures(r: &SessionReport<'_>) -> Result<(String, String), PlotError> {
     let p = r.pulses;
     let t = times(p);
     let errors = svg(&PulseFigure {
@@ -203,13 +219,18 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
             ),
         ],
     })?;
+    Ok((errors, scalp))
+}
+
+/// The head of the page and the session's facts.
+fn facts(o: &mut String, r: &SessionReport<'_>) {
+    let p = r.pulses;
     let first = p.first().and_then(|x| x.utc_unix_s).map(iso8601);
     let last = p.last().and_then(|x| x.utc_unix_s).map(iso8601);
     let shut = p.iter().filter(|x| !x.gate_open).count();
-    let mut o = String::new();
     // Writing into a String cannot fail.
     let _ = write!(
-        o,
+        *o,
         "<!doctype html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
          <title>mocomp session report</title>\n<style>\n\
          body{{font-family:sans-serif;margin:2em;max-width:1000px;color:#222}}\
@@ -236,11 +257,15 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
         num(r.gate.1, 2),
         h(r.version),
     );
+}
+
+/// The registration the session ran with, landmark by landmark, or why there was none.
+fn registration(o: &mut String, r: &SessionReport<'_>) {
     o.push_str("<h2>Registration</h2>\n");
     match &r.registration {
         Some(g) => {
             let _ = write!(
-                o,
+                *o,
                 "<p>{} ({}): landmarks' RMS error {} mm; the scalp swept at {} points, {} mm RMS \
                  from the image's scalp.</p>\n<table id=\"registration\"><tr><th class=\"l\">\
                  landmark</th><th>error (mm)</th></tr>\n",
@@ -252,7 +277,7 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
             );
             for (n, err) in &g.landmarks {
                 let _ = writeln!(
-                    o,
+                    *o,
                     "<tr><td class=\"l\">{}</td><td>{}</td></tr>",
                     h(n),
                     num(*err, 2)
@@ -265,6 +290,10 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
              the head, or the configured head_from_image).</p>\n",
         ),
     }
+}
+
+/// Per target: its pulses, the gate's refusals, the errors' median and largest.
+fn targets(o: &mut String, p: &[Pulse]) {
     o.push_str(
         "<h2>Targets</h2>\n<table id=\"targets\"><tr><th class=\"l\">target</th><th>pulses</th>\
          <th>gate shut</th><th>position error median / max (mm)</th><th>angle error median / \
@@ -281,7 +310,7 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
         let pos = || of.iter().map(|x| x.position_error_m * 1e3);
         let ang = || of.iter().map(|x| x.angle_error_rad.to_degrees());
         let _ = writeln!(
-            o,
+            *o,
             "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{} / {}</td><td>{} / {}</td>\
              <td>{}</td></tr>",
             h(n),
@@ -297,10 +326,11 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
             ),
         );
     }
-    o.push_str("</table>\n<h2>Figures</h2>\n");
-    for (id, fig) in [("errors", &errors), ("scalp", &scalp)] {
-        let _ = writeln!(o, "<figure id=\"figure-{id}\">{fig}</figure>");
-    }
+    o.push_str("</table>\n");
+}
+
+/// Every pulse, a row each.
+fn pulses(o: &mut String, p: &[Pulse]) {
     o.push_str(
         "<h2>Pulses</h2>\n<table id=\"pulses\"><tr><th>#</th><th class=\"l\">UTC</th>\
          <th class=\"l\">target</th><th>output (%)</th><th>position error (mm)</th>\
@@ -322,7 +352,7 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
             format!("shut: {}", x.why_shut)
         };
         let _ = writeln!(
-            o,
+            *o,
             "<tr class=\"pulse{}\"><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td>\
              <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
              <td class=\"l\">{}</td><td class=\"l\">{}</td></tr>",
@@ -340,8 +370,7 @@ pub fn html(r: &SessionReport<'_>) -> Result<String, PlotError> {
             centre,
         );
     }
-    o.push_str("</table>\n</body>\n</html>\n");
-    Ok(o)
+    o.push_str("</table>\n");
 }
 
 #[cfg(test)]
