@@ -466,151 +466,181 @@ impl Figure for Events<'_> {
         let rows = self.runs.len().max(1);
         let areas = root.split_evenly((rows, 1));
         for (run, area) in self.runs.iter().zip(&areas) {
-            let EventCounts {
-                holds,
-                resumes,
-                outliers,
-                reached,
-                retreats,
-                coasts,
-            } = event_counts(run);
-            let period = match run.records.as_slice() {
-                [a, b, ..] => b.t - a.t,
-                _ => 0.0,
-            };
-            let caption = format!(
-                "{}: mode and safety events ({holds} holds, {retreats} retreats, {resumes} resumes, {coasts} dropouts coasted, {outliers} outliers rejected, {reached} approaches reached)",
-                run.controller.name()
-            );
-            let mut chart = ChartBuilder::on(area)
-                .caption(caption, (FONT, 18))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(20)
-                .build_cartesian_2d(self.t.clone(), 0.0..1.0)
-                .map_err(e)?;
-            chart
-                .configure_mesh()
-                .x_desc("time (s)")
-                .y_labels(0)
-                .disable_y_mesh()
-                .label_style((FONT, 14))
-                .axis_desc_style((FONT, 15))
-                .draw()
-                .map_err(e)?;
-            // Mode bands: one rectangle per stretch of one mode (ticks are one period long).
-            let mut bands: Vec<(f64, f64, usize)> = Vec::new();
-            let mut prev_t = self.t.start;
-            for r in &run.records {
-                let k = r.mode.kind();
-                match bands.last_mut() {
-                    Some(b) if b.2 == k => b.1 = r.t,
-                    _ => bands.push((prev_t, r.t, k)),
-                }
-                prev_t = r.t;
-            }
-            for (k, (&name, &c)) in Mode::KINDS.iter().zip(&MODE_COLOURS).enumerate() {
-                let mine: Vec<_> = bands
-                    .iter()
-                    .filter(|b| b.2 == k)
-                    .map(|&(t0, t1, _)| {
-                        Rectangle::new([(t0, 0.35), (t1, 0.65)], c.mix(0.5).filled())
-                    })
-                    .collect();
-                if mine.is_empty() {
-                    continue;
-                }
-                chart
-                    .draw_series(mine)
-                    .map_err(e)?
-                    .label(name)
-                    .legend(move |(x, y)| {
-                        Rectangle::new([(x, y - 6), (x + 22, y + 6)], c.mix(0.5).filled())
-                    });
-            }
-            // Where the true coil was inside the head model: a red strip at the bottom.
-            let inside: Vec<_> = run
-                .records
-                .iter()
-                .filter(|r| r.coil_clearance_m < 0.0)
-                .map(|r| Rectangle::new([(r.t - period, 0.02), (r.t, 0.1)], RED.filled()))
-                .collect();
-            if !inside.is_empty() {
-                chart
-                    .draw_series(inside)
-                    .map_err(e)?
-                    .label("coil inside the head model")
-                    .legend(|(x, y)| Rectangle::new([(x, y - 6), (x + 22, y + 6)], RED.filled()));
-            }
-            // Events above the band.
-            let at = |want: fn(&Event) -> bool| -> Vec<f64> {
-                run.records
-                    .iter()
-                    .filter(|r| r.event.as_ref().is_some_and(want))
-                    .map(|r| r.t)
-                    .collect()
-            };
-            let black = BLACK;
-            let holds = at(|ev| matches!(ev, Event::Hold(_)));
-            if !holds.is_empty() {
-                chart
-                    .draw_series(
-                        holds.iter().map(|&t| {
-                            TriangleMarker::new((t, 0.8), 7, RGBColor(214, 39, 40).filled())
-                        }),
-                    )
-                    .map_err(e)?
-                    .label("hold")
-                    .legend(|(x, y)| {
-                        TriangleMarker::new((x + 11, y), 7, RGBColor(214, 39, 40).filled())
-                    });
-            }
-            let resumes = at(|ev| matches!(ev, Event::Resume));
-            if !resumes.is_empty() {
-                chart
-                    .draw_series(
-                        resumes
-                            .iter()
-                            .map(|&t| Circle::new((t, 0.8), 5, black.filled())),
-                    )
-                    .map_err(e)?
-                    .label("resume")
-                    .legend(move |(x, y)| Circle::new((x + 11, y), 5, black.filled()));
-            }
-            let outliers = at(|ev| matches!(ev, Event::Outlier(..)));
-            if !outliers.is_empty() {
-                chart
-                    .draw_series(
-                        outliers
-                            .iter()
-                            .map(|&t| Cross::new((t, 0.2), 6, black.stroke_width(2))),
-                    )
-                    .map_err(e)?
-                    .label("outlier rejected")
-                    .legend(move |(x, y)| Cross::new((x + 11, y), 6, black.stroke_width(2)));
-            }
-            let reached = at(|ev| matches!(ev, Event::Reached));
-            if !reached.is_empty() {
-                let blue = RGBColor(31, 119, 180);
-                chart
-                    .draw_series(
-                        reached
-                            .iter()
-                            .map(|&t| Circle::new((t, 0.2), 5, blue.filled())),
-                    )
-                    .map_err(e)?
-                    .label("approach reached")
-                    .legend(move |(x, y)| Circle::new((x + 11, y), 5, blue.filled()));
-            }
-            chart
-                .configure_series_labels()
-                .label_font((FONT, 14))
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .position(SeriesLabelPosition::UpperRight)
-                .draw()
-                .map_err(e)?;
+            self.draw_run(run, area)?;
         }
         Ok(())
     }
+}
+
+type EventChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+impl Events<'_> {
+    /// One controller's row: its modes as bands, its events as markers, a legend.
+    fn draw_run<DB: DrawingBackend>(
+        &self,
+        run: &Run,
+        area: &DrawingArea<DB, Shift>,
+    ) -> Result<(), String> {
+        let EventCounts {
+            holds,
+            resumes,
+            outliers,
+            reached,
+            retreats,
+            coasts,
+        } = event_counts(run);
+        let period = match run.records.as_slice() {
+            [a, b, ..] => b.t - a.t,
+            _ => 0.0,
+        };
+        let caption = format!(
+            "{}: mode and safety events ({holds} holds, {retreats} retreats, {resumes} resumes, {coasts} dropouts coasted, {outliers} outliers rejected, {reached} approaches reached)",
+            run.controller.name()
+        );
+        let mut chart = ChartBuilder::on(area)
+            .caption(caption, (FONT, 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(20)
+            .build_cartesian_2d(self.t.clone(), 0.0..1.0)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("time (s)")
+            .y_labels(0)
+            .disable_y_mesh()
+            .label_style((FONT, 14))
+            .axis_desc_style((FONT, 15))
+            .draw()
+            .map_err(e)?;
+        self.draw_modes(&mut chart, run, period)?;
+        draw_events(&mut chart, run)?;
+        chart
+            .configure_series_labels()
+            .label_font((FONT, 14))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(e)?;
+        Ok(())
+    }
+
+    /// Mode bands, and where the true coil was inside the head model.
+    fn draw_modes<DB: DrawingBackend>(
+        &self,
+        chart: &mut EventChart<'_, DB>,
+        run: &Run,
+        period: f64,
+    ) -> Result<(), String> {
+        // Mode bands: one rectangle per stretch of one mode (ticks are one period long).
+        let mut bands: Vec<(f64, f64, usize)> = Vec::new();
+        let mut prev_t = self.t.start;
+        for r in &run.records {
+            let k = r.mode.kind();
+            match bands.last_mut() {
+                Some(b) if b.2 == k => b.1 = r.t,
+                _ => bands.push((prev_t, r.t, k)),
+            }
+            prev_t = r.t;
+        }
+        for (k, (&name, &c)) in Mode::KINDS.iter().zip(&MODE_COLOURS).enumerate() {
+            let mine: Vec<_> = bands
+                .iter()
+                .filter(|b| b.2 == k)
+                .map(|&(t0, t1, _)| Rectangle::new([(t0, 0.35), (t1, 0.65)], c.mix(0.5).filled()))
+                .collect();
+            if mine.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(mine)
+                .map_err(e)?
+                .label(name)
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 6), (x + 22, y + 6)], c.mix(0.5).filled())
+                });
+        }
+        // Where the true coil was inside the head model: a red strip at the bottom.
+        let inside: Vec<_> = run
+            .records
+            .iter()
+            .filter(|r| r.coil_clearance_m < 0.0)
+            .map(|r| Rectangle::new([(r.t - period, 0.02), (r.t, 0.1)], RED.filled()))
+            .collect();
+        if !inside.is_empty() {
+            chart
+                .draw_series(inside)
+                .map_err(e)?
+                .label("coil inside the head model")
+                .legend(|(x, y)| Rectangle::new([(x, y - 6), (x + 22, y + 6)], RED.filled()));
+        }
+        Ok(())
+    }
+}
+
+/// The events above the band: holds, resumes, outliers rejected, approaches reached.
+fn draw_events<DB: DrawingBackend>(
+    chart: &mut EventChart<'_, DB>,
+    run: &Run,
+) -> Result<(), String> {
+    // Events above the band.
+    let at = |want: fn(&Event) -> bool| -> Vec<f64> {
+        run.records
+            .iter()
+            .filter(|r| r.event.as_ref().is_some_and(want))
+            .map(|r| r.t)
+            .collect()
+    };
+    let black = BLACK;
+    let holds = at(|ev| matches!(ev, Event::Hold(_)));
+    if !holds.is_empty() {
+        chart
+            .draw_series(
+                holds
+                    .iter()
+                    .map(|&t| TriangleMarker::new((t, 0.8), 7, RGBColor(214, 39, 40).filled())),
+            )
+            .map_err(e)?
+            .label("hold")
+            .legend(|(x, y)| TriangleMarker::new((x + 11, y), 7, RGBColor(214, 39, 40).filled()));
+    }
+    let resumes = at(|ev| matches!(ev, Event::Resume));
+    if !resumes.is_empty() {
+        chart
+            .draw_series(
+                resumes
+                    .iter()
+                    .map(|&t| Circle::new((t, 0.8), 5, black.filled())),
+            )
+            .map_err(e)?
+            .label("resume")
+            .legend(move |(x, y)| Circle::new((x + 11, y), 5, black.filled()));
+    }
+    let outliers = at(|ev| matches!(ev, Event::Outlier(..)));
+    if !outliers.is_empty() {
+        chart
+            .draw_series(
+                outliers
+                    .iter()
+                    .map(|&t| Cross::new((t, 0.2), 6, black.stroke_width(2))),
+            )
+            .map_err(e)?
+            .label("outlier rejected")
+            .legend(move |(x, y)| Cross::new((x + 11, y), 6, black.stroke_width(2)));
+    }
+    let reached = at(|ev| matches!(ev, Event::Reached));
+    if !reached.is_empty() {
+        let blue = RGBColor(31, 119, 180);
+        chart
+            .draw_series(
+                reached
+                    .iter()
+                    .map(|&t| Circle::new((t, 0.2), 5, blue.filled())),
+            )
+            .map_err(e)?
+            .label("approach reached")
+            .legend(move |(x, y)| Circle::new((x + 11, y), 5, blue.filled()));
+    }
+    Ok(())
 }
