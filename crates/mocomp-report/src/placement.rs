@@ -112,52 +112,7 @@ fn draw<DB: DrawingBackend>(
     for (place, colour, what) in std::iter::once((&v.configured, CONFIGURED, "configured"))
         .chain(v.found.iter().map(|f| (f, FOUND, "found")))
     {
-        let head: Vec<(f64, f64)> = v
-            .outline
-            .iter()
-            .chain(v.outline.first())
-            .map(|p| {
-                let q = place.base_from_head * p;
-                (q.x * 1e3, q.y * 1e3)
-            })
-            .collect();
-        chart
-            .draw_series(LineSeries::new(head, colour.stroke_width(2)))
-            .map_err(e)?
-            .label(format!("the head, {what}"))
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(2)));
-        // The way the face looks: an arrow from the head's centre.
-        let c = place.base_from_head * Point3::origin();
-        let f = place.base_from_head * Point3::from(v.face * 0.12);
-        chart
-            .draw_series([PathElement::new(
-                [(c.x * 1e3, c.y * 1e3), (f.x * 1e3, f.y * 1e3)],
-                colour.stroke_width(3),
-            )])
-            .map_err(e)?;
-        chart
-            .draw_series([Text::new(
-                "face",
-                (f.x * 1e3, f.y * 1e3),
-                (FONT, 13).into_font().color(&colour),
-            )])
-            .map_err(e)?;
-        for (name, head_from_coil, reached) in &place.targets {
-            let p = place.base_from_head * Point3::from(head_from_coil.translation.vector);
-            let at = (p.x * 1e3, p.y * 1e3);
-            let mark = if *reached { colour } else { REFUSED };
-            let label = if *reached {
-                name.clone()
-            } else {
-                format!("{name} (not reached)")
-            };
-            // The dot on the coil's centre, its name beside it.
-            chart
-                .draw_series([EmptyElement::at(at)
-                    + Circle::new((0, 0), 5, mark.filled())
-                    + Text::new(label, (8, -6), (FONT, 13).into_font().color(&mark))])
-                .map_err(e)?;
-        }
+        draw_place(&mut chart, v, place, colour, what)?;
     }
     if let Some(found) = &v.found {
         let a = v.configured.base_from_head.translation.vector * 1e3;
@@ -181,6 +136,69 @@ fn draw<DB: DrawingBackend>(
         .label_font((FONT, 13))
         .draw()
         .map_err(e)?;
+    Ok(())
+}
+
+type PlacementChart<'a, DB> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// One placement of the head: its outline, the way its face looks, its targets (reached or not).
+fn draw_place<DB: DrawingBackend>(
+    chart: &mut PlacementChart<'_, DB>,
+    v: &PlacementView,
+    place: &Place,
+    colour: RGBColor,
+    what: &str,
+) -> Result<(), String> {
+    let head: Vec<(f64, f64)> = v
+        .outline
+        .iter()
+        .chain(v.outline.first())
+        .map(|p| {
+            let q = place.base_from_head * p;
+            (q.x * 1e3, q.y * 1e3)
+        })
+        .collect();
+    chart
+        .draw_series(LineSeries::new(head, colour.stroke_width(2)))
+        .map_err(e)?
+        .label(format!("the head, {what}"))
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(2)));
+    // The way the face looks: an arrow from the head's centre.
+    let c = place.base_from_head * Point3::origin();
+    let f = place.base_from_head * Point3::from(v.face * 0.12);
+    chart
+        .draw_series([PathElement::new(
+            [(c.x * 1e3, c.y * 1e3), (f.x * 1e3, f.y * 1e3)],
+            colour.stroke_width(3),
+        )])
+        .map_err(e)?;
+    chart
+        .draw_series([Text::new(
+            "face",
+            (f.x * 1e3, f.y * 1e3),
+            (FONT, 13).into_font().color(&colour),
+        )])
+        .map_err(e)?;
+    for (name, head_from_coil, reached) in &place.targets {
+        let p = place.base_from_head * Point3::from(head_from_coil.translation.vector);
+        let at = (p.x * 1e3, p.y * 1e3);
+        let mark = if *reached { colour } else { REFUSED };
+        let label = if *reached {
+            name.clone()
+        } else {
+            format!("{name} (not reached)")
+        };
+        // The dot on the coil's centre, its name beside it.
+        chart
+            .draw_series([EmptyElement::at(at)
+                + Circle::new((0, 0), 5, mark.filled())
+                + Text::new(label, (8, -6), (FONT, 13).into_font().color(&mark))])
+            .map_err(e)?;
+    }
     Ok(())
 }
 
