@@ -278,6 +278,21 @@ fn motion_words(m: &HeadMotion) -> &'static str {
 
 /// The summary as Markdown (`summary.md`, and what `mocomp demo` prints).
 pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
+    let mut t = heading(s, cfg);
+    t.push_str(&controller_table(s));
+    t.push('\n');
+    t.push_str(&dose_table(s, cfg));
+    t.push_str(&pulse_lines(s));
+    t.push_str(&comparisons(s));
+    t.push('\n');
+    t.push_str(&head_lag(s));
+    t.push_str(&bump_line(s, cfg));
+    t.push_str(&calibration_line(o, cfg));
+    t
+}
+
+/// The title, and what was run: the motion, the robots, the tracker, the seed.
+fn heading(s: &Summary, cfg: &ExperimentConfig) -> String {
     let mut t = String::new();
     t.push_str(
         "# mocomp demo: the paper's experiment
@@ -299,6 +314,12 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
         s.tracker_dropouts_per_s,
         s.seed,
     ));
+    t
+}
+
+/// A row per controller: `d`, its parts, the safety events, clearance, force, the error's split.
+fn controller_table(s: &Summary) -> String {
+    let mut t = String::new();
     t.push_str("| controller | d RMS | d p95 | d max | translation RMS (mm) | p95 | max | rotation RMS (°) | p95 | max | holds | retreats | dropouts coasted | outliers rejected | least coil clearance (mm) | coil in the head (s) | contact force max (N) | RMS (N) | prediction's share RMS (mm) | execution's share RMS (mm) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in &s.controllers {
         t.push_str(&format!(
@@ -327,9 +348,12 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
                 .map_or("–".to_string(), |x| format!("{:.3}", x.rms)),
         ));
     }
-    t.push('\n');
-    t.push_str(&dose_table(s, cfg));
-    t.push_str(&pulse_lines(s));
+    t
+}
+
+/// The paper's controller against mocomp's, and each against the oracle.
+fn comparisons(s: &Summary) -> String {
+    let mut t = String::new();
     if let (Some(a), Some(b)) = (s.ratio_d_rms, s.ratio_d_max) {
         t.push_str(&format!("paper ÷ mocomp: d RMS {a:.1}×, d max {b:.1}×.\n"));
     }
@@ -351,7 +375,12 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
             excess.join("; ")
         ));
     }
-    t.push('\n');
+    t
+}
+
+/// Where the head robot could not play the motion, if anywhere.
+fn head_lag(s: &Summary) -> String {
+    let mut t = String::new();
     if let Some(worst) = s
         .head_robot_lags
         .iter()
@@ -368,6 +397,12 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
             mocomp_experiment::head_drive::HEAD_ACCEL_RAD_S2,
         ));
     }
+    t
+}
+
+/// The tracker's bump and when each run's drift monitor caught it, if bumped.
+fn bump_line(s: &Summary, cfg: &ExperimentConfig) -> String {
+    let mut t = String::new();
     if let Some((at, b)) = cfg.tracker_bump {
         t.push_str(&format!(
             "The tracker was bumped {at:.1} s into each run ({:.1} mm, {:.2}°). The drift monitor on the coil's marker called the calibration invalid after: {}.\n\n",
@@ -385,6 +420,12 @@ pub fn markdown(s: &Summary, o: &Outcome, cfg: &ExperimentConfig) -> String {
                 .join(", ")
         ));
     }
+    t
+}
+
+/// The coil robot's calibration against the truth, and the paper controller's settings.
+fn calibration_line(o: &Outcome, cfg: &ExperimentConfig) -> String {
+    let mut t = String::new();
     let c = &o.coil_calibration;
     t.push_str(&format!(
         "Calibration of the coil robot ({} pairs): Y {:.3} mm, {:.4}°; X {:.3} mm, {:.4}° from the truth. The `paper` controller: a {:.0} ms loop, {:.0} ms from sample to command, movej at {} rad/s and {} rad/s² to the least-angle-sum IK solution, no prediction.\n",
