@@ -265,47 +265,10 @@ pub fn collect(
     let client = world.client(setup, &c.device);
     let mut source = client.pose_source();
 
-    // Where the robot is: the run starts and ends here.
-    let t0 = Instant::now();
-    let current = loop {
-        if let Some(s) = world.robot.state() {
-            break s.actual_q;
-        }
-        if t0.elapsed() > Duration::from_secs(5) {
-            refuse!("no robot state within 5 s");
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    let center = match &c.center {
-        Some(p) => p.iso(),
-        None => arm.fk_flange(&current),
-    };
-    let mut o = PlanOptions::new(c.poses, center, current);
-    o.rotation_range_rad = (c.min_rotation_rad, c.max_rotation_rad);
-    o.translation_spread_m = c.spread_m;
-    o.flange_from_marker = c.flange_from_marker_guess.iso();
-    o.tracker = c
-        .check_view
-        .then(|| TrackerView::typical(setup.base_from_tracker));
-    // Planning takes long in a debug build or on a busy machine: the running program's watchdog
-    // is fed meanwhile.
-    let poses = world
-        .robot
-        .keep_alive_while(|| plan(&arm, &o))
-        .what(|| "keeping the robot's program running while planning")?
-        .what(|| "planning the calibration poses")?;
+    let current = current_joints(&world)?;
+    let (poses, center) = plan_poses(setup, &c, &mut world, current)?;
     if let Some(controls) = controls {
-        progress(Progress::Waiting { poses: poses.len() });
-        while !controls.start_requested() {
-            if controls.stop_requested() {
-                refuse!("stopped by the operator before the arm moved");
-            }
-            world
-                .robot
-                .keep_alive()
-                .what(|| "keeping the robot's program running while waiting for the go")?;
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        wait_for_go(&mut world, controls, progress, poses.len())?;
     }
     progress(Progress::Planned {
         poses: poses.len(),
@@ -356,6 +319,93 @@ pub fn collect(
         );
     }
 
+    let (solved, out_path, pairs_csv) = solve_and_save(setup, &c, &pairs, out)?;
+    let (y_change, against_truth) = against(setup, &solved, simulated_robot);
+    Ok(Collected {
+        planned: poses.len(),
+        missed,
+        y_change,
+        pairs,
+        solved,
+        out: out_path,
+        pairs_csv,
+        against_truth,
+    })
+}
+
+/// Where the robot is (the run starts and ends here), within 5 s.
+fn current_joints(world: &World) -> Result<[f64; 6], AppError> {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = world.robot.state() {
+            return Ok(s.actual_q);
+        }
+        if t0.elapsed() > Duration::from_secs(5) {
+            refuse!("no robot state within 5 s");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// The calibration poses about the configured centre (else where the flange is), planned while
+/// the robot's program is kept running.
+fn plan_poses(
+    setup: &Setup,
+    c: &CollectSection,
+    world: &mut World,
+    current: [f64; 6],
+) -> Result<(Vec<mocomp_calib::plan::PlannedPose>, Isometry3<f64>), AppError> {
+    let arm = setup.arm;
+    let center = match &c.center {
+        Some(p) => p.iso(),
+        None => arm.fk_flange(&current),
+    };
+    let mut o = PlanOptions::new(c.poses, center, current);
+    o.rotation_range_rad = (c.min_rotation_rad, c.max_rotation_rad);
+    o.translation_spread_m = c.spread_m;
+    o.flange_from_marker = c.flange_from_marker_guess.iso();
+    o.tracker = c
+        .check_view
+        .then(|| TrackerView::typical(setup.base_from_tracker));
+    // Planning takes long in a debug build or on a busy machine: the running program's watchdog
+    // is fed meanwhile.
+    let poses = world
+        .robot
+        .keep_alive_while(|| plan(&arm, &o))
+        .what(|| "keeping the robot's program running while planning")?
+        .what(|| "planning the calibration poses")?;
+    Ok((poses, center))
+}
+
+/// Waits for the operator's go, the robot's program fed meanwhile; the operator's stop refuses.
+fn wait_for_go(
+    world: &mut World,
+    controls: &Controls,
+    progress: &mut dyn FnMut(Progress),
+    poses: usize,
+) -> Result<(), AppError> {
+    progress(Progress::Waiting { poses });
+    while !controls.start_requested() {
+        if controls.stop_requested() {
+            refuse!("stopped by the operator before the arm moved");
+        }
+        world
+            .robot
+            .keep_alive()
+            .what(|| "keeping the robot's program running while waiting for the go")?;
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    Ok(())
+}
+
+/// Solves the pairs and saves the calibration to `out` (default: `calibrate.out` beside the
+/// configuration), with the pairs beside it when asked.
+fn solve_and_save(
+    setup: &Setup,
+    c: &CollectSection,
+    pairs: &[Pair],
+    out: Option<&Path>,
+) -> Result<(Calibration, PathBuf, Option<PathBuf>), AppError> {
     let noise = NoiseModel {
         tracker_translation_m: c.tracker_noise_m,
         tracker_rotation_rad: c.tracker_noise_rad,
@@ -363,7 +413,7 @@ pub fn collect(
         robot_rotation_rad: c.robot_noise_rad,
     };
     let solved = solve(
-        &pairs,
+        pairs,
         &SolveOptions {
             method: c.method,
             noise,
@@ -384,12 +434,22 @@ pub fn collect(
                 .parent()
                 .unwrap_or(Path::new(""))
                 .join(Path::new(p).file_name().unwrap_or_default());
-            let text = write_pairs_csv(&pairs, PairsFormat::Joints).what(|| "writing the pairs")?;
+            let text = write_pairs_csv(pairs, PairsFormat::Joints).what(|| "writing the pairs")?;
             std::fs::write(&path, text).what(|| format!("writing {}", path.display()))?;
             Some(path)
         }
         None => None,
     };
+    Ok((solved, out_path, pairs_csv))
+}
+
+/// The solved Y against the configured one, and, in the simulated world, Y and X against its
+/// truth.
+fn against(
+    setup: &Setup,
+    solved: &Calibration,
+    simulated_robot: bool,
+) -> (PoseError, Option<(PoseError, PoseError)>) {
     let err =
         |a: &Isometry3<f64>, b: &Isometry3<f64>| (translation_error(a, b), rotation_error(a, b));
     let y_old = setup.base_from_tracker;
@@ -402,14 +462,5 @@ pub fn collect(
                 err(&solved.flange_from_marker, &s.flange_from_marker.iso()),
             )
         });
-    Ok(Collected {
-        planned: poses.len(),
-        missed,
-        y_change: err(&solved.base_from_tracker, &y_old),
-        pairs,
-        solved,
-        out: out_path,
-        pairs_csv,
-        against_truth,
-    })
+    (err(&solved.base_from_tracker, &y_old), against_truth)
 }
