@@ -180,73 +180,19 @@ pub(crate) fn logger(
     // A log that cannot be written (a full disk) is not dropped silently: it stops logging, and
     // the run reports it and fails once the robot is stopped.
     let mut log_error: Option<csv::Error> = None;
-    if let Some(w) = w.as_mut() {
-        let header = [
-            "t_s",
-            "mode",
-            "event",
-            "sample_age_ms",
-            "horizon_ms",
-            "command_delay_ms",
-            "head_speed_mm_s",
-            "head_speed_deg_s",
-            "deviation_mm",
-            "deviation_deg",
-            "path_m",
-            "compute_us",
-            "q1_cmd",
-            "q2_cmd",
-            "q3_cmd",
-            "q4_cmd",
-            "q5_cmd",
-            "q6_cmd",
-            "q1",
-            "q2",
-            "q3",
-            "q4",
-            "q5",
-            "q6",
-            "contact_force_n",
-            "contact_axial_n",
-            "press_mm",
-            "dose_v_per_m",
-            "dose_pct",
-        ];
-        if let Err(e) = w.write_record(header) {
-            log_error = Some(e);
-        }
+    if let Some(w) = w.as_mut()
+        && let Err(e) = w.write_record(CSV_HEADER)
+    {
+        log_error = Some(e);
     }
     let mut last_status = Instant::now();
     // Since the last status line: cycles and the largest deviation while tracking (mm).
     let (mut window_cycles, mut window_max) = (0u64, 0.0f64);
     for r in rx {
         observer.cycle(&r, clock.get().map_or(f64::NAN, |c| c.now_s() - r.t));
-        s.cycles += 1;
         window_cycles += 1;
-        if s.first_t.is_none() {
-            s.first_t = Some(r.t);
-        } else {
-            s.period_ms.push((r.t - s.last_t) * 1e3);
-            s.missed += unanswered((s.last_robot_s, r.robot_s), (s.last_t, r.t), period);
-        }
-        s.last_t = r.t;
-        s.last_robot_s = r.robot_s;
-        s.count_mode(&r.mode);
-        s.compute_us.push(r.compute_ns as f64 / 1e3);
-        s.delay_ms.push(r.command_delay_s * 1e3);
-        // The measured flange against the goal for the head estimated at the same time (not the
-        // goal the command aims at, which is the head predicted a horizon ahead).
-        let (dev_mm, dev_deg) = (r.deviation.0 * 1e3, r.deviation.1.to_degrees());
-        if r.mode == Mode::Tracking && dev_mm.is_finite() {
-            s.deviation_mm.push(dev_mm);
-            s.deviation_deg.push(dev_deg);
+        if let Some(dev_mm) = tally(&mut s, &r, period) {
             window_max = window_max.max(dev_mm);
-        }
-        if r.contact_force_n.is_finite() {
-            s.contact_force_n.push(r.contact_force_n);
-        }
-        if r.mode == Mode::Tracking && r.dose_pct.is_finite() {
-            s.dose_error_pct.push((r.dose_pct - 100.0).abs());
         }
         if let Some(e) = r.event {
             s.events.push((r.t, e));
@@ -254,34 +200,7 @@ pub(crate) fn logger(
         }
         drain(session, &mut s, observer, clock);
         if let Some(w) = w.as_mut().filter(|_| log_error.is_none()) {
-            let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
-            let mut row = vec![
-                format!("{:.6}", r.t),
-                mode_name(&r.mode),
-                r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
-                format!("{:.3}", r.sample_age_s * 1e3),
-                format!("{:.3}", r.horizon_s * 1e3),
-                format!("{:.3}", r.command_delay_s * 1e3),
-                format!("{:.2}", r.head_speed.0 * 1e3),
-                format!("{:.2}", r.head_speed.1.to_degrees()),
-                format!("{dev_mm:.4}"),
-                format!("{dev_deg:.4}"),
-                format!("{path:.4}"),
-                format!("{:.2}", r.compute_ns as f64 / 1e3),
-            ];
-            row.extend(
-                r.q_command
-                    .iter()
-                    .chain(r.q_actual.iter())
-                    .map(|q| format!("{q:.6}")),
-            );
-            row.extend([
-                format!("{:.3}", r.contact_force_n),
-                format!("{:.3}", r.contact_axial_n),
-                format!("{:.4}", r.press_m * 1e3),
-                format!("{:.3}", r.dose_v_per_m),
-                format!("{:.3}", r.dose_pct),
-            ]);
+            let row = csv_row(&r);
             if let Err(e) = w.write_record(&row) {
                 log_error = Some(e);
             }
@@ -311,6 +230,104 @@ pub(crate) fn logger(
     }
     s.log_error = log_error.map(|e| e.to_string());
     s
+}
+
+/// The cycle log's columns.
+const CSV_HEADER: [&str; 29] = [
+    "t_s",
+    "mode",
+    "event",
+    "sample_age_ms",
+    "horizon_ms",
+    "command_delay_ms",
+    "head_speed_mm_s",
+    "head_speed_deg_s",
+    "deviation_mm",
+    "deviation_deg",
+    "path_m",
+    "compute_us",
+    "q1_cmd",
+    "q2_cmd",
+    "q3_cmd",
+    "q4_cmd",
+    "q5_cmd",
+    "q6_cmd",
+    "q1",
+    "q2",
+    "q3",
+    "q4",
+    "q5",
+    "q6",
+    "contact_force_n",
+    "contact_axial_n",
+    "press_mm",
+    "dose_v_per_m",
+    "dose_pct",
+];
+
+/// One cycle into the run's statistics; its deviation (mm) when it was tracking.
+fn tally(s: &mut Summary, r: &CycleRecord, period: f64) -> Option<f64> {
+    s.cycles += 1;
+    if s.first_t.is_none() {
+        s.first_t = Some(r.t);
+    } else {
+        s.period_ms.push((r.t - s.last_t) * 1e3);
+        s.missed += unanswered((s.last_robot_s, r.robot_s), (s.last_t, r.t), period);
+    }
+    s.last_t = r.t;
+    s.last_robot_s = r.robot_s;
+    s.count_mode(&r.mode);
+    s.compute_us.push(r.compute_ns as f64 / 1e3);
+    s.delay_ms.push(r.command_delay_s * 1e3);
+    // The measured flange against the goal for the head estimated at the same time (not the
+    // goal the command aims at, which is the head predicted a horizon ahead).
+    let (dev_mm, dev_deg) = (r.deviation.0 * 1e3, r.deviation.1.to_degrees());
+    if r.mode == Mode::Tracking && dev_mm.is_finite() {
+        s.deviation_mm.push(dev_mm);
+        s.deviation_deg.push(dev_deg);
+    }
+    if r.contact_force_n.is_finite() {
+        s.contact_force_n.push(r.contact_force_n);
+    }
+    if r.mode == Mode::Tracking && r.dose_pct.is_finite() {
+        s.dose_error_pct.push((r.dose_pct - 100.0).abs());
+    }
+    let tracked = r.mode == Mode::Tracking && dev_mm.is_finite();
+    tracked.then_some(dev_mm)
+}
+
+/// One cycle's row of the log.
+fn csv_row(r: &CycleRecord) -> Vec<String> {
+    let (path, _) = r.path.unwrap_or((f64::NAN, f64::NAN));
+    let (dev_mm, dev_deg) = (r.deviation.0 * 1e3, r.deviation.1.to_degrees());
+    let mut row = vec![
+        format!("{:.6}", r.t),
+        mode_name(&r.mode),
+        r.event.map(|e| format!("{e:?}")).unwrap_or_default(),
+        format!("{:.3}", r.sample_age_s * 1e3),
+        format!("{:.3}", r.horizon_s * 1e3),
+        format!("{:.3}", r.command_delay_s * 1e3),
+        format!("{:.2}", r.head_speed.0 * 1e3),
+        format!("{:.2}", r.head_speed.1.to_degrees()),
+        format!("{dev_mm:.4}"),
+        format!("{dev_deg:.4}"),
+        format!("{path:.4}"),
+        format!("{:.2}", r.compute_ns as f64 / 1e3),
+    ];
+    row.extend(
+        r.q_command
+            .iter()
+            .chain(r.q_actual.iter())
+            .map(|q| format!("{q:.6}")),
+    );
+    row.extend([
+        format!("{:.3}", r.contact_force_n),
+        format!("{:.3}", r.contact_axial_n),
+        format!("{:.4}", r.press_m * 1e3),
+        format!("{:.3}", r.dose_v_per_m),
+        format!("{:.3}", r.dose_pct),
+    ]);
+    row
 }
 
 /// How the run's final stop went, as it happened.
