@@ -546,6 +546,15 @@ impl RunReport {
         out: &mut dyn std::io::Write,
         log: Option<&str>,
     ) -> std::io::Result<()> {
+        self.write_timing(out)?;
+        self.write_tracking(out)?;
+        self.write_links(out)?;
+        self.write_events(out)?;
+        self.write_end(out, log)
+    }
+
+    /// The cycles, real time, the period, the modes, the compute time, the command's delay.
+    fn write_timing(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
         let r = self;
         writeln!(out, "\nsummary")?;
         writeln!(
@@ -592,6 +601,12 @@ impl RunReport {
             "  command delay     median {:.2} ms",
             r.command_delay_median_ms
         )?;
+        Ok(())
+    }
+
+    /// How well it tracked: deviation, dose, holds, the session's pulses.
+    fn write_tracking(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+        let r = self;
         writeln!(
             out,
             "  goal deviation    while tracking: RMS {:.2} mm, p95 {:.2} mm, max {:.2} mm; rotation p95 {:.2}°",
@@ -625,6 +640,12 @@ impl RunReport {
                 }
             )?;
         }
+        Ok(())
+    }
+
+    /// The depth camera's and the tracker link's figures, when there were any.
+    fn write_links(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+        let r = self;
         if let Some(c) = &r.camera {
             writeln!(
                 out,
@@ -642,13 +663,19 @@ impl RunReport {
                 t.connections, t.poses, t.messages_dropped, t.streams_dropped, t.clock_steps
             )?;
         }
+        Ok(())
+    }
+
+    /// The loop's and the session's events, and the simulated robot's.
+    fn write_events(&self, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+        let r = self;
         writeln!(
             out,
             "  events            {} of the loop, {} of the session{}",
             r.events,
             r.session_notes,
-            if ses.pulses > 0 {
-                format!("; {} pulses, each in the pulse log", ses.pulses)
+            if r.session.pulses > 0 {
+                format!("; {} pulses, each in the pulse log", r.session.pulses)
             } else {
                 String::new()
             }
@@ -668,6 +695,12 @@ impl RunReport {
                 writeln!(out, "    {t:9.3} s  {e}")?;
             }
         }
+        Ok(())
+    }
+
+    /// How it ended: the final mode, what was not reached, the robot's stop, the log.
+    fn write_end(&self, out: &mut dyn std::io::Write, log: Option<&str>) -> std::io::Result<()> {
+        let r = self;
         writeln!(out, "  final mode        {}", r.final_mode)?;
         if let Some(n) = &r.not_reached {
             writeln!(out, "  NOT REACHED       {n}")?;
