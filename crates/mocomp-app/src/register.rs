@@ -368,7 +368,7 @@ pub fn check_live(
     name: &str,
     say: &mut dyn FnMut(&str),
 ) -> Result<Checked, AppError> {
-    let Some((path, record)) = &setup.file.head.registered else {
+    let Some((path, record)) = &setup.file.loaded.registered else {
         return Err(AppError::Config(
             "head.registration: none to check (run `mocomp register` first)".into(),
         ));

@@ -15,7 +15,7 @@ const MM_PER_M: f64 = 1000.0;
 /// `accept` (the reason, then appended to the registration file); refused otherwise. Nothing to
 /// say without a registration.
 pub fn registration_gate(setup: &Setup, accept: Option<&str>) -> Result<Option<String>, AppError> {
-    let Some((path, record)) = &setup.file.head.registered else {
+    let Some((path, record)) = &setup.file.loaded.registered else {
         return Ok(None);
     };
     let (target, head_from_coil) = start_goal(setup)?;

@@ -124,7 +124,7 @@ pub fn bids(source: &ExportSource, dir: &Path, o: &BidsOptions) -> Result<Export
             .iter()
             .map(|(n, p)| (n.clone(), *p))
             .collect(),
-        registration: head.registered.as_ref().map(|(_, r)| {
+        registration: source.config.loaded.registered.as_ref().map(|(_, r)| {
             (
                 r.fre_mm,
                 r.landmarks
@@ -168,7 +168,7 @@ pub fn localite(source: &ExportSource, file: &Path) -> Result<Exported, AppError
 
 /// Writes `source`'s report (HTML) to `file`.
 pub fn report(source: &ExportSource, file: &Path, config: &Path) -> Result<Exported, AppError> {
-    let registration = source.config.head.registered.as_ref().map(|(path, r)| {
+    let registration = source.config.loaded.registered.as_ref().map(|(path, r)| {
         mocomp_report::session::RegistrationView {
             file: path.display().to_string(),
             registered_at: r.registered_at.clone(),

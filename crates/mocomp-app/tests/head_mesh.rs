@@ -105,7 +105,7 @@ fn the_d70_s_casing_held_over_colin27_s_motor_cortex_never_enters_the_scalp() {
     // over the forehead, 30 mm behind the face of MNI's box that cuts the head at the brow,
     // the cylinder 5 mm off the scalp is allowed and the casing's wings (100 mm each way) are
     // not.
-    let head = cfg.head.loaded.clone().unwrap();
+    let head = cfg.loaded.model.clone().unwrap();
     let Head::Mesh(m) = head.shape() else {
         panic!("not a mesh")
     };

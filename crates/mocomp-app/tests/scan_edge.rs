@@ -39,7 +39,7 @@ fn goal_near(head: &HeadModel, towards: [f64; 3]) -> mocomp_geom::nalgebra::Isom
 #[test]
 fn a_goal_beside_the_ear_of_a_scan_cut_there_is_refused_and_the_user_warned() {
     let cfg = colin27();
-    let head = cfg.head.loaded.clone().unwrap();
+    let head = cfg.loaded.model.clone().unwrap();
     // The planes: the 1 mm box runs from x = -90 to 90, y = -125 to 91, z = -71 to 109 mm;
     // each face lies half a voxel beyond its last voxel's centre, its normal out of the box.
     // Each patch lies in its plane and holds the head's voxels there: the left one, over the
