@@ -222,50 +222,9 @@ impl Tracker {
                 want_h: h,
             });
         }
-        let p = &self.params;
         self.labeler.label(frame, &self.gates, &mut self.blobs);
-        let mut results = Vec::with_capacity(self.blobs.len());
-        let mut candidates: Vec<usize> = Vec::new();
-        let mut points: Vec<Point3<f64>> = Vec::new();
-        for b in &self.blobs {
-            let status = if b.area < p.blob_area_min {
-                BlobStatus::TooSmall
-            } else if b.area > p.blob_area_max {
-                BlobStatus::TooLarge
-            } else if p.reject_edge_blobs && b.touches_edge {
-                BlobStatus::OnEdge
-            } else {
-                BlobStatus::Unmatched
-            };
-            let mut r = BlobResult {
-                blob: *b,
-                status,
-                depth_mm: None,
-                point: None,
-            };
-            if status == BlobStatus::Unmatched {
-                match ring_depth(
-                    frame,
-                    b.bbox,
-                    p.ring_px,
-                    (p.depth_min_mm, p.depth_max_mm),
-                    p.ring_min_valid,
-                    &mut self.depth_scratch,
-                ) {
-                    Some((d, _)) => {
-                        let z = mm_to_m(d - p.ring_to_centre_mm);
-                        let pt =
-                            Point3::from(self.intrinsics.unproject(b.centroid.0, b.centroid.1, z));
-                        r.depth_mm = Some(d);
-                        r.point = Some(pt);
-                        candidates.push(results.len());
-                        points.push(pt);
-                    }
-                    None => r.status = BlobStatus::NoDepth,
-                }
-            }
-            results.push(r);
-        }
+        let (mut results, candidates, points) = self.measure_blobs(frame);
+        let p = &self.params;
         let n = self.geometry.len();
         let max_missing = if n >= 4 {
             (p.max_missing as usize).min(n - 3)
@@ -352,6 +311,59 @@ impl Tracker {
             not_found: None,
             blobs: results,
         })
+    }
+
+    /// Each blob of the frame classified (too small, too large, on the edge, without depth) and,
+    /// where it may be a fiducial, its point from the depth around it: the blobs' results, the
+    /// candidates' indices among them, and their points.
+    fn measure_blobs(
+        &mut self,
+        frame: &Frame<'_>,
+    ) -> (Vec<BlobResult>, Vec<usize>, Vec<Point3<f64>>) {
+        let p = &self.params;
+        let mut results = Vec::with_capacity(self.blobs.len());
+        let mut candidates: Vec<usize> = Vec::new();
+        let mut points: Vec<Point3<f64>> = Vec::new();
+        for b in &self.blobs {
+            let status = if b.area < p.blob_area_min {
+                BlobStatus::TooSmall
+            } else if b.area > p.blob_area_max {
+                BlobStatus::TooLarge
+            } else if p.reject_edge_blobs && b.touches_edge {
+                BlobStatus::OnEdge
+            } else {
+                BlobStatus::Unmatched
+            };
+            let mut r = BlobResult {
+                blob: *b,
+                status,
+                depth_mm: None,
+                point: None,
+            };
+            if status == BlobStatus::Unmatched {
+                match ring_depth(
+                    frame,
+                    b.bbox,
+                    p.ring_px,
+                    (p.depth_min_mm, p.depth_max_mm),
+                    p.ring_min_valid,
+                    &mut self.depth_scratch,
+                ) {
+                    Some((d, _)) => {
+                        let z = mm_to_m(d - p.ring_to_centre_mm);
+                        let pt =
+                            Point3::from(self.intrinsics.unproject(b.centroid.0, b.centroid.1, z));
+                        r.depth_mm = Some(d);
+                        r.point = Some(pt);
+                        candidates.push(results.len());
+                        points.push(pt);
+                    }
+                    None => r.status = BlobStatus::NoDepth,
+                }
+            }
+            results.push(r);
+        }
+        (results, candidates, points)
     }
 
     /// The pose of an assignment by the configured method, with its FRE over all matched points.
