@@ -323,7 +323,7 @@ struct Queue {
 
 /// `from` → `to` in `dir`: a reader thread queues what arrives, this thread sends it when due.
 fn pump(
-    mut from: TcpStream,
+    from: TcpStream,
     mut to: TcpStream,
     dir: Direction,
     shared: &Arc<Shared>,
@@ -345,100 +345,12 @@ fn pump(
         let shared = Arc::clone(shared);
         let reset = Arc::clone(reset);
         std::thread::spawn(move || {
-            mocomp_rt::set_fifo(PUMP_PRIORITY).ok();
-            let mut buf = vec![0u8; 64 * 1024];
-            // Short: a reset is seen within this.
-            from.set_read_timeout(Some(Duration::from_millis(5))).ok();
-            let mut last_due = Instant::now();
-            loop {
-                if shared.stop.load(Ordering::Relaxed) || reset.load(Ordering::Relaxed) {
-                    break;
-                }
-                match from.read(&mut buf) {
-                    Ok(0) => break,
-                    Ok(n) => {
-                        let now = Instant::now();
-                        let due = {
-                            let mut f = shared.faults();
-                            let jitter = if f.jitter.is_zero() {
-                                Duration::ZERO
-                            } else {
-                                let r = f.rng.next_u64();
-                                let nanos = u64::try_from(f.jitter.as_nanos()).unwrap_or(u64::MAX);
-                                Duration::from_nanos(r % nanos.max(1))
-                            };
-                            // Order is kept: no chunk is due before the one ahead of it.
-                            (now + f.delay + jitter).max(last_due)
-                        };
-                        last_due = due;
-                        let (q, cv) = &*queue;
-                        q.lock()
-                            .unwrap_or_else(PoisonError::into_inner)
-                            .chunks
-                            .push_back((due, buf[..n].to_vec()));
-                        cv.notify_all();
-                    }
-                    Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
-                    Err(_) => break,
-                }
-            }
-            let (q, cv) = &*queue;
-            q.lock().unwrap_or_else(PoisonError::into_inner).closed = true;
-            cv.notify_all();
-            // The other way learns of an orderly end through its own read; a reset closes
-            // without a FIN.
-            if !reset.load(Ordering::Relaxed) {
-                from.shutdown(Shutdown::Both).ok();
-            }
+            read_into(from, &queue, &shared, &reset);
         })
     };
     let d = dir.index();
-    loop {
-        // The next chunk, once it is due and the faults let it pass.
-        let chunk = {
-            let (q, cv) = &*queue;
-            let mut g = q.lock().unwrap_or_else(PoisonError::into_inner);
-            loop {
-                if shared.stop.load(Ordering::Relaxed) || reset.load(Ordering::Relaxed) {
-                    break None;
-                }
-                let now = Instant::now();
-                let blocked_until = {
-                    let f = shared.faults();
-                    if f.cut {
-                        Some(now + Duration::from_millis(5))
-                    } else {
-                        f.stalled_until[d].filter(|t| *t > now)
-                    }
-                };
-                let wait = match (g.chunks.front(), blocked_until) {
-                    (_, Some(t)) => t - now,
-                    (Some((due, _)), None) if *due > now => *due - now,
-                    (Some(_), None) => break g.chunks.pop_front().map(|c| c.1),
-                    (None, None) if g.closed => break None,
-                    (None, None) => Duration::from_millis(5),
-                };
-                g = cv
-                    .wait_timeout(g, wait.min(Duration::from_millis(5)))
-                    .unwrap_or_else(PoisonError::into_inner)
-                    .0;
-            }
-        };
-        let Some(mut bytes) = chunk else { break };
-        {
-            let mut f = shared.faults();
-            let drop = f.drop[d].min(bytes.len());
-            if drop > 0 {
-                f.drop[d] -= drop;
-                bytes.drain(..drop);
-            }
-            let n = f.corrupt[d].min(bytes.len());
-            for b in bytes.iter_mut().take(n) {
-                // Never XOR with 0: every byte asked for is changed.
-                *b ^= (f.rng.next_u64() % 255 + 1) as u8;
-            }
-            f.corrupt[d] -= n;
-        }
+    while let Some(mut bytes) = next_chunk(&queue, shared, reset, d) {
+        damage(shared, d, &mut bytes);
         if bytes.is_empty() {
             continue;
         }
@@ -456,6 +368,115 @@ fn pump(
         to.shutdown(Shutdown::Write).ok();
     }
     reader.join().ok();
+}
+
+/// The reader's side: queues each chunk read from `from` with the time it is due (the delay and
+/// jitter of the faults, order kept) until the stream ends, the relay stops or the connection is
+/// reset.
+fn read_into(
+    mut from: TcpStream,
+    queue: &(Mutex<Queue>, Condvar),
+    shared: &Shared,
+    reset: &AtomicBool,
+) {
+    mocomp_rt::set_fifo(PUMP_PRIORITY).ok();
+    let mut buf = vec![0u8; 64 * 1024];
+    // Short: a reset is seen within this.
+    from.set_read_timeout(Some(Duration::from_millis(5))).ok();
+    let mut last_due = Instant::now();
+    loop {
+        if shared.stop.load(Ordering::Relaxed) || reset.load(Ordering::Relaxed) {
+            break;
+        }
+        match from.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                let now = Instant::now();
+                let due = {
+                    let mut f = shared.faults();
+                    let jitter = if f.jitter.is_zero() {
+                        Duration::ZERO
+                    } else {
+                        let r = f.rng.next_u64();
+                        let nanos = u64::try_from(f.jitter.as_nanos()).unwrap_or(u64::MAX);
+                        Duration::from_nanos(r % nanos.max(1))
+                    };
+                    // Order is kept: no chunk is due before the one ahead of it.
+                    (now + f.delay + jitter).max(last_due)
+                };
+                last_due = due;
+                let (q, cv) = queue;
+                q.lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .chunks
+                    .push_back((due, buf[..n].to_vec()));
+                cv.notify_all();
+            }
+            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+            Err(_) => break,
+        }
+    }
+    let (q, cv) = queue;
+    q.lock().unwrap_or_else(PoisonError::into_inner).closed = true;
+    cv.notify_all();
+    // The other way learns of an orderly end through its own read; a reset closes
+    // without a FIN.
+    if !reset.load(Ordering::Relaxed) {
+        from.shutdown(Shutdown::Both).ok();
+    }
+}
+
+/// The next chunk, once it is due and the faults let it pass; `None` once the stream has ended,
+/// the relay stops or the connection is reset.
+fn next_chunk(
+    queue: &(Mutex<Queue>, Condvar),
+    shared: &Shared,
+    reset: &AtomicBool,
+    d: usize,
+) -> Option<Vec<u8>> {
+    let (q, cv) = queue;
+    let mut g = q.lock().unwrap_or_else(PoisonError::into_inner);
+    loop {
+        if shared.stop.load(Ordering::Relaxed) || reset.load(Ordering::Relaxed) {
+            break None;
+        }
+        let now = Instant::now();
+        let blocked_until = {
+            let f = shared.faults();
+            if f.cut {
+                Some(now + Duration::from_millis(5))
+            } else {
+                f.stalled_until[d].filter(|t| *t > now)
+            }
+        };
+        let wait = match (g.chunks.front(), blocked_until) {
+            (_, Some(t)) => t - now,
+            (Some((due, _)), None) if *due > now => *due - now,
+            (Some(_), None) => break g.chunks.pop_front().map(|c| c.1),
+            (None, None) if g.closed => break None,
+            (None, None) => Duration::from_millis(5),
+        };
+        g = cv
+            .wait_timeout(g, wait.min(Duration::from_millis(5)))
+            .unwrap_or_else(PoisonError::into_inner)
+            .0;
+    }
+}
+
+/// The bytes the faults drop from the front of a chunk and those they corrupt, in direction `d`.
+fn damage(shared: &Shared, d: usize, bytes: &mut Vec<u8>) {
+    let mut f = shared.faults();
+    let drop = f.drop[d].min(bytes.len());
+    if drop > 0 {
+        f.drop[d] -= drop;
+        bytes.drain(..drop);
+    }
+    let n = f.corrupt[d].min(bytes.len());
+    for b in bytes.iter_mut().take(n) {
+        // Never XOR with 0: every byte asked for is changed.
+        *b ^= (f.rng.next_u64() % 255 + 1) as u8;
+    }
+    f.corrupt[d] -= n;
 }
 
 #[cfg(test)]
