@@ -675,80 +675,9 @@ fn handle_request(req: Request<'_>, sess: &mut RtdeSession, shared: &Shared) {
             ));
         }
         Request::SetupOutputs { frequency, names } => {
-            let resolved: Vec<Option<(OutputVar, DataType)>> =
-                names.iter().map(|n| OutputVar::resolve(n)).collect();
-            let types: Vec<String> = resolved
-                .iter()
-                .map(|r| r.map_or("NOT_FOUND".to_string(), |(_, t)| t.name().to_string()))
-                .collect();
-            let id = sess.next_output_id;
-            let ok = !names.is_empty() && resolved.iter().all(Option::is_some);
-            if ok {
-                sess.next_output_id = sess.next_output_id.wrapping_add(1).max(1);
-                let rate = shared.rate_hz;
-                let f = frequency
-                    .filter(|f| f.is_finite() && *f > 0.0)
-                    .unwrap_or(rate);
-                let divider = (rate / f.min(rate)).round().max(1.0) as u64;
-                let vars: Vec<OutputVar> = resolved.iter().flatten().map(|(v, _)| *v).collect();
-                let dtypes: Vec<DataType> = resolved.iter().flatten().map(|(_, t)| *t).collect();
-                let recipe = Recipe::new(id, names.clone(), dtypes);
-                with_conn(shared, sess.id, |c| {
-                    c.out = Some(OutSetup {
-                        recipe,
-                        vars,
-                        divider,
-                    });
-                });
-            }
-            sess.reply(&Reply::SetupOutputs {
-                recipe_id: Some(if ok { id } else { 0 }),
-                types,
-            });
+            setup_outputs(frequency, &names, sess, shared);
         }
-        Request::SetupInputs { names } => {
-            let mut owners = lock(&shared.owners);
-            let mut types = Vec::with_capacity(names.len());
-            let mut slots = Vec::with_capacity(names.len());
-            let mut dtypes = Vec::with_capacity(names.len());
-            let mut ok = !names.is_empty();
-            for n in &names {
-                match InputSlot::resolve(n) {
-                    None => {
-                        ok = false;
-                        types.push("NOT_FOUND".to_string());
-                    }
-                    Some((slot, t)) => match owners.get(&slot) {
-                        Some(owner) if *owner != sess.id => {
-                            ok = false;
-                            types.push("IN_USE".to_string());
-                        }
-                        _ => {
-                            types.push(t.name().to_string());
-                            slots.push(slot);
-                            dtypes.push(t);
-                        }
-                    },
-                }
-            }
-            let id = if ok && sess.next_input_id < u8::MAX {
-                let id = sess.next_input_id;
-                sess.next_input_id += 1;
-                for s in &slots {
-                    owners.insert(*s, sess.id);
-                }
-                sess.inputs
-                    .insert(id, (Recipe::new(id, names.clone(), dtypes), slots));
-                id
-            } else {
-                0
-            };
-            drop(owners);
-            sess.reply(&Reply::SetupInputs {
-                recipe_id: id,
-                types,
-            });
-        }
+        Request::SetupInputs { names } => setup_inputs(&names, sess, shared),
         Request::Start => {
             let mut has_outputs = false;
             with_conn(shared, sess.id, |c| has_outputs = c.out.is_some());
@@ -761,31 +690,119 @@ fn handle_request(req: Request<'_>, sess: &mut RtdeSession, shared: &Shared) {
             with_conn(shared, sess.id, |c| c.started = false);
             sess.reply(&Reply::Pause(true));
         }
-        Request::Data { recipe_id, payload } => {
-            let Some((recipe, slots)) = sess.inputs.get(&recipe_id) else {
-                let msg = format!("data package for unknown input recipe {recipe_id}");
-                sess.warn(shared, msg);
-                return;
-            };
-            let mut values = std::mem::take(&mut sess.values);
-            match recipe.unpack(payload, &mut values) {
-                Ok(()) => {
-                    let mut ctrl = lock(&shared.ctrl);
-                    for (slot, v) in slots.iter().zip(&values) {
-                        ctrl.apply_input(*slot, *v);
-                    }
-                    ctrl.finish_inputs();
-                    drop(ctrl);
-                    shared.counters.inputs.fetch_add(1, Ordering::Relaxed);
-                }
-                Err(e) => {
-                    let msg = e.to_string();
-                    sess.warn(shared, msg);
-                }
+        Request::Data { recipe_id, payload } => data(recipe_id, payload, sess, shared),
+    }
+}
+
+/// SETUP_OUTPUTS: the recipe, each name resolved (or `NOT_FOUND`), at the frequency asked for
+/// (the controller's rate at most).
+fn setup_outputs(
+    frequency: Option<f64>,
+    names: &[String],
+    sess: &mut RtdeSession,
+    shared: &Shared,
+) {
+    let resolved: Vec<Option<(OutputVar, DataType)>> =
+        names.iter().map(|n| OutputVar::resolve(n)).collect();
+    let types: Vec<String> = resolved
+        .iter()
+        .map(|r| r.map_or("NOT_FOUND".to_string(), |(_, t)| t.name().to_string()))
+        .collect();
+    let id = sess.next_output_id;
+    let ok = !names.is_empty() && resolved.iter().all(Option::is_some);
+    if ok {
+        sess.next_output_id = sess.next_output_id.wrapping_add(1).max(1);
+        let rate = shared.rate_hz;
+        let f = frequency
+            .filter(|f| f.is_finite() && *f > 0.0)
+            .unwrap_or(rate);
+        let divider = (rate / f.min(rate)).round().max(1.0) as u64;
+        let vars: Vec<OutputVar> = resolved.iter().flatten().map(|(v, _)| *v).collect();
+        let dtypes: Vec<DataType> = resolved.iter().flatten().map(|(_, t)| *t).collect();
+        let recipe = Recipe::new(id, names.to_vec(), dtypes);
+        with_conn(shared, sess.id, |c| {
+            c.out = Some(OutSetup {
+                recipe,
+                vars,
+                divider,
+            });
+        });
+    }
+    sess.reply(&Reply::SetupOutputs {
+        recipe_id: Some(if ok { id } else { 0 }),
+        types,
+    });
+}
+
+/// SETUP_INPUTS: each name resolved, refused when another client owns it (`IN_USE`).
+fn setup_inputs(names: &[String], sess: &mut RtdeSession, shared: &Shared) {
+    let mut owners = lock(&shared.owners);
+    let mut types = Vec::with_capacity(names.len());
+    let mut slots = Vec::with_capacity(names.len());
+    let mut dtypes = Vec::with_capacity(names.len());
+    let mut ok = !names.is_empty();
+    for n in names {
+        match InputSlot::resolve(n) {
+            None => {
+                ok = false;
+                types.push("NOT_FOUND".to_string());
             }
-            sess.values = values;
+            Some((slot, t)) => match owners.get(&slot) {
+                Some(owner) if *owner != sess.id => {
+                    ok = false;
+                    types.push("IN_USE".to_string());
+                }
+                _ => {
+                    types.push(t.name().to_string());
+                    slots.push(slot);
+                    dtypes.push(t);
+                }
+            },
         }
     }
+    let id = if ok && sess.next_input_id < u8::MAX {
+        let id = sess.next_input_id;
+        sess.next_input_id += 1;
+        for s in &slots {
+            owners.insert(*s, sess.id);
+        }
+        sess.inputs
+            .insert(id, (Recipe::new(id, names.to_vec(), dtypes), slots));
+        id
+    } else {
+        0
+    };
+    drop(owners);
+    sess.reply(&Reply::SetupInputs {
+        recipe_id: id,
+        types,
+    });
+}
+
+/// A data package: its inputs applied to the controller, or a warning naming what was wrong.
+fn data(recipe_id: u8, payload: &[u8], sess: &mut RtdeSession, shared: &Shared) {
+    let Some((recipe, slots)) = sess.inputs.get(&recipe_id) else {
+        let msg = format!("data package for unknown input recipe {recipe_id}");
+        sess.warn(shared, msg);
+        return;
+    };
+    let mut values = std::mem::take(&mut sess.values);
+    match recipe.unpack(payload, &mut values) {
+        Ok(()) => {
+            let mut ctrl = lock(&shared.ctrl);
+            for (slot, v) in slots.iter().zip(&values) {
+                ctrl.apply_input(*slot, *v);
+            }
+            ctrl.finish_inputs();
+            drop(ctrl);
+            shared.counters.inputs.fetch_add(1, Ordering::Relaxed);
+        }
+        Err(e) => {
+            let msg = e.to_string();
+            sess.warn(shared, msg);
+        }
+    }
+    sess.values = values;
 }
 
 /// Reads `\n`-terminated lines (lossy UTF-8) until the peer closes, the simulator stops, or
