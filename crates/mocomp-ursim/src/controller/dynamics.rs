@@ -306,67 +306,9 @@ impl Controller {
                 let r = m.start.rotation.slerp(&m.goal.rotation, f);
                 let pose = Isometry3::from_parts(t.into(), r);
                 let done = m.profile.elapsed >= m.profile.t_total;
-                match self
-                    .arm
-                    .ik_closest(&pose, &self.q, &Selection::tracking(0.0))
-                {
-                    Ok(c) => {
-                        let fast = (0..6).any(|j| {
-                            (c.joints[j] - self.q[j]).abs() / ds.max(1e-12)
-                                > self.spec.max_speed[j] * self.config.setpoint_speed_factor
-                        });
-                        if fast {
-                            // Near a singularity a straight line asks for joint speeds no arm has.
-                            self.qd_int = [0.0; 6];
-                            self.motion = Motion::Idle;
-                            self.protective_stop(
-                                "movel: a joint would exceed its speed limit (near a singularity)"
-                                    .into(),
-                            );
-                        } else {
-                            for j in 0..6 {
-                                self.qd_int[j] = (c.joints[j] - self.q[j]) / ds.max(1e-12);
-                            }
-                            self.q = c.joints;
-                            if done {
-                                self.qd_int = [0.0; 6];
-                                self.motion = Motion::Idle;
-                            }
-                        }
-                    }
-                    Err(_) => {
-                        self.qd_int = [0.0; 6];
-                        self.motion = Motion::Idle;
-                        self.protective_stop("movel: the path leaves the arm's reach".into());
-                    }
-                }
+                self.follow_line(&pose, done, ds);
             }
-            Motion::Freedrive => {
-                let w = self.tcp_force;
-                let twist = Vector6::new(
-                    w[0] * FREEDRIVE_M_S_PER_N,
-                    w[1] * FREEDRIVE_M_S_PER_N,
-                    w[2] * FREEDRIVE_M_S_PER_N,
-                    w[3] * FREEDRIVE_RAD_S_PER_NM,
-                    w[4] * FREEDRIVE_RAD_S_PER_NM,
-                    w[5] * FREEDRIVE_RAD_S_PER_NM,
-                );
-                // Joint speeds for that tool twist (least squares near a singularity), within
-                // each joint's speed and acceleration.
-                let qd = self
-                    .arm
-                    .jacobian(&self.q)
-                    .svd(true, true)
-                    .solve(&twist, 1e-6)
-                    .unwrap_or_else(|_| Vector6::zeros());
-                for j in 0..6 {
-                    let vmax = self.spec.max_speed[j];
-                    let target = qd[j].clamp(-vmax, vmax);
-                    self.qd_int[j] =
-                        approach(self.qd_int[j], target, self.config.max_accel[j] * dt);
-                    self.q[j] += self.qd_int[j] * dt;
-                }
-            }
+            Motion::Freedrive => self.yield_to_hand(dt),
             Motion::Stop { decel } => {
                 let mut moving = false;
                 for j in 0..6 {
@@ -382,6 +324,72 @@ impl Controller {
         for j in 0..6 {
             self.qd[j] = (self.q[j] - q0[j]) / dt;
             self.qdd[j] = (self.qd[j] - qd0[j]) / dt;
+        }
+    }
+
+    /// movel's next pose: the joints that reach it nearest the current ones, or a protective
+    /// stop where none is near enough (a singularity) or none reaches it.
+    fn follow_line(&mut self, pose: &Isometry3<f64>, done: bool, ds: f64) {
+        match self
+            .arm
+            .ik_closest(pose, &self.q, &Selection::tracking(0.0))
+        {
+            Ok(c) => {
+                let fast = (0..6).any(|j| {
+                    (c.joints[j] - self.q[j]).abs() / ds.max(1e-12)
+                        > self.spec.max_speed[j] * self.config.setpoint_speed_factor
+                });
+                if fast {
+                    // Near a singularity a straight line asks for joint speeds no arm has.
+                    self.qd_int = [0.0; 6];
+                    self.motion = Motion::Idle;
+                    self.protective_stop(
+                        "movel: a joint would exceed its speed limit (near a singularity)".into(),
+                    );
+                } else {
+                    for j in 0..6 {
+                        self.qd_int[j] = (c.joints[j] - self.q[j]) / ds.max(1e-12);
+                    }
+                    self.q = c.joints;
+                    if done {
+                        self.qd_int = [0.0; 6];
+                        self.motion = Motion::Idle;
+                    }
+                }
+            }
+            Err(_) => {
+                self.qd_int = [0.0; 6];
+                self.motion = Motion::Idle;
+                self.protective_stop("movel: the path leaves the arm's reach".into());
+            }
+        }
+    }
+
+    /// Free-drive: the joints move at the speeds that give the tool the twist the hand's wrench
+    /// asks for, within each joint's speed and acceleration.
+    fn yield_to_hand(&mut self, dt: f64) {
+        let w = self.tcp_force;
+        let twist = Vector6::new(
+            w[0] * FREEDRIVE_M_S_PER_N,
+            w[1] * FREEDRIVE_M_S_PER_N,
+            w[2] * FREEDRIVE_M_S_PER_N,
+            w[3] * FREEDRIVE_RAD_S_PER_NM,
+            w[4] * FREEDRIVE_RAD_S_PER_NM,
+            w[5] * FREEDRIVE_RAD_S_PER_NM,
+        );
+        // Joint speeds for that tool twist (least squares near a singularity), within
+        // each joint's speed and acceleration.
+        let qd = self
+            .arm
+            .jacobian(&self.q)
+            .svd(true, true)
+            .solve(&twist, 1e-6)
+            .unwrap_or_else(|_| Vector6::zeros());
+        for j in 0..6 {
+            let vmax = self.spec.max_speed[j];
+            let target = qd[j].clamp(-vmax, vmax);
+            self.qd_int[j] = approach(self.qd_int[j], target, self.config.max_accel[j] * dt);
+            self.q[j] += self.qd_int[j] * dt;
         }
     }
 
