@@ -389,69 +389,9 @@ fn decode_content(h: &Header, c: &[u8], base: usize) -> Result<Body, DecodeError
             need(48)?;
             Body::Transform(r.floats("transform")?)
         }
-        "POSITION" => {
-            if !matches!(c.len(), 12 | 24 | 28) {
-                return Err(malformed(
-                    h,
-                    base,
-                    format!("{} content bytes, expected 12, 24 or 28", c.len()),
-                ));
-            }
-            let position = r.floats::<3>("position")?;
-            let quaternion = match c.len() {
-                24 => {
-                    let [x, y, z] = r.floats::<3>("quaternion")?;
-                    [x, y, z, (1.0 - x * x - y * y - z * z).max(0.0).sqrt()]
-                }
-                28 => r.floats::<4>("quaternion")?,
-                _ => [0.0, 0.0, 0.0, 1.0],
-            };
-            Body::Position {
-                position,
-                quaternion,
-            }
-        }
-        "TDATA" => {
-            if !c.len().is_multiple_of(TDATA_ELEMENT) {
-                return Err(malformed(
-                    h,
-                    base,
-                    format!(
-                        "{} content bytes, not a multiple of {TDATA_ELEMENT}",
-                        c.len()
-                    ),
-                ));
-            }
-            let mut tools = Vec::with_capacity(c.len() / TDATA_ELEMENT);
-            for i in 0..c.len() / TDATA_ELEMENT {
-                let at = r.at;
-                let name = DeviceName::from_wire(&r.array::<20>("tool name")?)
-                    .ok_or_else(|| malformed(h, at, format!("tool {i} name is not ASCII")))?;
-                let kind = r.u8("tool type")?;
-                r.u8("reserved")?;
-                tools.push(TDataElement {
-                    name,
-                    kind,
-                    matrix: r.floats("tool matrix")?,
-                });
-            }
-            Body::TData(tools)
-        }
-        "STATUS" => {
-            let code = r.u16("status code")?;
-            let subcode = r.u64("status subcode")? as i64;
-            let at = r.at;
-            let error_name = Name::<20>::from_wire(&r.array::<20>("error name")?)
-                .ok_or_else(|| malformed(h, at, "error name is not ASCII"))?;
-            let text = r.rest;
-            let text = text.split(|&b| b == 0).next().unwrap_or(text);
-            Body::Status(Status {
-                code,
-                subcode,
-                error_name,
-                message: String::from_utf8_lossy(text).into_owned(),
-            })
-        }
+        "POSITION" => position(h, c, base, &mut r)?,
+        "TDATA" => tdata(h, c, base, &mut r)?,
+        "STATUS" => status(h, &mut r)?,
         "STRING" => {
             let encoding = r.u16("string encoding")?;
             let len = usize::from(r.u16("string length")?);
@@ -494,6 +434,76 @@ fn decode_content(h: &Header, c: &[u8], base: usize) -> Result<Body, DecodeError
         _ if crate::message::query_of(t).is_some() => Body::Query(c.to_vec()),
         _ => Body::Unknown { size: c.len() },
     })
+}
+
+/// POSITION: a position and a quaternion in 12, 24 or 28 bytes (a 24-byte one carries x, y, z and
+/// w follows from them).
+fn position(h: &Header, c: &[u8], base: usize, r: &mut Reader<'_>) -> Result<Body, DecodeError> {
+    if !matches!(c.len(), 12 | 24 | 28) {
+        return Err(malformed(
+            h,
+            base,
+            format!("{} content bytes, expected 12, 24 or 28", c.len()),
+        ));
+    }
+    let position = r.floats::<3>("position")?;
+    let quaternion = match c.len() {
+        24 => {
+            let [x, y, z] = r.floats::<3>("quaternion")?;
+            [x, y, z, (1.0 - x * x - y * y - z * z).max(0.0).sqrt()]
+        }
+        28 => r.floats::<4>("quaternion")?,
+        _ => [0.0, 0.0, 0.0, 1.0],
+    };
+    Ok(Body::Position {
+        position,
+        quaternion,
+    })
+}
+
+/// TDATA: whole tool elements, each named in ASCII.
+fn tdata(h: &Header, c: &[u8], base: usize, r: &mut Reader<'_>) -> Result<Body, DecodeError> {
+    if !c.len().is_multiple_of(TDATA_ELEMENT) {
+        return Err(malformed(
+            h,
+            base,
+            format!(
+                "{} content bytes, not a multiple of {TDATA_ELEMENT}",
+                c.len()
+            ),
+        ));
+    }
+    let mut tools = Vec::with_capacity(c.len() / TDATA_ELEMENT);
+    for i in 0..c.len() / TDATA_ELEMENT {
+        let at = r.at;
+        let name = DeviceName::from_wire(&r.array::<20>("tool name")?)
+            .ok_or_else(|| malformed(h, at, format!("tool {i} name is not ASCII")))?;
+        let kind = r.u8("tool type")?;
+        r.u8("reserved")?;
+        tools.push(TDataElement {
+            name,
+            kind,
+            matrix: r.floats("tool matrix")?,
+        });
+    }
+    Ok(Body::TData(tools))
+}
+
+/// STATUS: code, subcode, an ASCII error name, and the message up to its first NUL.
+fn status(h: &Header, r: &mut Reader<'_>) -> Result<Body, DecodeError> {
+    let code = r.u16("status code")?;
+    let subcode = r.u64("status subcode")? as i64;
+    let at = r.at;
+    let error_name = Name::<20>::from_wire(&r.array::<20>("error name")?)
+        .ok_or_else(|| malformed(h, at, "error name is not ASCII"))?;
+    let text = r.rest;
+    let text = text.split(|&b| b == 0).next().unwrap_or(text);
+    Ok(Body::Status(Status {
+        code,
+        subcode,
+        error_name,
+        message: String::from_utf8_lossy(text).into_owned(),
+    }))
 }
 
 /// Decodes one message from the front of `buf`. `Ok(None)`: more bytes are needed. `Ok(Some((m,
