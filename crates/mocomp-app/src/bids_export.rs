@@ -161,7 +161,35 @@ pub fn dataset(s: &BidsSession<'_>) -> Vec<BidsFile> {
     let stem = format!("{dir}/nibs/{prefix}_stimsys-tms_task-{}", s.task);
     let t1 = s.t1.map(|ext| format!("anat/{prefix}_T1w.{ext}"));
     let ids = marker_ids(s.pulses);
-    let mut files = vec![
+    let mut files = top_files(s, &prefix, &dir, t1.as_deref());
+    let rows = pulse_rows(s, &ids);
+    files.push(BidsFile {
+        path: format!("{stem}_nibs.tsv"),
+        text: tsv(&NIBS_COLUMNS, &rows),
+    });
+    files.push(BidsFile {
+        path: format!("{stem}_nibs.json"),
+        text: pretty(&nibs_sidecar(s)),
+    });
+    let markers = marker_rows(s, &ids);
+    files.push(BidsFile {
+        path: format!("{stem}_markers.tsv"),
+        text: tsv(&MARKER_COLUMNS, &markers),
+    });
+    files.push(BidsFile {
+        path: format!("{stem}_markers.json"),
+        text: pretty(&markers_sidecar()),
+    });
+    files.push(BidsFile {
+        path: format!("{dir}/nibs/{prefix}_stimsys-tms_coordsystem.json"),
+        text: pretty(&coordsystem(s, t1.as_deref())),
+    });
+    files
+}
+
+/// The dataset's description, README, `.bidsignore`, participants and the session's scans.
+fn top_files(s: &BidsSession<'_>, prefix: &str, dir: &str, t1: Option<&str>) -> Vec<BidsFile> {
+    vec![
         BidsFile {
             path: "dataset_description.json".into(),
             text: pretty(&json!({
@@ -211,15 +239,18 @@ pub fn dataset(s: &BidsSession<'_>) -> Vec<BidsFile> {
             text: tsv(
                 &["filename", "acq_time"],
                 &t1.iter()
-                    .map(|f| vec![f.clone(), "n/a".into()])
+                    .map(|f| vec![f.to_string(), "n/a".into()])
                     .collect::<Vec<_>>(),
             ),
         },
-    ];
-    let rows: Vec<Vec<String>> = s
-        .pulses
+    ]
+}
+
+/// A row of `_nibs.tsv` per pulse, in [`NIBS_COLUMNS`]' order.
+fn pulse_rows(s: &BidsSession<'_>, ids: &[Option<String>]) -> Vec<Vec<String>> {
+    s.pulses
         .iter()
-        .zip(&ids)
+        .zip(ids)
         .enumerate()
         .map(|(k, (p, id))| {
             vec![
@@ -242,19 +273,15 @@ pub fn dataset(s: &BidsSession<'_>) -> Vec<BidsFile> {
                 num(p.dose_pct, 2),
             ]
         })
-        .collect();
-    files.push(BidsFile {
-        path: format!("{stem}_nibs.tsv"),
-        text: tsv(&NIBS_COLUMNS, &rows),
-    });
-    files.push(BidsFile {
-        path: format!("{stem}_nibs.json"),
-        text: pretty(&nibs_sidecar(s)),
-    });
-    let markers: Vec<Vec<String>> = s
-        .pulses
+        .collect()
+}
+
+/// A row of `_markers.tsv` per pulse with the coil's pose on the image, in [`MARKER_COLUMNS`]'
+/// order.
+fn marker_rows(s: &BidsSession<'_>, ids: &[Option<String>]) -> Vec<Vec<String>> {
+    s.pulses
         .iter()
-        .zip(&ids)
+        .zip(ids)
         .filter_map(|(p, id)| {
             let (pose, id) = (p.image_from_coil?, id.clone()?);
             let m = matsimnibs(&pose);
@@ -274,20 +301,7 @@ pub fn dataset(s: &BidsSession<'_>) -> Vec<BidsFile> {
             row.push(time(p.utc_unix_s));
             Some(row)
         })
-        .collect();
-    files.push(BidsFile {
-        path: format!("{stem}_markers.tsv"),
-        text: tsv(&MARKER_COLUMNS, &markers),
-    });
-    files.push(BidsFile {
-        path: format!("{stem}_markers.json"),
-        text: pretty(&markers_sidecar()),
-    });
-    files.push(BidsFile {
-        path: format!("{dir}/nibs/{prefix}_stimsys-tms_coordsystem.json"),
-        text: pretty(&coordsystem(s, t1.as_deref())),
-    });
-    files
+        .collect()
 }
 
 fn described(text: &str) -> serde_json::Value {
