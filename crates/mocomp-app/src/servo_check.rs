@@ -287,35 +287,91 @@ pub fn stream(
         }
     }
     robot.stop(4.0).what(|| "stopping the robot")?;
-    let missed = periods.iter().filter(|p| **p > 1.5 * period * 1e3).count();
-    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
-    let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(*x));
-    let report = StreamReport {
-        model: model.to_string(),
-        controller: robot.controller_version().to_string(),
-        rate_hz: 1.0 / period,
-        cycles: periods.len() + 1,
-        seconds: a.seconds,
-        period_median_ms: percentile(&mut periods.clone(), 50.0),
-        period_p99_ms: percentile(&mut periods.clone(), 99.0),
-        period_max_ms: max(&periods),
-        missed_cycles: missed,
-        skipped_deadlines: skipped,
-        servo_call_median_us: percentile(&mut calls.clone(), 50.0),
-        servo_call_p99_us: percentile(&mut calls, 99.0),
-        ack_latency_median_ms: percentile(&mut acks.clone(), 50.0),
-        ack_latency_p99_ms: percentile(&mut acks, 99.0),
-        tracking_joint_max_rad: max(&joint_err),
-        tracking_joint_rms_rad: rms(&joint_err),
-        tracking_tcp_max_mm: max(&tcp_err),
-        tracking_tcp_rms_mm: rms(&tcp_err),
-        expected_lag_rad: a.lookahead
-            * (0..n).fold(0.0f64, |m, k| m.max(target_speed(k as f64 * period).abs())),
-        lag_compensated_joint_max_rad: max(&comp_err),
-        lag_compensated_joint_rms_rad: rms(&comp_err),
-        protective_stop: fault.is_some(),
+    let expected_lag_rad =
+        a.lookahead * (0..n).fold(0.0f64, |m, k| m.max(target_speed(k as f64 * period).abs()));
+    let errors = Errors {
+        periods,
+        acks,
+        calls,
+        joint_err,
+        comp_err,
+        tcp_err,
+        skipped,
         fault,
-        realtime: realtime.describe(),
     };
-    Ok(report)
+    Ok(errors.report(
+        model,
+        robot.controller_version().to_string(),
+        period,
+        &a,
+        expected_lag_rad,
+        realtime.describe(),
+    ))
+}
+
+/// What a stream measured, each a sample per cycle.
+struct Errors {
+    /// Between servo calls, ms.
+    periods: Vec<f64>,
+    /// From a command to the controller's acknowledgement, ms.
+    acks: Vec<f64>,
+    /// A servo call's own time, µs.
+    calls: Vec<f64>,
+    /// The largest joint's error against the target at the state's time, rad.
+    joint_err: Vec<f64>,
+    /// The same against the target one lookahead earlier, rad.
+    comp_err: Vec<f64>,
+    /// The TCP's error, mm.
+    tcp_err: Vec<f64>,
+    /// Deadlines skipped (a late wake-up, or no state).
+    skipped: usize,
+    /// When and why the controller stopped the stream, if it did.
+    fault: Option<(f64, String)>,
+}
+
+impl Errors {
+    /// The report of a stream at `period` with options `a`.
+    fn report(
+        mut self,
+        model: Model,
+        controller: String,
+        period: f64,
+        a: &StreamOptions,
+        expected_lag_rad: f64,
+        realtime: String,
+    ) -> StreamReport {
+        let missed = self
+            .periods
+            .iter()
+            .filter(|p| **p > 1.5 * period * 1e3)
+            .count();
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+        let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(*x));
+        StreamReport {
+            model: model.to_string(),
+            controller,
+            rate_hz: 1.0 / period,
+            cycles: self.periods.len() + 1,
+            seconds: a.seconds,
+            period_median_ms: percentile(&mut self.periods.clone(), 50.0),
+            period_p99_ms: percentile(&mut self.periods.clone(), 99.0),
+            period_max_ms: max(&self.periods),
+            missed_cycles: missed,
+            skipped_deadlines: self.skipped,
+            servo_call_median_us: percentile(&mut self.calls.clone(), 50.0),
+            servo_call_p99_us: percentile(&mut self.calls, 99.0),
+            ack_latency_median_ms: percentile(&mut self.acks.clone(), 50.0),
+            ack_latency_p99_ms: percentile(&mut self.acks, 99.0),
+            tracking_joint_max_rad: max(&self.joint_err),
+            tracking_joint_rms_rad: rms(&self.joint_err),
+            tracking_tcp_max_mm: max(&self.tcp_err),
+            tracking_tcp_rms_mm: rms(&self.tcp_err),
+            expected_lag_rad,
+            lag_compensated_joint_max_rad: max(&self.comp_err),
+            lag_compensated_joint_rms_rad: rms(&self.comp_err),
+            protective_stop: self.fault.is_some(),
+            fault: self.fault,
+            realtime,
+        }
+    }
 }
