@@ -100,34 +100,9 @@ impl World {
             .host
             .parse()
             .map_err(|e| AppError::Config(format!("robot.host {:?}: {e}", file.robot.host)))?;
-        let say = |out: &mut dyn Write, line: String| {
-            writeln!(out, "{line}").what(|| "writing the progress")
-        };
         // The simulated head's time 0 (the simulated tracker's), once it has started.
         let head_t0: Arc<OnceLock<Instant>> = Arc::new(OnceLock::new());
-        let (sim, ucfg) = if file.robot.simulate {
-            let mut ctrl = ControllerConfig::new(setup.model);
-            ctrl.initial_q = initial_q;
-            if file.tracker.source == TrackerSource::Simulated {
-                ctrl.tool_load = Some(scalp_contact(setup, Arc::clone(&head_t0))?);
-            }
-            let (sim, on) = start_sim_free(&ctrl, host)?;
-            let u = sim.ur_config();
-            say(
-                out,
-                if on == host {
-                    format!("simulated {} on {host}", file.robot.model)
-                } else {
-                    format!(
-                        "simulated {} on {on} (robot.host {host}: its ports are taken)",
-                        file.robot.model
-                    )
-                },
-            )?;
-            (Some(Arc::new(sim)), u)
-        } else {
-            (None, UrConfig::new(host))
-        };
+        let (sim, ucfg) = start_robot(setup, initial_q, host, &head_t0, out)?;
         let tracker = if file.tracker.source == TrackerSource::Simulated {
             let t = start_tracker(setup, sim.clone())?;
             head_t0.set(t.started()).ok();
@@ -142,23 +117,7 @@ impl World {
             ),
             _ => None,
         };
-        let (camera, vision) = match file.tracker.source {
-            TrackerSource::Camera => {
-                let link = VisionLink::new(file.tracker.camera.params);
-                (
-                    Some(crate::camera_sim::start(setup, Arc::clone(&link))?),
-                    Some(link),
-                )
-            }
-            TrackerSource::K4a => {
-                let link = VisionLink::new(file.tracker.k4a.params);
-                (
-                    Some(crate::camera_k4a::start(setup, Arc::clone(&link))?),
-                    Some(link),
-                )
-            }
-            _ => (None, None),
-        };
+        let (camera, vision) = start_camera(setup)?;
         let tracker_addr = match (&tracker, &camera, &file.tracker.igtl) {
             // The simulated tracker seen through another address (a relay).
             (Some(_), _, Some(a)) => a.clone(),
@@ -397,6 +356,69 @@ pub fn simulated_head(setup: &Setup) -> impl Fn(f64) -> Isometry3<f64> + Clone +
 
 /// How many loopback addresses past a taken `robot.host` the simulated robot tries.
 const FREE_LOOPBACK_TRIES: u8 = 32;
+
+/// One line of progress to `out`.
+fn say(out: &mut dyn Write, line: String) -> Result<(), AppError> {
+    writeln!(out, "{line}").what(|| "writing the progress")
+}
+
+/// The robot: a simulated controller started on `host` (another loopback address when its ports
+/// are taken), or the real one at `host`.
+fn start_robot(
+    setup: &Setup,
+    initial_q: [f64; 6],
+    host: std::net::IpAddr,
+    head_t0: &Arc<OnceLock<Instant>>,
+    out: &mut dyn Write,
+) -> Result<(Option<Arc<Sim>>, UrConfig), AppError> {
+    let file = &setup.file;
+    if !file.robot.simulate {
+        return Ok((None, UrConfig::new(host)));
+    }
+    let mut ctrl = ControllerConfig::new(setup.model);
+    ctrl.initial_q = initial_q;
+    if file.tracker.source == TrackerSource::Simulated {
+        ctrl.tool_load = Some(scalp_contact(setup, Arc::clone(head_t0))?);
+    }
+    let (sim, on) = start_sim_free(&ctrl, host)?;
+    let u = sim.ur_config();
+    say(
+        out,
+        if on == host {
+            format!("simulated {} on {host}", file.robot.model)
+        } else {
+            format!(
+                "simulated {} on {on} (robot.host {host}: its ports are taken)",
+                file.robot.model
+            )
+        },
+    )?;
+    Ok((Some(Arc::new(sim)), u))
+}
+
+/// The depth camera and its vision link, for the sources "camera" and "k4a".
+fn start_camera(
+    setup: &Setup,
+) -> Result<(Option<CameraServer>, Option<Arc<VisionLink>>), AppError> {
+    let file = &setup.file;
+    Ok(match file.tracker.source {
+        TrackerSource::Camera => {
+            let link = VisionLink::new(file.tracker.camera.params);
+            (
+                Some(crate::camera_sim::start(setup, Arc::clone(&link))?),
+                Some(link),
+            )
+        }
+        TrackerSource::K4a => {
+            let link = VisionLink::new(file.tracker.k4a.params);
+            (
+                Some(crate::camera_k4a::start(setup, Arc::clone(&link))?),
+                Some(link),
+            )
+        }
+        _ => (None, None),
+    })
+}
 
 /// Starts the simulated robot on `host`, or, where a UR port there is taken and `host` is a
 /// loopback address, on the next loopback address whose ports are free (the simulated world's
