@@ -239,11 +239,7 @@ pub fn run(
             .what(|| "robot.zero_force_sensor")?;
         writeln!(progress, "force/torque sensor zeroed").what(|| "writing the progress")?;
     }
-    let source: Box<dyn PoseSource> = match (&client, head) {
-        (Some(c), _) => Box::new(c.pose_source()),
-        (None, Some(head)) => head(Arc::clone(&clock)),
-        (None, None) => refuse!("no source of the head's poses"),
-    };
+    let source = head_source(client.as_ref(), head, &clock)?;
     progress.flush().what(|| "writing the progress")?;
 
     // The loop, at the robot's rate: one cycle per new state.
@@ -307,6 +303,19 @@ pub fn run(
         .map(crate::camera::CameraServer::report);
     report.simulator = crate::world::simulator_figures(world.sim.as_deref());
     Ok(report)
+}
+
+/// The head's poses: the tracker over OpenIGTLink, or the front end's `head` (ROS 2's topic).
+fn head_source(
+    client: Option<&mocomp_igtl::client::Client>,
+    head: Option<HeadSource>,
+    clock: &Arc<dyn Clock>,
+) -> Result<Box<dyn PoseSource>, AppError> {
+    Ok(match (client, head) {
+        (Some(c), _) => Box::new(c.pose_source()),
+        (None, Some(head)) => head(Arc::clone(clock)),
+        (None, None) => refuse!("no source of the head's poses"),
+    })
 }
 
 /// The logger's thread: the CSV, the `observer`, the session's notes and log, the figures.
