@@ -56,9 +56,10 @@ say "cargo fmt --check"
 cargo fmt --all -- --check
 say "cargo clippy (all targets, -D warnings)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
-say "no import circle among any crate's modules; no function in mocomp-control over 120 lines"
+say "the house's rules: no import circle among any crate's modules; in every crate no function over 120 lines and no file over 1,000; the loop links no protocol"
 python3 scripts/module_cycles.py
-python3 scripts/fn_lengths.py
+python3 scripts/house_rules.py --self-test
+python3 scripts/house_rules.py
 # Scalps segmented from a T1 and scalps' distance fields are kept between commands (mocomp-app's
 # cache_files): the tests keep theirs in a fresh folder, shared by the run, so that they neither
 # read nor fill the user's.
