@@ -31,6 +31,7 @@ pub mod collect;
 pub mod config;
 pub mod config_check;
 pub mod config_file;
+pub mod config_reference;
 pub mod demo_options;
 pub mod demo_record;
 pub mod efield_calc;

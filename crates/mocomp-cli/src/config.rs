@@ -1,5 +1,6 @@
-//! `mocomp config print [--config FILE]` and `mocomp config check FILE`: the one configuration
-//! ([`mocomp_app::config`]) as an effective file with comments, or checked.
+//! `mocomp config print [--config FILE]`, `mocomp config check FILE` and `mocomp config
+//! reference`: the one configuration ([`mocomp_app::config`]) as an effective file with
+//! comments, checked, or as the book's reference.
 
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
@@ -29,6 +30,9 @@ enum ConfigCommand {
         /// The configuration.
         file: PathBuf,
     },
+    /// Print the reference of every key (Markdown: section, key, default, meaning), as the
+    /// book's configuration page.
+    Reference,
 }
 
 impl ConfigCmd {
@@ -41,6 +45,9 @@ impl ConfigCmd {
                     None => mocomp_app::config::Config::default(),
                 };
                 write!(out, "{}", mocomp_app::config_file::print(&cfg)?)?;
+            }
+            ConfigCommand::Reference => {
+                write!(out, "{}", mocomp_app::config_reference::markdown()?)?;
             }
             ConfigCommand::Check { file } => {
                 let setup = Setup::load(&file)?;
