@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The one test command (README.md, .ci/run): installs what the tests need, then runs the format
-# check, clippy with -D warnings, and every test, interop tests included.
+# check, clippy with -D warnings, the house's rules, every test (interop tests included), and
+# builds the book with its tutorial's commands run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -68,6 +69,10 @@ export MOCOMP_CACHE_DIR
 trap 'rm -rf "$MOCOMP_CACHE_DIR"' EXIT
 say "cargo test (workspace): build"
 cargo test --workspace --locked --no-run
+# 5. The book: its configuration reference (from the program's own template) and its page of
+#    crates (from the workspace) generated, then `mdbook build` (mdBook pinned, into .tools).
+say "the book: generated pages, mdbook build"
+scripts/book.sh build
 # The tests run in a network namespace of their own with only loopback: the ROS 2 tests speak
 # DDS, which discovers peers by UDP multicast on every interface it finds, and no test traffic
 # may leave this machine (every other test uses loopback already). Root makes the namespace
@@ -80,4 +85,7 @@ NS=(unshare --net)
   ip link set lo multicast on &&
   ip route add 224.0.0.0/4 dev lo &&
   exec cargo test --workspace --locked --offline'
+# The tutorial's commands, as a user types them, in such a namespace too.
+say "the book's tutorial: every command, in a network namespace with only loopback"
+"${NS[@]}" -- sh -c 'ip link set lo up && exec scripts/book.sh tutorial'
 say "all checks passed"
