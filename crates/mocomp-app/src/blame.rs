@@ -67,6 +67,15 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
     if e.is::<mocomp_ursim::SimError>() {
         return Some(Blame::Run);
     }
+    // The robot as the loop sees it: a command out of range is input, a refusal by a fault an
+    // outcome; a link's failure is its implementation's error, asked next (its source).
+    if let Some(e) = e.downcast_ref::<mocomp_robot::RobotError>() {
+        return match e {
+            mocomp_robot::RobotError::OutOfRange { .. } => Some(Blame::Input),
+            mocomp_robot::RobotError::Fault(_) => Some(Blame::Run),
+            mocomp_robot::RobotError::Link(_) => None,
+        };
+    }
     // A robot that is unreachable, refuses or faults is an outcome; a bad argument is not.
     if let Some(e) = e.downcast_ref::<mocomp_ur::UrError>() {
         return Some(match e {
@@ -121,6 +130,32 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
 mod tests {
     use super::*;
     use crate::experiment::ExperimentError;
+
+    #[test]
+    fn a_robot_command_out_of_range_is_input_a_fault_the_runs_and_a_link_its_cause() {
+        use mocomp_robot::{RobotError, RobotFault};
+        let range = RobotError::OutOfRange {
+            field: "servo gain",
+            value: 5.0,
+            min: 100.0,
+            max: 2000.0,
+        };
+        assert_eq!(blame(&range), Blame::Input);
+        assert_eq!(
+            blame(&RobotError::Fault(RobotFault::ProtectiveStop)),
+            Blame::Run
+        );
+        // A link's failure is its cause's: a lost socket is the run's, a file not found input.
+        let lost = std::io::Error::from(std::io::ErrorKind::ConnectionReset);
+        assert_eq!(blame(&RobotError::Link(Box::new(lost))), Blame::Run);
+        let missing = std::io::Error::from(std::io::ErrorKind::NotFound);
+        assert_eq!(blame(&RobotError::Link(Box::new(missing))), Blame::Input);
+        // Wrapped by the application, the robot's word still decides.
+        assert_eq!(
+            blame(&crate::AppError::failed("servoj", range)),
+            Blame::Input
+        );
+    }
 
     #[test]
     fn bad_input_is_the_inputs_and_everything_failing_at_run_time_the_runs() {
