@@ -31,11 +31,5 @@ python3 scripts/module_cycles.py
 python3 scripts/house_rules.py
 say "cargo test -p $crate $*, in a network namespace with only loopback"
 cargo test -p "$crate" --locked --no-run
-NS=(unshare --net)
-[ "$(id -u)" -ne 0 ] && NS=(unshare --net --map-root-user)
-"${NS[@]}" -- sh -c '
-  ip link set lo up &&
-  ip link set lo multicast on &&
-  ip route add 224.0.0.0/4 dev lo &&
-  exec cargo test -p "$0" --locked --offline "$@"' "$crate" "$@"
+scripts/in-netns.sh cargo test -p "$crate" --locked --offline "$@"
 say "$crate: passed"

@@ -73,19 +73,12 @@ cargo test --workspace --locked --no-run
 #    crates (from the workspace) generated, then `mdbook build` (mdBook pinned, into .tools).
 say "the book: generated pages, mdbook build"
 scripts/book.sh build
-# The tests run in a network namespace of their own with only loopback: the ROS 2 tests speak
-# DDS, which discovers peers by UDP multicast on every interface it finds, and no test traffic
-# may leave this machine (every other test uses loopback already). Root makes the namespace
-# directly; anyone else through a user namespace mapped to root.
+# The tests run in a network namespace of their own with only loopback (scripts/in-netns.sh): the
+# ROS 2 tests speak DDS, which discovers peers by UDP multicast on every interface it finds, and
+# no test traffic may leave this machine (every other test uses loopback already).
 say "cargo test (workspace), in a network namespace with only loopback"
-NS=(unshare --net)
-[ "$(id -u)" -ne 0 ] && NS=(unshare --net --map-root-user)
-"${NS[@]}" -- sh -c '
-  ip link set lo up &&
-  ip link set lo multicast on &&
-  ip route add 224.0.0.0/4 dev lo &&
-  exec cargo test --workspace --locked --offline'
+scripts/in-netns.sh cargo test --workspace --locked --offline
 # The tutorial's commands, as a user types them, in such a namespace too.
 say "the book's tutorial: every command, in a network namespace with only loopback"
-"${NS[@]}" -- sh -c 'ip link set lo up && exec scripts/book.sh tutorial'
+scripts/in-netns.sh scripts/book.sh tutorial
 say "all checks passed"

@@ -64,6 +64,32 @@ fn header(text: &str) -> Option<&str> {
     t.strip_prefix('[')?.strip_suffix(']')
 }
 
+/// What a line of the template holds.
+enum Item {
+    Section(Section),
+    Key(Key),
+}
+
+/// A `[section]` header or a `key = value` line (`optional`: commented out), with its meaning.
+fn item(code: &str, meaning: Option<&str>, optional: bool) -> Option<Item> {
+    let meaning = meaning.unwrap_or_default().to_string();
+    if let Some(name) = header(code) {
+        return Some(Item::Section(Section {
+            name: name.to_string(),
+            about: meaning,
+            ..Section::default()
+        }));
+    }
+    key_value(code).map(|(name, value)| {
+        Item::Key(Key {
+            name,
+            value,
+            optional,
+            meaning,
+        })
+    })
+}
+
 /// The template's sections, in its order.
 fn sections(template: &str) -> Vec<Section> {
     let mut out = vec![Section::default()];
@@ -88,44 +114,35 @@ fn sections(template: &str) -> Vec<Section> {
                 continue;
             }
             let (code, meaning) = split_comment(comment);
-            if let Some(name) = header(code) {
-                // A table left out by default (`# [head.landmarks]`): its keys follow, commented.
-                out.push(Section {
-                    name: name.to_string(),
-                    about: meaning.unwrap_or_default().to_string(),
-                    ..Section::default()
-                });
-                last_key = false;
-            } else if let Some((name, value)) = key_value(code) {
-                section.keys.push(Key {
-                    name,
-                    value,
-                    optional: true,
-                    meaning: meaning.unwrap_or_default().to_string(),
-                });
-                last_key = true;
-            } else {
-                section.notes.push(comment.to_string());
-                last_key = false;
+            match item(code, meaning, true) {
+                Some(Item::Section(s)) => {
+                    // A table left out by default (`# [head.landmarks]`): its keys follow,
+                    // commented.
+                    out.push(s);
+                    last_key = false;
+                }
+                Some(Item::Key(k)) => {
+                    section.keys.push(k);
+                    last_key = true;
+                }
+                None => {
+                    section.notes.push(comment.to_string());
+                    last_key = false;
+                }
             }
             continue;
         }
         let (code, meaning) = split_comment(t);
-        if let Some(name) = header(code) {
-            out.push(Section {
-                name: name.to_string(),
-                about: meaning.unwrap_or_default().to_string(),
-                ..Section::default()
-            });
-            last_key = false;
-        } else if let Some((name, value)) = key_value(code) {
-            section.keys.push(Key {
-                name,
-                value,
-                optional: false,
-                meaning: meaning.unwrap_or_default().to_string(),
-            });
-            last_key = true;
+        match item(code, meaning, false) {
+            Some(Item::Section(s)) => {
+                out.push(s);
+                last_key = false;
+            }
+            Some(Item::Key(k)) => {
+                section.keys.push(k);
+                last_key = true;
+            }
+            None => {}
         }
     }
     out
@@ -188,22 +205,7 @@ pub fn markdown() -> Result<String, AppError> {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
-    use crate::config::Config;
-
-    /// Every key path of a TOML table, tables included.
-    fn paths(prefix: &str, t: &toml::Table, out: &mut Vec<String>) {
-        for (k, v) in t {
-            let path = if prefix.is_empty() {
-                k.clone()
-            } else {
-                format!("{prefix}.{k}")
-            };
-            match v {
-                toml::Value::Table(sub) => paths(&path, sub, out),
-                _ => out.push(path),
-            }
-        }
-    }
+    use crate::config::{Config, flatten, same_value};
 
     #[test]
     fn every_key_the_program_reads_by_default_is_in_the_reference_with_its_default() {
@@ -211,9 +213,9 @@ mod tests {
         let text = toml::to_string(&Config::default()).unwrap();
         let defaults: toml::Table = text.parse().unwrap();
         let mut all = Vec::new();
-        paths("", &defaults, &mut all);
+        flatten("", &defaults, &mut all);
         assert!(all.len() > 150, "{}", all.len());
-        for path in all {
+        for (path, ours) in all {
             let (section, key) = path.rsplit_once('.').unwrap_or(("", &path));
             let s = secs
                 .iter()
@@ -226,40 +228,13 @@ mod tests {
                 .unwrap_or_else(|| panic!("{path} is not in the reference"));
             // The default as the reference states it is the program's.
             let theirs: toml::Table = format!("v = {}", k.value).parse().unwrap();
-            let ours = lookup(&defaults, &path).unwrap();
             if !k.optional {
                 assert!(
-                    same(&theirs["v"], ours),
+                    same_value(&theirs["v"], &ours),
                     "{path}: reference {} against the default {ours}",
                     k.value
                 );
             }
-        }
-    }
-
-    fn lookup<'a>(t: &'a toml::Table, path: &str) -> Option<&'a toml::Value> {
-        let mut parts = path.split('.').peekable();
-        let mut table = t;
-        while let Some(p) = parts.next() {
-            let v = table.get(p)?;
-            if parts.peek().is_none() {
-                return Some(v);
-            }
-            table = v.as_table()?;
-        }
-        None
-    }
-
-    /// Equal as values, integers and floats alike (`0` and `0.0`).
-    fn same(a: &toml::Value, b: &toml::Value) -> bool {
-        match (a, b) {
-            (toml::Value::Integer(x), toml::Value::Float(y))
-            | (toml::Value::Float(y), toml::Value::Integer(x)) => (*x as f64 - y).abs() < 1e-12,
-            (toml::Value::Float(x), toml::Value::Float(y)) => (x - y).abs() <= 1e-12 * x.abs(),
-            (toml::Value::Array(x), toml::Value::Array(y)) => {
-                x.len() == y.len() && x.iter().zip(y).all(|(a, b)| same(a, b))
-            }
-            _ => a == b,
         }
     }
 

@@ -147,7 +147,7 @@ pub fn unused_by_experiment(text: &str) -> Vec<String> {
 }
 
 /// Every value in `t` that is not a table, with its dotted path.
-fn flatten(prefix: &str, t: &toml::Table, out: &mut Vec<(String, toml::Value)>) {
+pub(crate) fn flatten(prefix: &str, t: &toml::Table, out: &mut Vec<(String, toml::Value)>) {
     for (k, v) in t {
         let path = if prefix.is_empty() {
             k.clone()
@@ -161,7 +161,8 @@ fn flatten(prefix: &str, t: &toml::Table, out: &mut Vec<(String, toml::Value)>) 
     }
 }
 
-fn lookup<'a>(t: &'a toml::Table, path: &str) -> Option<&'a toml::Value> {
+/// The value at a dotted path.
+pub(crate) fn lookup<'a>(t: &'a toml::Table, path: &str) -> Option<&'a toml::Value> {
     let mut parts = path.split('.');
     let mut v = t.get(parts.next()?)?;
     for p in parts {
@@ -171,7 +172,7 @@ fn lookup<'a>(t: &'a toml::Table, path: &str) -> Option<&'a toml::Value> {
 }
 
 /// Equal as configuration values: `0` and `0.0` are the same number.
-fn same_value(a: &toml::Value, b: &toml::Value) -> bool {
+pub(crate) fn same_value(a: &toml::Value, b: &toml::Value) -> bool {
     use toml::Value::{Array, Float, Integer};
     match (a, b) {
         (Integer(x), Float(y)) | (Float(y), Integer(x)) => (*x as f64) == *y,
