@@ -39,8 +39,17 @@ from selenium.webdriver.chrome.service import Service  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
 
 
-def wait(what, f, timeout=30.0):
-    deadline = time.monotonic() + timeout
+# How long a condition may take before the test calls the page hung. A deadline only catches a
+# hung test: every wait returns as soon as its condition holds, and a starved machine (two test
+# suites and stress-ng on two cores, the browser rendering without a GPU) once took more than
+# 30 s to show an applied change. Waiting longer costs nothing when the page is right.
+HUNG_S = 180.0
+
+
+def wait(what, f, show=None):
+    """Waits until `f()` is truthy and returns it; past HUNG_S, fails naming `what`, the last
+    value (or exception) seen and, with `show`, what the page showed then."""
+    deadline = time.monotonic() + HUNG_S
     last = None
     while time.monotonic() < deadline:
         try:
@@ -50,7 +59,20 @@ def wait(what, f, timeout=30.0):
         except Exception as e:  # a stale element while the page redraws
             last = e
         time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what} (last: {last!r})")
+    shown = ""
+    if show is not None:
+        try:
+            shown = f"; the page showed {show()!r}"
+        except Exception as e:  # the element itself gone
+            shown = f"; the page showed nothing readable ({e})"
+    raise AssertionError(f"timed out after {HUNG_S:.0f} s waiting for {what} (last: {last!r}){shown}")
+
+
+def wait_text(d, what, element_id, holds):
+    """Waits until the text of `element_id` satisfies `holds` and returns it; a timeout names the
+    text the element had."""
+    return wait(what, lambda: holds(text(d, element_id)) and text(d, element_id),
+                show=lambda: text(d, element_id))
 
 
 def set_field(d, field_id, value, apply_id):
@@ -111,7 +133,7 @@ def loop_session(url, shots):
         wait("the banner to go", lambda: not d.find_element(By.ID, "auth").is_displayed())
         assert token not in d.page_source
         # The status changes as the loop runs.
-        wait("tracking", lambda: text(d, "mode") == "tracking", 40)
+        wait_text(d, "tracking", "mode", lambda t: t == "tracking")
         t0 = float(text(d, "t"))
         wait("the loop time to advance", lambda: float(text(d, "t")) > t0 + 0.5)
         dev = wait("a deviation", lambda: text(d, "deviation_mm") not in ("", "—") and text(d, "deviation_mm"))
@@ -123,7 +145,7 @@ def loop_session(url, shots):
         d.save_screenshot(os.path.join(shots, "console-tracking.png"))
         # A tuning change takes and shows.
         set_field(d, "param-speed_fraction", "0.45", "apply-params")
-        wait("the change applied", lambda: "applied: loop.speed_fraction" in text(d, "params-result"))
+        wait_text(d, "the change applied", "params-result", lambda t: "applied: loop.speed_fraction" in t)
         wait("the form to show the new value",
              lambda: d.find_element(By.ID, "param-speed_fraction").get_attribute("value") == "0.45")
         cfg = d.execute_async_script(
@@ -157,7 +179,7 @@ def loop_session(url, shots):
         why = wait("the teach refusal", lambda: "moved" in text(d, "teach-result") and text(d, "teach-result"))
         seen["teach_refused"] = why
         d.find_element(By.ID, "resume").click()
-        wait("tracking again", lambda: text(d, "mode") == "tracking", 40)
+        wait_text(d, "tracking again", "mode", lambda t: t == "tracking")
         rows = d.execute_script(
             "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
         assert any("hold: held by the operator" in r for r in rows), rows
@@ -174,7 +196,7 @@ def loop_session(url, shots):
         d.find_element(By.ID, "stop").click()
         wait("the confirmation", lambda: d.find_element(By.ID, "stop-dialog").is_displayed())
         d.find_element(By.ID, "confirm-stop").click()
-        wait("stopped", lambda: text(d, "mode") == "stopped", 20)
+        wait_text(d, "stopped", "mode", lambda t: t == "stopped")
         seen["stopped"] = True
     finally:
         d.quit()
@@ -202,18 +224,17 @@ def camera_session(url, shots):
     seen = {}
     try:
         d.get(url)
-        wait("tracking on the camera's poses", lambda: text(d, "mode") == "tracking", 40)
+        wait_text(d, "tracking on the camera's poses", "mode", lambda t: t == "tracking")
         wait("the camera panel", lambda: d.find_element(By.ID, "camera-panel").is_displayed())
         wait("an IR frame drawn", lambda: frame_brightness(d) > 10)
-        wait("the marker found", lambda: "FRE" in text(d, "camera-meta"))
+        wait_text(d, "the marker found", "camera-meta", lambda t: "FRE" in t)
         seen["camera_meta"] = text(d, "camera-meta")
         settle(d)
         d.execute_script("document.getElementById('camera-panel').scrollIntoView()")
         d.save_screenshot(os.path.join(shots, "console-ir-whole.png"))
         # A new threshold takes effect in the pipeline.
         set_field(d, "cam-ir_threshold", "25000", "apply-camera")
-        wait("the threshold applied",
-             lambda: "applied: tracker.camera.params.ir_threshold" in text(d, "camera-result"))
+        wait_text(d, "the threshold applied", "camera-result", lambda t: "applied: tracker.camera.params.ir_threshold" in t)
         assert camera_config(d)["ir_threshold"] == 25000
         # A scan area drawn with the mouse around the middle of the frame.
         canvas = d.find_element(By.ID, "ir-canvas")
@@ -238,7 +259,7 @@ def camera_session(url, shots):
         assert camera_config(d)["depth_min_mm"] == 400
         seen["bad_value_error"] = err
         # Tracking on, with the new scan area.
-        wait("found in the scan area", lambda: "FRE" in text(d, "camera-meta"))
+        wait_text(d, "found in the scan area", "camera-meta", lambda t: "FRE" in t)
         assert text(d, "mode") in ("tracking", "approaching"), text(d, "mode")
         settle(d)
         d.execute_script("document.getElementById('camera-panel').scrollIntoView()")
@@ -255,18 +276,18 @@ def calibrate_session(url, shots):
     try:
         d.get(url)
         panel = lambda: d.find_element(By.ID, "calibration-panel")  # noqa: E731
-        wait("the calibration panel", lambda: panel().is_displayed(), 90)
+        wait("the calibration panel", lambda: panel().is_displayed())
         start = lambda: d.find_element(By.ID, "start-calibration")  # noqa: E731
-        wait("the start button", lambda: start().get_attribute("disabled") is None, 90)
+        wait("the start button", lambda: start().get_attribute("disabled") is None)
         # No loop runs: its buttons are off.
         assert d.find_element(By.ID, "hold").get_attribute("disabled") is not None
         seen["waiting"] = text(d, "reason")
         start().click()
         wait("the confirmation", lambda: d.find_element(By.ID, "calibrate-dialog").is_displayed())
         d.find_element(By.ID, "confirm-calibrate").click()
-        wait("the first pose", lambda: int(d.find_element(By.ID, "cal-progress").get_attribute("value")) >= 1, 60)
+        wait("the first pose", lambda: int(d.find_element(By.ID, "cal-progress").get_attribute("value")) >= 1)
         seen["collecting"] = text(d, "mode")
-        wait("the outcome", lambda: "saved" in text(d, "cal-text"), 120)
+        wait_text(d, "the outcome", "cal-text", lambda t: "saved" in t)
         rows = d.execute_script(
             "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
         assert any("measured" in r for r in rows), rows
@@ -286,15 +307,15 @@ def register_session(url, shots):
     try:
         d.get(url)
         panel = lambda: d.find_element(By.ID, "navigation-panel")  # noqa: E731
-        wait("the navigation panel", lambda: panel().is_displayed(), 90)
+        wait("the navigation panel", lambda: panel().is_displayed())
         start = lambda: d.find_element(By.ID, "start-navigation")  # noqa: E731
-        wait("the start button", lambda: start().get_attribute("disabled") is None, 90)
+        wait("the start button", lambda: start().get_attribute("disabled") is None)
         assert d.find_element(By.ID, "hold").get_attribute("disabled") is not None
         seen["waiting"] = text(d, "reason")
         start().click()
-        wait("the landmarks", lambda: len(d.find_elements(By.CSS_SELECTOR, "#nav-landmarks tbody tr")) == 3, 90)
+        wait("the landmarks", lambda: len(d.find_elements(By.CSS_SELECTOR, "#nav-landmarks tbody tr")) == 3)
         seen["landmarks"] = [r.text for r in d.find_elements(By.CSS_SELECTOR, "#nav-landmarks tbody tr")]
-        wait("the outcome", lambda: "registered: FRE" in text(d, "nav-result"), 120)
+        wait_text(d, "the outcome", "nav-result", lambda t: "registered: FRE" in t)
         seen["result"] = [li.text for li in d.find_elements(By.CSS_SELECTOR, "#nav-result li")]
         rows = d.execute_script(
             "return [...document.querySelectorAll('#events tbody tr')].map(r => r.innerText)")
@@ -312,7 +333,7 @@ def session_session(url, shots):
     seen = {}
     try:
         d.get(url)
-        wait("tracking on the start target", lambda: text(d, "mode") == "tracking", 40)
+        wait_text(d, "tracking on the start target", "mode", lambda t: t == "tracking")
         options = wait("the targets", lambda: d.execute_script(
             "const s = document.getElementById('target-select');"
             "return s.options.length ? [...s.options].map(o => o.value) : null"))
@@ -322,8 +343,8 @@ def session_session(url, shots):
         assert d.find_element(By.ID, "freedrive").get_attribute("disabled")
         d.execute_script("document.getElementById('target-select').value = 'beside'")
         d.find_element(By.ID, "go-target").click()
-        wait("the path to it", lambda: text(d, "mode") == "approaching", 20)
-        wait("tracking it", lambda: text(d, "mode") == "tracking", 40)
+        wait_text(d, "the path to it", "mode", lambda t: t == "approaching")
+        wait_text(d, "tracking it", "mode", lambda t: t == "tracking")
         # The dose tile, shown once the coil model gives a dose.
         wait("the dose tile", lambda: d.find_element(By.ID, "dose-tile").is_displayed())
         seen["dose_pct"] = wait("a dose", lambda: number(text(d, "dose_pct")))
@@ -339,7 +360,7 @@ def session_session(url, shots):
             (r for r in rows() if "pulse on beside" in r and "gate open" in r), None))
         seen["pulse_row"] = pulse
         # The tiles: the gate open, the pulses counted with the last one's error.
-        wait("the gate tile open", lambda: text(d, "gate") == "open")
+        wait_text(d, "the gate tile open", "gate", lambda t: t == "open")
         seen["pulses_tile"] = wait("pulses counted", lambda: int(text(d, "pulses") or 0))
         seen["pulse_last"] = text(d, "pulse-last")
         # The plot: tracking's tenths of a millimetre drawn well above the axis although the
@@ -349,20 +370,20 @@ def session_session(url, shots):
         wait("holding", lambda: text(d, "mode") == "holding" and text(d, "reason") == "held by the operator")
         wait("free-drive offered", lambda: not d.find_element(By.ID, "freedrive").get_attribute("disabled"))
         d.find_element(By.ID, "freedrive").click()
-        wait("hand-guided", lambda: text(d, "reason") == "the operator guides the arm by hand")
+        wait_text(d, "hand-guided", "reason", lambda t: t == "the operator guides the arm by hand")
         seen["guided_reason"] = text(d, "reason")
         settle(d)
         d.execute_script("window.scrollTo(0, 0)")
         d.save_screenshot(os.path.join(shots, "console-session.png"))
         d.find_element(By.ID, "handback").click()
-        wait("held again after the hand-over", lambda: text(d, "reason") == "held by the operator")
+        wait_text(d, "held again after the hand-over", "reason", lambda t: t == "held by the operator")
         d.find_element(By.ID, "resume").click()
-        wait("tracking after the hand-over", lambda: text(d, "mode") == "tracking", 40)
+        wait_text(d, "tracking after the hand-over", "mode", lambda t: t == "tracking")
         seen["tracking_after_handback"] = True
         d.find_element(By.ID, "stop").click()
         wait("the confirmation", lambda: d.find_element(By.ID, "stop-dialog").is_displayed())
         d.find_element(By.ID, "confirm-stop").click()
-        wait("stopped", lambda: text(d, "mode") == "stopped", 20)
+        wait_text(d, "stopped", "mode", lambda t: t == "stopped")
     finally:
         d.quit()
     return seen
@@ -375,7 +396,7 @@ def head_session(url, shots):
     seen = {}
     try:
         d.get(url)
-        wait("tracking", lambda: text(d, "mode") == "tracking", 40)
+        wait_text(d, "tracking", "mode", lambda t: t == "tracking")
         scene = d.execute_async_script(
             "const done = arguments[0];"
             "fetch('/api/scene').then(r => r.json()).then(j => done(j));")
@@ -434,7 +455,7 @@ def mri_session(url, shots):
     seen = {}
     try:
         d.get(url)
-        wait("tracking", lambda: text(d, "mode") == "tracking", 60)
+        wait_text(d, "tracking", "mode", lambda t: t == "tracking")
         wait("the MRI panel", lambda: d.find_element(By.ID, "mri-panel").is_displayed())
         wait("the three slices with the target and the coil", lambda: d.execute_script(
             "const m = window.mocomp.mri; return ['axial', 'coronal', 'sagittal'].every("

@@ -33,7 +33,6 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
         &dir,
         "run-sim.toml",
         "127.0.0.95",
-        60,
         &["--dashboard-token-file", &token_file],
     );
     // The token file holds the link's token, readable by its owner only.
@@ -159,7 +158,7 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     // a WebSocket message over its limit. Each is refused; the console and the loop go on.
     hostile_requests(&s);
 
-    // Stop: the run ends (stopj, standstill) well before its 60 s, and succeeds.
+    // Stop: the run ends (stopj, standstill) at the console's word, and succeeds.
     let (code, _) = s.post_auth("/api/stop", &json!({}));
     assert_eq!(code, 200);
     let (ok, summary) = s.finish();
@@ -248,7 +247,7 @@ fn a_console_on_the_network_needs_the_flag_that_says_so() {
 fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-browser");
-    let s = Session::start(&dir, "run-sim.toml", "127.0.0.96", 90, &[]);
+    let s = Session::start(&dir, "run-sim.toml", "127.0.0.96", &[]);
     let shots = dir.path("shots");
     let seen = browse(&s, &shots, "loop");
     // What the page showed, checked again here (the helper asserts each in the page).
@@ -278,7 +277,7 @@ fn the_page_in_a_real_browser_shows_the_loop_and_its_controls_work() {
 fn the_page_shows_the_cameras_frames_and_tunes_its_pipeline_in_a_real_browser() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-camera");
-    let s = Session::start(&dir, "run-camera.toml", "127.0.0.99", 90, &[]);
+    let s = Session::start(&dir, "run-camera.toml", "127.0.0.99", &[]);
     let shots = dir.path("shots");
     let seen = browse(&s, &shots, "camera");
     // The scan area drawn with the mouse, in the frame's pixels, around the middle.
@@ -313,7 +312,7 @@ fn the_goal_is_taught_in_the_console_while_held_and_written_to_the_file() {
         .unwrap()
         .replace("kind = \"nods\"", "kind = \"still\"");
     std::fs::write(&path, &text).unwrap();
-    let s = Session::start_file(&path, 60, &[]);
+    let s = Session::start_file(&path, &[]);
     s.wait_status("tracking", |v| v["mode"] == "tracking");
     // Not while the loop follows the head.
     let (code, v) = s.post_auth("/api/teach", &json!({}));
@@ -405,7 +404,7 @@ fn the_console_switches_targets_while_compensating_and_hands_the_arm_to_a_hand_a
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let dir = TempDir::new("mocomp-console-session");
     let path = session_example(&dir, "127.0.0.78", "");
-    let s = Session::start_file(&path, 90, &[]);
+    let s = Session::start_file(&path, &[]);
     s.wait_status("tracking", |v| v["mode"] == "tracking");
     let (code, v) = s.get("/api/targets");
     assert_eq!(code, 200, "{v}");
@@ -479,7 +478,7 @@ fn the_session_in_a_real_browser_switches_targets_shows_pulses_and_hands_the_arm
         ),
     );
     std::fs::write(&path, text).unwrap();
-    let s = Session::start_file(&path, 120, &[]);
+    let s = Session::start_file(&path, &[]);
     let shots = dir.path("shots");
     let seen = browse(&s, &shots, "session");
     // The dose on the new target, against its own plan: near 100 % of it, in V/m beside.
@@ -708,7 +707,7 @@ fn the_page_draws_the_patients_scalp_in_a_real_browser() {
     );
     assert!(text.contains("scalp.ply"));
     std::fs::write(&path, text).unwrap();
-    let s = Session::start_file(&path, 90, &[]);
+    let s = Session::start_file(&path, &[]);
     let shots = dir.path("shots");
     let seen = browse(&s, &shots, "head");
     // The page got the scalp decimated for it (fsaverage's 4,062 triangles to at most 3,000) and
@@ -756,7 +755,7 @@ fn the_page_shows_the_target_on_the_patients_mri_in_a_real_browser() {
     );
     assert!(text.contains("t1.nii"));
     std::fs::write(&path, text).unwrap();
-    let s = Session::start_file(&path, 120, &[]);
+    let s = Session::start_file(&path, &[]);
     // The API without a browser: a bad plane is refused by name.
     let (code, body) = s.get("/api/mri/slice.png?plane=oblique&x=0&y=0&z=0");
     assert_eq!(code, 400, "{body}");
