@@ -11,7 +11,7 @@ Each run pair, on examples/run-sim.toml (the simulated UR3e, nodding head):
      it received (from the cycle that produced the status to the WebSocket message handled in the
      page: wall clock, same machine).
 Prints each run and the medians over runs. Nothing is timed in a unit test; this is the
-benchmark the README quotes.
+benchmark the book's console page quotes.
 """
 
 import argparse

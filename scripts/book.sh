@@ -2,7 +2,7 @@
 # The book (book/): its generated pages, then `mdbook build` into the git-ignored book/book.
 #
 #   scripts/book.sh            generate the pages and build (needs target/debug/mocomp: cargo build)
-#   scripts/book.sh tutorial   run every command of the tutorial (scripts/book_tutorial.py)
+#   scripts/book.sh tutorial   run every command of the tutorials (scripts/book_tutorial.py)
 #
 # mdBook is pinned and installed into the git-ignored .tools when it is not there.
 set -euo pipefail

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The one test command (README.md, .ci/run): installs what the tests need, then runs the format
 # check, clippy with -D warnings, the house's rules, every test (interop tests included), and
-# builds the book with its tutorial's commands run.
+# builds the book with its tutorials' commands run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -78,7 +78,7 @@ scripts/book.sh build
 # no test traffic may leave this machine (every other test uses loopback already).
 say "cargo test (workspace), in a network namespace with only loopback"
 scripts/in-netns.sh cargo test --workspace --locked --offline
-# The tutorial's commands, as a user types them, in such a namespace too.
-say "the book's tutorial: every command, in a network namespace with only loopback"
+# The tutorials' commands, as a user types them, in such a namespace too.
+say "the book's tutorials: every command, in a network namespace with only loopback"
 scripts/in-netns.sh scripts/book.sh tutorial
 say "all checks passed"

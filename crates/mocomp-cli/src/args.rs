@@ -16,7 +16,7 @@ pub struct ArmArgs {
     /// Tool offset flange_from_tool as a UR pose vector (m, rotation vector).
     #[arg(long, value_name = "X,Y,Z,RX,RY,RZ", value_parser = six, allow_hyphen_values = true)]
     pub tool: Option<[f64; 6]>,
-    /// The robot's own calibrated DH values (TOML; see README.md).
+    /// The robot's own calibrated DH values (TOML; see the book's commands page, book/src/reference/commands.md).
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
 }

@@ -4,7 +4,7 @@
 //! the nearest few refined exactly. The exact clearance ([`crate::HeadShape::coil_clearance`],
 //! GJK on the triangles that can be nearest) costs several times more, and the more the larger
 //! the mesh; between the samples it can be less than this one by what the scalp bulges between
-//! them (measured against it on real anatomy in the crate's tests, and stated in the README),
+//! them (measured against it on real anatomy in the crate's tests, and stated in the book's page on the patient's head),
 //! which the loop's least distance covers. Each of the loop's call sites keeps a
 //! [`ClearanceMemory`] from one cycle to the next, which spares the samples that cannot have
 //! become the nearest since (the same answer, a fraction of the work).

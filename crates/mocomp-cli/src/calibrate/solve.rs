@@ -7,7 +7,7 @@ use mocomp_kin::Model;
 use std::io::Write;
 use std::path::PathBuf;
 
-/// Solve for X and Y from a pairs file (CSV; see README.md for its columns).
+/// Solve for X and Y from a pairs file (CSV; its columns are on the book's commands page, book/src/reference/commands.md).
 #[derive(Debug, Clone, Args)]
 pub struct SolveCmd {
     /// The pairs file.

@@ -36,7 +36,7 @@ pub struct TrackCmd {
     /// Marker geometry: .toml (points_mm), Atracsys .ini or NDI .rom.
     #[arg(long, value_name = "FILE", required = true)]
     geometry: Option<PathBuf>,
-    /// Pipeline parameters (TOML; see README.md). Default: built-in values.
+    /// Pipeline parameters (TOML; see the book's commands page, book/src/reference/commands.md). Default: built-in values.
     #[arg(long, value_name = "FILE")]
     params: Option<PathBuf>,
     /// Write an overlay image per frame into this directory.
