@@ -79,7 +79,7 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
     // A robot that is unreachable, refuses or faults is an outcome; a bad argument is not.
     if let Some(e) = e.downcast_ref::<mocomp_ur::UrError>() {
         return Some(match e {
-            mocomp_ur::UrError::OutOfRange { .. } => Blame::Input,
+            mocomp_ur::UrError::Robot(mocomp_robot::RobotError::OutOfRange { .. }) => Blame::Input,
             _ => Blame::Run,
         });
     }

@@ -652,7 +652,7 @@ impl UrRobot {
 
     fn check_motion_allowed(&self) -> Result<(), UrError> {
         match self.state().and_then(|s| s.fault()) {
-            Some(f) => Err(UrError::Fault(f)),
+            Some(f) => Err(RobotError::Fault(f).into()),
             None => Ok(()),
         }
     }
@@ -762,18 +762,18 @@ fn check_dashboard(config: &UrConfig, version: ControllerVersion) -> Result<(), 
     }
     let safety = d.safety_mode()?;
     if !matches!(safety, SafetyMode::Normal | SafetyMode::Reduced) {
-        return Err(UrError::Fault(match safety {
+        return Err(UrError::Robot(RobotError::Fault(match safety {
             SafetyMode::ProtectiveStop => RobotFault::ProtectiveStop,
             SafetyMode::RobotEmergencyStop | SafetyMode::SystemEmergencyStop => {
                 RobotFault::EmergencyStop
             }
             m => RobotFault::Safety(m),
-        }));
+        })));
     }
     let mode = d.robot_mode()?;
     if mode != RobotMode::Running {
         if !config.power_on {
-            return Err(UrError::Fault(RobotFault::NotRunning(mode)));
+            return Err(RobotError::Fault(RobotFault::NotRunning(mode)).into());
         }
         d.power_on()?;
         d.brake_release()?;

@@ -141,21 +141,11 @@ pub enum UrError {
         /// Which interface.
         what: String,
     },
-    /// The robot is in a state that forbids the command.
-    #[error("command refused: {0}")]
-    Fault(mocomp_robot::RobotFault),
-    /// A command argument is out of range.
-    #[error("{field} = {value} is outside [{min}, {max}]")]
-    OutOfRange {
-        /// Argument name.
-        field: &'static str,
-        /// Given value.
-        value: f64,
-        /// Smallest allowed.
-        min: f64,
-        /// Largest allowed.
-        max: f64,
-    },
+    /// The robot did not take the command: a fault forbids it, or an argument is out of range.
+    /// The robot's own error, so the loop's `RobotError` and this one never disagree (only its
+    /// `Fault` and `OutOfRange` are made here).
+    #[error(transparent)]
+    Robot(#[from] mocomp_robot::RobotError),
 }
 
 impl UrError {
@@ -168,31 +158,15 @@ impl UrError {
 }
 
 pub(crate) fn range(field: &'static str, value: f64, min: f64, max: f64) -> Result<(), UrError> {
-    mocomp_robot::check_range(field, value, min, max).map_err(|_| UrError::OutOfRange {
-        field,
-        value,
-        min,
-        max,
-    })
+    Ok(mocomp_robot::check_range(field, value, min, max)?)
 }
 
-/// What the loop sees of a UR failure: a fault and a range keep their kind, the rest is the
+/// What the loop sees of a UR failure: the robot's own refusal as it is, the rest is the
 /// link's, with this error as its source.
 impl From<UrError> for mocomp_robot::RobotError {
     fn from(e: UrError) -> Self {
         match e {
-            UrError::Fault(f) => Self::Fault(f),
-            UrError::OutOfRange {
-                field,
-                value,
-                min,
-                max,
-            } => Self::OutOfRange {
-                field,
-                value,
-                min,
-                max,
-            },
+            UrError::Robot(e) => e,
             other => Self::Link(Box::new(other)),
         }
     }
@@ -206,7 +180,7 @@ mod tests {
 
     #[test]
     fn the_loop_sees_a_fault_and_a_range_as_such_and_the_rest_as_the_link_with_its_cause() {
-        let e: RobotError = UrError::Fault(RobotFault::ProtectiveStop).into();
+        let e: RobotError = UrError::Robot(RobotError::Fault(RobotFault::ProtectiveStop)).into();
         assert!(matches!(e, RobotError::Fault(RobotFault::ProtectiveStop)));
         let e: RobotError = range("servo gain", 5.0, 100.0, 2000.0).unwrap_err().into();
         assert!(
