@@ -19,7 +19,6 @@ macro_rules! refuse {
 }
 
 pub mod affine_file;
-pub mod bids_export;
 pub mod blame;
 pub mod cache_files;
 pub mod camera;
@@ -45,9 +44,7 @@ pub mod listen;
 pub mod live;
 pub mod live_log;
 pub mod live_session;
-pub mod localite_export;
 pub mod navigation;
-pub mod navigator_files;
 pub mod placement;
 pub mod pointer;
 pub mod pose_lines;
@@ -115,6 +112,13 @@ pub enum AppError {
         #[source]
         source: Cause,
     },
+}
+
+/// A navigator's file that is not what it should be is bad input, as the configuration is.
+impl From<mocomp_navfiles::FileError> for AppError {
+    fn from(e: mocomp_navfiles::FileError) -> Self {
+        Self::Config(e.0)
+    }
 }
 
 impl AppError {

@@ -1,12 +1,12 @@
 //! `mocomp session export` and `session report`: a session's pulse log (`[session] pulse_log`)
-//! written as a NIBS-BIDS dataset ([`crate::bids_export`]), a Localite trigger-marker file
-//! ([`crate::localite_export`]) or a report (one HTML page, [`mocomp_report::session`]). The configuration is read for where the log is, the image the
+//! written as a NIBS-BIDS dataset ([`mocomp_navfiles::bids`]), a Localite trigger-marker file
+//! ([`mocomp_navfiles::localite`]) or a report (one HTML page, [`mocomp_report::session`]). The configuration is read for where the log is, the image the
 //! poses are in (its T1 goes into the dataset), its landmarks and registration, and the coil;
 //! the head is not built (a scan is not segmented to export a log).
 
-use crate::bids_export::{BidsSession, check_label, dataset};
 use crate::config::Config;
 use crate::{AppError, Context};
+use mocomp_navfiles::bids::{BidsSession, check_label, dataset};
 use mocomp_session::{Pulse, read_log};
 use std::path::{Path, PathBuf};
 
@@ -160,7 +160,7 @@ pub fn bids(source: &ExportSource, dir: &Path, o: &BidsOptions) -> Result<Export
 
 /// Writes `source`'s pulses as a Localite trigger-marker file `file`.
 pub fn localite(source: &ExportSource, file: &Path) -> Result<Exported, AppError> {
-    let text = crate::localite_export::trigger_markers(&source.pulses)
+    let text = mocomp_navfiles::localite::trigger_markers(&source.pulses)
         .what(|| format!("writing {}", file.display()))?;
     write(file, text.as_bytes())?;
     Ok(exported(source, vec![file.to_path_buf()]))

@@ -1,4 +1,4 @@
-//! Targets imported from another navigator's file ([`crate::navigator_files`]): coil poses kept
+//! Targets imported from another navigator's file ([`mocomp_navfiles::read`]): coil poses kept
 //! as planned (SimNIBS, Localite, Brainsight), points placed as the coil over them (3D Slicer
 //! markups), each checked against this patient's scalp before it is kept: a pose far off the
 //! scalp, or one whose coil faces away from the head, is a file in another frame or unit, and
@@ -7,10 +7,10 @@
 use crate::AppError;
 use crate::config::Setup;
 use crate::navigation::{Placed, TargetSpec, mm_from_point, place_target};
-use crate::navigator_files::{NamedPose, Navigator, parse_poses, slicer_points};
 use mocomp_control::goal::check_goal;
 use mocomp_head::{HeadShape, Reframed};
 use mocomp_nav::Handle;
+use mocomp_navfiles::read::{NamedPose, Navigator, parse_poses, slicer_points};
 use mocomp_session::Target;
 
 /// How far from the scalp an imported coil's face may be, m: navigators plan the coil on the

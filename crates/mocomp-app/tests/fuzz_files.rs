@@ -16,7 +16,7 @@
 )] // test code
 
 use mocomp_app::config::Config;
-use mocomp_app::navigator_files::{Navigator, parse_poses, simnibs_fiducials, slicer_points};
+use mocomp_navfiles::read::{Navigator, parse_poses, simnibs_fiducials, slicer_points};
 use mocomp_testkit::fuzz::{Field, Fuzzer, Input, Kind, Outcome, Tally, campaign};
 use std::path::PathBuf;
 
@@ -255,7 +255,7 @@ fn surface_meshes() {
 
 #[test]
 fn navigator_files() {
-    let dir = "crates/mocomp-app/tests/data/navigators/";
+    let dir = "crates/mocomp-navfiles/tests/data/navigators/";
     let localite = [
         read(&format!(
             "{dir}localite/LPS_InstrumentMarker20120925123537421.xml"

@@ -304,12 +304,9 @@ fn export(dir: &TempDir, cfg: &str, log: &str) {
     assert_success(&out);
     let text = std::fs::read_to_string(&xml).unwrap();
     assert_eq!(text.matches("<TriggerMarker ").count(), pulses.len());
-    let back = mocomp_app::navigator_files::parse_poses(
-        mocomp_app::navigator_files::Navigator::Localite,
-        &xml,
-        &text,
-    )
-    .unwrap();
+    let back =
+        mocomp_navfiles::read::parse_poses(mocomp_navfiles::read::Navigator::Localite, &xml, &text)
+            .unwrap();
     assert_eq!(back.len(), posed.len());
     for (b, pose) in back.iter().zip(&posed) {
         assert_eq!(b.name, "hot-r0c1");

@@ -146,9 +146,9 @@ impl Config {
         let text = std::fs::read_to_string(&path)
             .map_err(|e| AppError::Config(format!("head.landmarks_file = {name}: {e}")))?;
         let read = if name.ends_with(".json") {
-            crate::navigator_files::slicer_points(&name, &text)
+            mocomp_navfiles::read::slicer_points(&name, &text)
         } else {
-            crate::navigator_files::simnibs_fiducials(&name, &text)
+            mocomp_navfiles::read::simnibs_fiducials(&name, &text)
         }
         .map_err(|e| AppError::Config(format!("head.landmarks_file: {e}")))?;
         for l in read {

@@ -3,13 +3,13 @@
 //! a `TriggerMarkerList` in RAS with its `startTime`, each pulse a `TriggerMarker` (its
 //! `recordingTime` in ms from the start, the target as its `description`, the stimulator's
 //! output as `amplitudeA` in %) and the coil's `Matrix4D` in mm and Localite's coil axes (the
-//! inverse of what [`crate::navigator_files`] reads: `M_localite = M_simnibs · A`, `A` its own
+//! inverse of what [`crate::read`] reads: `M_localite = M_simnibs · A`, `A` its own
 //! inverse). A pulse without a coil pose is written as Localite writes an untracked coil: the
 //! identity, `set="false"`.
 //!
 //! Text only; the caller writes the file.
 
-use crate::navigator_files::localite_axes;
+use crate::read::localite_axes;
 use mocomp_session::{Pulse, iso8601};
 use quick_xml::Writer;
 use quick_xml::events::{BytesDecl, BytesEnd, BytesStart, BytesText, Event};
@@ -127,7 +127,7 @@ pub fn trigger_markers(pulses: &[Pulse]) -> Result<String, std::io::Error> {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
     use super::*;
-    use crate::navigator_files::{Navigator, parse_poses};
+    use crate::read::{Navigator, parse_poses};
     use mocomp_geom::nalgebra::{Isometry3, Vector3};
 
     fn pulse(t: f64, pose: Option<Isometry3<f64>>) -> Pulse {

@@ -13,7 +13,7 @@
 //! The conventions are those SimNIBS's `utils/nnav.py` implements. Units: mm in the files,
 //! metres out.
 
-use crate::AppError;
+use crate::FileError;
 use mocomp_geom::iso_from_matrix_mm;
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Point3};
 use mocomp_nav::Landmark;
@@ -82,23 +82,23 @@ pub fn parse_poses(
     navigator: Navigator,
     file: &str,
     text: &str,
-) -> Result<Vec<NamedPose>, AppError> {
+) -> Result<Vec<NamedPose>, FileError> {
     let poses = match navigator {
         Navigator::Simnibs => simnibs(file, text)?,
         Navigator::Localite => localite(file, text)?,
         Navigator::Brainsight => brainsight(file, text)?,
     };
     if poses.is_empty() {
-        return Err(AppError::Config(format!("{file}: no coil pose in it")));
+        return Err(FileError(format!("{file}: no coil pose in it")));
     }
     Ok(poses)
 }
 
-fn bad(file: &str, line: usize, why: impl std::fmt::Display) -> AppError {
-    AppError::Config(format!("{file}:{line}: {why}"))
+fn bad(file: &str, line: usize, why: impl std::fmt::Display) -> FileError {
+    FileError(format!("{file}:{line}: {why}"))
 }
 
-fn rigid(file: &str, line: usize, m: &Matrix4<f64>) -> Result<Isometry3<f64>, AppError> {
+fn rigid(file: &str, line: usize, m: &Matrix4<f64>) -> Result<Isometry3<f64>, FileError> {
     iso_from_matrix_mm(m, RIGID_TOLERANCE).map_err(|e| {
         bad(
             file,
@@ -108,7 +108,7 @@ fn rigid(file: &str, line: usize, m: &Matrix4<f64>) -> Result<Isometry3<f64>, Ap
     })
 }
 
-fn number(file: &str, line: usize, s: &str) -> Result<f64, AppError> {
+fn number(file: &str, line: usize, s: &str) -> Result<f64, FileError> {
     s.trim()
         .parse::<f64>()
         .ok()
@@ -117,7 +117,7 @@ fn number(file: &str, line: usize, s: &str) -> Result<f64, AppError> {
 }
 
 /// `matsimnibs` matrices: four rows of four numbers each, a `# name` line before one naming it.
-fn simnibs(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
+fn simnibs(file: &str, text: &str) -> Result<Vec<NamedPose>, FileError> {
     let mut out = Vec::new();
     let mut name: Option<String> = None;
     let mut rows: Vec<[f64; 4]> = Vec::new();
@@ -203,7 +203,7 @@ fn attributes(e: &BytesStart<'_>) -> std::collections::HashMap<String, String> {
 }
 
 /// Localite's XML: the list's `coordinateSpace`, each marker's `description` and `Matrix4D`.
-fn localite(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
+fn localite(file: &str, text: &str) -> Result<Vec<NamedPose>, FileError> {
     let mut reader = quick_xml::Reader::from_str(text);
     let mut lps = None;
     let mut name: Option<String> = None;
@@ -276,7 +276,7 @@ fn localite(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
         }
     }
     if lps.is_none() {
-        return Err(AppError::Config(format!(
+        return Err(FileError(format!(
             "{file}: no InstrumentMarkerList or TriggerMarkerList: not a Localite marker file"
         )));
     }
@@ -286,7 +286,7 @@ fn localite(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
 /// Brainsight's text export: `# Coordinate system:` (NIfTI:Aligned up to version 13, its
 /// NIfTI:Q:Aligned or NIfTI:S:Aligned from version 14), then the `# Target Name` and `# Sample
 /// Name` tables' tab-separated rows; the other tables (sessions, EMG) are not coil poses.
-fn brainsight(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
+fn brainsight(file: &str, text: &str) -> Result<Vec<NamedPose>, FileError> {
     let mut system = None;
     let mut columns: Option<Vec<String>> = None;
     let mut out = Vec::new();
@@ -334,7 +334,7 @@ fn brainsight(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
             }
         }
         let cells: Vec<&str> = line.split('\t').collect();
-        let get = |name: &str| -> Result<f64, AppError> {
+        let get = |name: &str| -> Result<f64, FileError> {
             let k = cols
                 .iter()
                 .position(|c| c == name)
@@ -361,7 +361,7 @@ fn brainsight(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
         });
     }
     if system.is_none() {
-        return Err(AppError::Config(format!(
+        return Err(FileError(format!(
             "{file}: no \"# Coordinate system:\" line: not a Brainsight text export"
         )));
     }
@@ -369,11 +369,11 @@ fn brainsight(file: &str, text: &str) -> Result<Vec<NamedPose>, AppError> {
 }
 
 /// The control points of a 3D Slicer markups file (`.mrk.json`), by label, RAS, m.
-pub fn slicer_points(file: &str, text: &str) -> Result<Vec<Landmark>, AppError> {
-    let doc: serde_json::Value = serde_json::from_str(text)
-        .map_err(|e| AppError::Config(format!("{file}: not JSON: {e}")))?;
+pub fn slicer_points(file: &str, text: &str) -> Result<Vec<Landmark>, FileError> {
+    let doc: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| FileError(format!("{file}: not JSON: {e}")))?;
     let markups = doc["markups"].as_array().ok_or_else(|| {
-        AppError::Config(format!(
+        FileError(format!(
             "{file}: no \"markups\" list: not a Slicer markups file"
         ))
     })?;
@@ -384,7 +384,7 @@ pub fn slicer_points(file: &str, text: &str) -> Result<Vec<Landmark>, AppError> 
             "LPS" => -1.0,
             "RAS" => 1.0,
             other => {
-                return Err(AppError::Config(format!(
+                return Err(FileError(format!(
                     "{file}: markups[{k}].coordinateSystem {other:?}: LPS or RAS"
                 )));
             }
@@ -392,7 +392,7 @@ pub fn slicer_points(file: &str, text: &str) -> Result<Vec<Landmark>, AppError> 
         if let Some(units) = m["coordinateUnits"].as_str()
             && units != "mm"
         {
-            return Err(AppError::Config(format!(
+            return Err(FileError(format!(
                 "{file}: markups[{k}].coordinateUnits {units:?}: mocomp reads mm"
             )));
         }
@@ -400,7 +400,7 @@ pub fn slicer_points(file: &str, text: &str) -> Result<Vec<Landmark>, AppError> 
         for (j, p) in points.iter().enumerate() {
             let at = |i: usize| p["position"][i].as_f64().filter(|v| v.is_finite());
             let (Some(x), Some(y), Some(z)) = (at(0), at(1), at(2)) else {
-                return Err(AppError::Config(format!(
+                return Err(FileError(format!(
                     "{file}: markups[{k}].controlPoints[{j}].position is not three finite numbers"
                 )));
             };
@@ -414,13 +414,13 @@ pub fn slicer_points(file: &str, text: &str) -> Result<Vec<Landmark>, AppError> 
         }
     }
     if out.is_empty() {
-        return Err(AppError::Config(format!("{file}: no control points in it")));
+        return Err(FileError(format!("{file}: no control points in it")));
     }
     Ok(out)
 }
 
 /// The `Fiducial` rows of a SimNIBS positions CSV (`Fiducial,x,y,z,name`, mm), m.
-pub fn simnibs_fiducials(file: &str, text: &str) -> Result<Vec<Landmark>, AppError> {
+pub fn simnibs_fiducials(file: &str, text: &str) -> Result<Vec<Landmark>, FileError> {
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let cells: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -438,7 +438,7 @@ pub fn simnibs_fiducials(file: &str, text: &str) -> Result<Vec<Landmark>, AppErr
         out.push(Landmark::new(cells[4], p / 1000.0));
     }
     if out.is_empty() {
-        return Err(AppError::Config(format!("{file}: no Fiducial rows in it")));
+        return Err(FileError(format!("{file}: no Fiducial rows in it")));
     }
     Ok(out)
 }

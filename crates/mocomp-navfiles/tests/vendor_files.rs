@@ -13,8 +13,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
-use mocomp_app::navigator_files::{NamedPose, Navigator, parse_poses};
 use mocomp_geom::nalgebra::Matrix4;
+use mocomp_navfiles::read::{NamedPose, Navigator, parse_poses};
 use std::path::PathBuf;
 
 fn path(rel: &str) -> PathBuf {
