@@ -15,7 +15,6 @@ mod head;
 mod ik;
 mod listen;
 mod models;
-mod navigation_page;
 mod placement;
 mod pointer;
 mod print;

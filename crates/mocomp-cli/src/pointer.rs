@@ -67,7 +67,7 @@ impl PointerCmd {
         let mut stderr = std::io::stderr();
         let progress: &mut dyn Write = if c.json { &mut stderr } else { out };
         let console = c.dashboard.start(&setup, &controls, progress)?;
-        let mut page = crate::navigation_page::Page::new(console.as_ref(), "pivot");
+        let mut page = mocomp_console::navigation::Page::new(console.as_ref(), "pivot");
         if console.is_some() {
             page.wait_for_go(&controls)?;
         }

@@ -184,7 +184,7 @@ impl RegisterCmd {
 
 /// The registration's progress on standard error and in the console.
 struct Shown<'p, 'c> {
-    page: &'p mut crate::navigation_page::Page<'c>,
+    page: &'p mut mocomp_console::navigation::Page<'c>,
 }
 
 impl Follow for Shown<'_, '_> {
@@ -215,7 +215,7 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let o = a.common.open(setup, progress)?;
     let controls = mocomp_app::frontend::Controls::new();
     let console = a.dashboard.start(&o.setup, &controls, progress)?;
-    let mut page = crate::navigation_page::Page::new(console.as_ref(), "registration");
+    let mut page = mocomp_console::navigation::Page::new(console.as_ref(), "registration");
     if console.is_some() {
         page.wait_for_go(&controls)?;
     }

@@ -12,6 +12,7 @@
 pub mod api;
 pub mod auth;
 pub mod mri;
+pub mod navigation;
 pub mod page;
 pub mod state;
 

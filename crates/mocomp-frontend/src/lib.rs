@@ -15,7 +15,7 @@ use mocomp_session::{Drift, GateEvent, PulseAt};
 use mocomp_vision::VisionError;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
-use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, OnceLock, PoisonError};
 use vision::VisionLink;
 
 /// What a front end's request could not do.
@@ -173,6 +173,9 @@ pub struct Controls {
     target_rx: Mutex<Option<Receiver<Selection>>>,
     /// The simulated camera's pipeline, once the session has started one.
     vision: OnceLock<Arc<VisionLink>>,
+    /// Wakes a front end waiting for the operator's go or stop ([`Controls::wait_for_start`]);
+    /// the loop never takes it.
+    asked: (Mutex<()>, Condvar),
 }
 
 impl Controls {
@@ -195,6 +198,7 @@ impl Controls {
             target_tx,
             target_rx: Mutex::new(Some(target_rx)),
             vision: OnceLock::new(),
+            asked: (Mutex::new(()), Condvar::new()),
         })
     }
 
@@ -216,6 +220,7 @@ impl Controls {
     /// Ends the loop at its next cycle; the robot is then stopped.
     pub fn stop(&self) {
         self.stop.store(true, Ordering::Relaxed);
+        self.wake();
     }
 
     /// Whether the stop was asked.
@@ -227,6 +232,27 @@ impl Controls {
     /// calibration collection with a console).
     pub fn request_start(&self) {
         self.start.store(true, Ordering::Relaxed);
+        self.wake();
+    }
+
+    /// Waits until the operator gives the go (`true`) or asks to stop (`false`), for a front end
+    /// with nothing else to do meanwhile (a procedure that must keep a robot's program fed
+    /// polls [`Self::start_requested`] instead).
+    pub fn wait_for_start(&self) -> bool {
+        let (lock, asked) = &self.asked;
+        let guard = lock.lock().unwrap_or_else(PoisonError::into_inner);
+        let _guard = asked
+            .wait_while(guard, |_| !self.start_requested() && !self.stop_requested())
+            .unwrap_or_else(PoisonError::into_inner);
+        !self.stop_requested()
+    }
+
+    /// Tells a waiter a flag changed. Taking the lock after the flag is set means a waiter
+    /// that checked the flags before is already waiting when it is woken.
+    fn wake(&self) {
+        let (lock, asked) = &self.asked;
+        drop(lock.lock().unwrap_or_else(PoisonError::into_inner));
+        asked.notify_all();
     }
 
     /// Whether the operator gave the go.
@@ -401,5 +427,36 @@ pub fn note_time(n: &Note) -> f64 {
         | Note::Camera(t, _)
         | Note::Rearm(t, _) => t,
         Note::Pulse(p, _) => p.t_s,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_waiting_front_end_wakes_to_the_go_or_the_stop_whichever_comes() {
+        // Asked before anyone waits: no wait at all.
+        let c = Controls::new();
+        c.request_start();
+        assert!(c.wait_for_start());
+
+        // Asked by another thread while one waits (the thread may run before or after the wait
+        // begins: either way the waiter sees it).
+        for go in [true, false] {
+            let c = Controls::new();
+            let asker = {
+                let c = Arc::clone(&c);
+                std::thread::spawn(move || if go { c.request_start() } else { c.stop() })
+            };
+            assert_eq!(c.wait_for_start(), go);
+            asker.join().unwrap();
+        }
+
+        // A stop wins over a go given too: the operator asked to end it.
+        let c = Controls::new();
+        c.request_start();
+        c.stop();
+        assert!(!c.wait_for_start());
     }
 }

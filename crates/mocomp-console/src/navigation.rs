@@ -2,13 +2,18 @@
 //! for the page's Start, then each step, the landmarks as they are touched, the sweep's count,
 //! and the outcome. Without a console it does nothing.
 
+use crate::Console;
+use crate::state::NavigationJson;
 use mocomp_app::frontend::Controls;
-use mocomp_console::Console;
-use mocomp_console::state::NavigationJson;
 use mocomp_nav::{Procedure, Prompt};
-use std::time::Duration;
+
+/// The operator stopped (the page's Stop, Ctrl-C) before the page's Start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("stopped before it started")]
+pub struct StoppedBeforeStart;
 
 /// The console's navigation panel, or nothing.
+#[derive(Debug)]
 pub struct Page<'a> {
     console: Option<&'a Console>,
     shown: NavigationJson,
@@ -36,14 +41,11 @@ impl<'a> Page<'a> {
         }
     }
 
-    /// Waits for the page's Start (or the page's Stop, Ctrl-C: then an error).
-    pub fn wait_for_go(&mut self, controls: &Controls) -> anyhow::Result<()> {
-        while !controls.start_requested() {
-            if controls.stop_requested() {
-                self.failed("stopped before it started");
-                anyhow::bail!("stopped before it started");
-            }
-            std::thread::sleep(Duration::from_millis(50));
+    /// Waits for the page's Start (or the page's Stop, Ctrl-C: then an error, shown).
+    pub fn wait_for_go(&mut self, controls: &Controls) -> Result<(), StoppedBeforeStart> {
+        if !controls.wait_for_start() {
+            self.failed(&StoppedBeforeStart.to_string());
+            return Err(StoppedBeforeStart);
         }
         self.shown.state = "running";
         self.show(Some(format!("{}: started", self.shown.task)));
