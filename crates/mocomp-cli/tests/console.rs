@@ -12,7 +12,7 @@
 
 mod common;
 use common::mocomp;
-use common::session::{Session, browse, write_example};
+use common::session::{Session, browse, latched_stale, write_example};
 use mocomp_testkit::TempDir;
 use serde_json::{Value, json};
 use std::path::Path;
@@ -78,8 +78,11 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     // The hold holds the loop, with the operator named as the reason.
     let (code, v) = s.post_auth("/api/hold", &json!({}));
     assert_eq!((code, &v["operator_hold"]), (200, &json!(true)));
+    // (A robot state late by 250 ms on a starved machine latches a fault that holds the arm
+    // too, and shows instead: the resume below re-arms it.)
     let held = s.wait_status("the operator's hold", |v| {
         v["mode"] == "holding" && v["reason"] == "Operator"
+            || latched_stale(v) && v["operator_hold"] == true
     });
     assert_eq!(held["operator_hold"], true);
 
@@ -95,7 +98,10 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
             // Held; the example's nodding head comes into the held coil now and then, and the
             // coil gives way (retreating) before it holds again.
             assert_eq!(v["operator_hold"], true, "{v}");
-            assert!(v["mode"] == "holding" || v["mode"] == "retreating", "{v}");
+            assert!(
+                v["mode"] == "holding" || v["mode"] == "retreating" || latched_stale(&v),
+                "{v}"
+            );
             times.push(v["t"].as_f64().unwrap());
         }
     }
@@ -138,7 +144,7 @@ fn the_console_holds_resumes_tunes_and_stops_the_loop_and_refuses_what_is_not_al
     // Resume: the loop comes back to its goal and tracks again.
     let (code, _) = s.post_auth("/api/resume", &json!({}));
     assert_eq!(code, 200);
-    s.wait_status("tracking after the resume", |v| {
+    s.wait_status_rearming("tracking after the resume", |v| {
         v["mode"] == "tracking" && v["operator_hold"] == false
     });
     let (_, events) = s.get("/api/events");

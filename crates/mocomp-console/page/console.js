@@ -66,7 +66,8 @@ function showStatus(s) {
   $("dose_v_per_m").textContent = fmt(s.dose_v_per_m, 1);
   $("t").textContent = fmt(s.t, 2);
   $("hold").disabled = !s.running || s.operator_hold;
-  $("resume").disabled = !s.running || !s.operator_hold;
+  // Resume ends the operator's hold and re-arms a latched fault: offered for either.
+  $("resume").disabled = !s.running || !(s.operator_hold || s.mode === "faulted");
   $("stop").disabled = !s.running;
   $("teach").disabled = !s.running || !s.operator_hold;
   $("freedrive").disabled = !s.running || !s.operator_hold || s.freedrive;

@@ -173,6 +173,38 @@ impl Session {
         }
     }
 
+    /// [`Self::wait_status`], re-arming a latched `RobotStale` as an operator would (no robot
+    /// state for 250 ms: this machine stopped the controller's process or the loop's that long,
+    /// seen with two suites and `stress-ng` on two cores), once a second of loop time at most,
+    /// printed. For waits where no operator's hold is meant (a resume ends one).
+    #[allow(dead_code)] // not every test file that shares this module uses it
+    pub fn wait_status_rearming(&self, what: &str, f: impl Fn(&Value) -> bool) -> Value {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let mut rearmed_at = f64::NEG_INFINITY;
+        loop {
+            let (code, s) = self.get("/api/status");
+            assert_eq!(code, 200, "{s}");
+            if f(&s) {
+                return s;
+            }
+            let t = s["t"].as_f64().unwrap_or(0.0);
+            if latched_stale(&s) && t - rearmed_at > 1.0 {
+                eprintln!(
+                    "no robot state for 250 ms (this machine stalled a process): the loop latched \
+                     RobotStale; re-arming as an operator would"
+                );
+                let (code, _) = self.post_auth("/api/resume", &serde_json::json!({}));
+                assert_eq!(code, 200);
+                rearmed_at = t;
+            }
+            if Instant::now() >= deadline {
+                let (_, events) = self.get("/api/events");
+                panic!("waiting for {what}; last status {s}; events {events}");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// Waits until the loop has tracked for `seconds` of its own time without a break, doing
     /// what an operator does when the controller stopped the arm by itself: a simulated
     /// controller shares this machine, whose host can stop one of its virtual CPUs for 100 ms
@@ -216,10 +248,7 @@ impl Session {
                     let (code, _) = self.post_auth("/api/resume", &serde_json::json!({}));
                     assert_eq!(code, 200);
                     resumed += 1;
-                } else if v["mode"] == "faulted"
-                    && v["reason"] == "RobotStale"
-                    && t - rearmed_at > 1.0
-                {
+                } else if latched_stale(&v) && t - rearmed_at > 1.0 {
                     eprintln!(
                         "no robot state for 250 ms (this machine stalled a process): the loop \
                          latched RobotStale; re-arming as an operator would"
@@ -262,6 +291,12 @@ impl Session {
             self.stdout.take().unwrap().join().unwrap(),
         )
     }
+}
+
+/// The loop latched a stale robot state (no state for `robot_rearm_after_s`): faulted until an
+/// operator re-arms it.
+pub fn latched_stale(status: &Value) -> bool {
+    status["mode"] == "faulted" && status["reason"] == "RobotStale"
 }
 
 /// Every line of `lines`, as they come, until it closes.
