@@ -85,7 +85,7 @@ fn pulses_from_pyigtl_reach_the_loop_and_the_gate_reads_back_in_pyigtl() {
     };
     let mut log = SessionLog::open(&setup, publisher).unwrap();
     let wait = |py: &mut PythonPeer| {
-        let m = py.request(&json!({"op": "wait", "device": "MocompGate", "timeout": 10}));
+        let m = py.request(&json!({"op": "wait", "device": "MocompGate", "timeout": 60}));
         assert_eq!(m["found"], true, "{m}");
         assert_eq!(m["type"], "StringMessage", "{m}");
         m["string"].as_str().unwrap().to_string()

@@ -167,13 +167,13 @@ fn our_server_to_pyigtl_client() {
         .unwrap(),
     );
 
-    let h = py.request(&json!({"op": "wait", "device": "HeadToTracker", "timeout": 10}));
+    let h = py.request(&json!({"op": "wait", "device": "HeadToTracker", "timeout": 60}));
     assert_eq!(h["found"], true, "{h}");
     assert_eq!(h["header_version"], 1);
     assert!((matrix_of(&h["matrix"]) - mocomp_geom::matrix_mm_from_iso(&pose())).amax() < 1e-4);
     assert!((h["timestamp"].as_f64().unwrap() - 1_700_000_123.5).abs() < 1e-6);
 
-    let c = py.request(&json!({"op": "wait", "device": "CoilToTracker", "timeout": 10}));
+    let c = py.request(&json!({"op": "wait", "device": "CoilToTracker", "timeout": 60}));
     assert_eq!(
         (c["header_version"].as_u64(), c["message_id"].as_u64()),
         (Some(2), Some(9))
@@ -181,6 +181,6 @@ fn our_server_to_pyigtl_client() {
     assert_eq!(c["metadata"]["TransformStatus"], "OK");
     assert_eq!(c["metadata"]["Operator"], "Zoë");
 
-    let s = py.request(&json!({"op": "wait", "device": "Note", "timeout": 10}));
+    let s = py.request(&json!({"op": "wait", "device": "Note", "timeout": 60}));
     assert_eq!(s["string"], "hello from mocomp");
 }
