@@ -237,11 +237,16 @@ pub fn monotonic_s() -> f64 {
     t.tv_sec() as f64 + t.tv_nsec() as f64 * 1e-9
 }
 
-/// Polls `f` every 2 ms until it is true; panics naming `what` after 10 s. For tests on threads
-/// and sockets, where fixed sleeps are flaky on loaded machines: a condition with a deadline, the
-/// deadline generous enough for two loaded cores.
+/// How long a condition may take before a test calls it hung. It returns as soon as the
+/// condition holds, so waiting long costs nothing when the code is right; two test suites and
+/// `stress-ng` on two cores have held a thread back for seconds.
+pub const HUNG: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// Polls `f` every 2 ms until it is true; panics naming `what` after [`HUNG`]. For tests on
+/// threads and sockets, where fixed sleeps are flaky on loaded machines: a condition with a
+/// deadline that only catches a hung test.
 pub fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
-    let end = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    let end = std::time::Instant::now() + HUNG;
     while !f() {
         if std::time::Instant::now() > end {
             panic!("timed out waiting for {what}");
@@ -253,7 +258,7 @@ pub fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
 /// Like [`wait_until`], but spins (yielding) instead of sleeping: for lockstep tests that hand
 /// every cycle across threads, where a 2 ms sleep per hand-over would dominate.
 pub fn spin_until(what: &str, mut f: impl FnMut() -> bool) {
-    let end = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    let end = std::time::Instant::now() + HUNG;
     while !f() {
         if std::time::Instant::now() > end {
             panic!("timed out waiting for {what}");
