@@ -82,16 +82,22 @@ STARVED = ("the robot's state is late", "robot: the control program is not runni
 REARMS_PER_WAIT = 5
 
 
+def starved(d):
+    """The page says the loop latched a fault a starved machine causes by itself."""
+    return text(d, "mode") == "faulted" and text(d, "reason") in STARVED
+
+
 def wait_mode(d, what, mode):
-    """Waits until the page's mode is `mode` (a mode the loop reaches by itself: no operator's
-    hold is meant, since a resume ends it), pressing Resume as an operator would when the page
-    says the loop latched a fault of a starved machine (a second apart; said on stderr; past
-    REARMS_PER_WAIT it is no starved machine, and fails)."""
+    """Waits until the page's mode is `mode` (or one of a tuple of modes: modes the loop
+    reaches by itself, no operator's hold meant, since a resume ends it), pressing Resume as an
+    operator would when the page says the loop latched a fault of a starved machine (a second
+    apart; said on stderr; past REARMS_PER_WAIT it is no starved machine, and fails)."""
+    modes = mode if isinstance(mode, tuple) else (mode,)
     rearmed = []
 
     def reached():
         shown = text(d, "mode")
-        if shown == mode:
+        if shown in modes:
             return shown
         if shown == "faulted" and text(d, "reason") in STARVED and (
                 not rearmed or time.monotonic() - rearmed[-1] > 1.0):
@@ -103,6 +109,27 @@ def wait_mode(d, what, mode):
         return None
 
     return wait(what, reached, show=lambda: f"{text(d, 'mode')}: {text(d, 'reason')}")
+
+
+def hand_guide(d):
+    """Hold, then free-drive, until the page says the operator guides the arm. A fault a starved
+    machine latched on the way (free-drive is refused while faulted, rightly) is re-armed as an
+    operator would, and the hold and free-drive asked again (REARMS_PER_WAIT times at most)."""
+    for _ in range(REARMS_PER_WAIT):
+        wait_mode(d, "tracking before the hold", "tracking")
+        d.find_element(By.ID, "hold").click()
+        if wait("holding", lambda: starved(d) and "faulted" or (
+                text(d, "mode") == "holding" and text(d, "reason") == "held by the operator")) == "faulted":
+            continue
+        wait("free-drive offered", lambda: starved(d) or not d.find_element(By.ID, "freedrive").get_attribute("disabled"))
+        if starved(d):
+            continue
+        d.find_element(By.ID, "freedrive").click()
+        guided = wait("hand-guided", lambda: starved(d) and "faulted" or (
+            text(d, "reason") == "the operator guides the arm by hand" and "guided"))
+        if guided == "guided":
+            return
+    raise AssertionError(f"no hand-guiding after {REARMS_PER_WAIT} faults of a starved machine")
 
 
 def set_field(d, field_id, value, apply_id):
@@ -290,7 +317,7 @@ def camera_session(url, shots):
         seen["bad_value_error"] = err
         # Tracking on, with the new scan area.
         wait_text(d, "found in the scan area", "camera-meta", lambda t: "FRE" in t)
-        assert text(d, "mode") in ("tracking", "approaching"), text(d, "mode")
+        wait_mode(d, "tracking with the new scan area", ("tracking", "approaching"))
         settle(d)
         d.execute_script("document.getElementById('camera-panel').scrollIntoView()")
         d.save_screenshot(os.path.join(shots, "console-ir-scan-area.png"))
@@ -396,11 +423,7 @@ def session_session(url, shots):
         # The plot: tracking's tenths of a millimetre drawn well above the axis although the
         # paths' hundreds are in the same 30 s.
         seen["plot"] = d.execute_script("return window.mocomp.plot")
-        d.find_element(By.ID, "hold").click()
-        wait("holding", lambda: text(d, "mode") == "holding" and text(d, "reason") == "held by the operator")
-        wait("free-drive offered", lambda: not d.find_element(By.ID, "freedrive").get_attribute("disabled"))
-        d.find_element(By.ID, "freedrive").click()
-        wait_text(d, "hand-guided", "reason", lambda t: t == "the operator guides the arm by hand")
+        hand_guide(d)
         seen["guided_reason"] = text(d, "reason")
         settle(d)
         d.execute_script("window.scrollTo(0, 0)")
