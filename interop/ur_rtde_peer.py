@@ -89,16 +89,33 @@ def watch(req):
 
 
 def on_monotonic():
-    # Each state at the time the controller stamped it, on CLOCK_MONOTONIC: the controller's
-    # clock plus the smallest arrival delay seen. A monitor on a busy machine receives late and in
-    # bursts; the controller (at its real-time priority) stamps on time, and the smallest delay
-    # is within a poll (0.2 ms) of the true offset.
+    # Each state at the time the controller stamped it, on CLOCK_MONOTONIC. A monitor on a busy
+    # machine receives late and in bursts; the controller (at its real-time priority) stamps on
+    # time, so a state's arrival delay is never negative and the smallest one seen is within a
+    # poll (0.2 ms) of the true offset. That offset is not one constant: a simulated controller
+    # stopped longer than it makes up gives the cycles up, and from then on its clock runs behind
+    # the wall clock by them (a real one never falls behind; the offset then stays constant).
+    # Lost cycles only ever add to the lag, so a state's offset is at most the smallest delay seen
+    # at or after it: the minimum over what follows, taken from the end, tracks each step.
+    _, samples, _, _ = state["watch"]
+    xs = list(samples)
+    out = []
+    offset = math.inf
+    for m, ts, v in reversed(xs):
+        offset = min(offset, m - ts)
+        out.append((ts + offset, v))
+    out.reverse()
+    return out
+
+
+def lag_s():
+    # How far the controller's clock fell behind the wall clock while watched (its given-up
+    # cycles), for a failing test's message.
     _, samples, _, _ = state["watch"]
     xs = list(samples)
     if not xs:
-        return []
-    offset = min(m - ts for (m, ts, _) in xs)
-    return [(ts + offset, v) for (_, ts, v) in xs]
+        return None
+    return min(m - ts for (m, ts, _) in xs[-50:]) - min(m - ts for (m, ts, _) in xs[:50])
 
 
 def still_after(req):
@@ -109,8 +126,8 @@ def still_after(req):
         if xs[-1][0] < t + stay:
             break
         if all(v < 1e-3 for (u, v) in xs[i:] if u < t + stay):
-            return {"still_s": t - req["t0"], "samples": len(xs)}
-    return {"still_s": None, "samples": len(xs)}
+            return {"still_s": t - req["t0"], "samples": len(xs), "lag_s": lag_s()}
+    return {"still_s": None, "samples": len(xs), "lag_s": lag_s()}
 
 
 def top_speed(req):

@@ -64,12 +64,13 @@ impl Monitor {
         // again until it does (the deadline only catches an arm that never stands).
         let deadline = std::time::Instant::now() + Duration::from_secs(20);
         loop {
-            let still = self
-                .ask(&json!({"op": "still_after", "t0": t0, "stay_s": stay.as_secs_f64()}))
-                ["still_s"]
-                .as_f64()
-                .map(Duration::from_secs_f64);
+            let answer =
+                self.ask(&json!({"op": "still_after", "t0": t0, "stay_s": stay.as_secs_f64()}));
+            let still = answer["still_s"].as_f64().map(Duration::from_secs_f64);
             if still.is_some() || std::time::Instant::now() >= deadline {
+                // The controller's clock behind the wall clock by this (its given-up cycles),
+                // which the monitor's placing of each state on the wall clock follows.
+                eprintln!("the monitor: {answer}");
                 return still;
             }
             std::thread::sleep(Duration::from_millis(100));
