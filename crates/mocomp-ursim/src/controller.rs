@@ -183,6 +183,9 @@ pub struct Controller {
     ft_offset: [f64; 6],
     /// Digital and analog I/O.
     io: Io,
+    /// How many of the next mocomp programs find their client late: see
+    /// [`Controller::hold_back_first_feeds`].
+    late_first_feeds: u32,
 }
 
 impl Controller {
@@ -203,6 +206,7 @@ impl Controller {
             motion: Motion::Idle,
             program: Program::None,
             watchdog: None,
+            late_first_feeds: 0,
             regs: Registers::default(),
             slider_mask: 0,
             slider: 1.0,

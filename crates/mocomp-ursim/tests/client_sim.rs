@@ -252,6 +252,44 @@ fn servo_streaming_tracks_a_trajectory_on_a_stepped_clock_deterministically() {
 }
 
 #[test]
+fn a_program_stopped_before_the_clients_first_feed_is_uploaded_again_twice_at_most() {
+    // A busy PC can hold the client back between the upload and its first command for longer
+    // than the program's watchdog allows: the program stops before it was ever fed, on a
+    // healthy robot that has not moved. The simulator makes that race happen every time.
+    let sim = sim(Model::Ur5e, SimClock::RealTime);
+    let mut cfg = config_for(&sim);
+    // Each lost program costs the client one wait for it to start: shorter than the default
+    // so the test is quick, and still far beyond a start that takes a few cycles.
+    cfg.program_start_timeout = Duration::from_secs(3);
+    let started = |ev: &[mocomp_ursim::SimEvent], what: &str| {
+        ev.iter().filter(|e| e.text.contains(what)).count()
+    };
+    sim.with(|c| c.hold_back_first_feeds(2));
+    let mut robot = UrRobot::connect(cfg.clone(), Arc::new(MonotonicClock::new())).unwrap();
+    let s = robot.state().unwrap();
+    assert_eq!(s.fault(), None, "{s:?}");
+    // And it is fed: it moves when told.
+    let q = s.actual_q;
+    robot.servo(&q, &ServoParams::for_period(0.002)).unwrap();
+    let (ev, _) = sim.with(|c| c.events());
+    assert_eq!(started(&ev, "first feed held back"), 2, "{ev:?}");
+    assert_eq!(started(&ev, "mocomp control program started"), 3, "{ev:?}");
+    drop(robot);
+    // A third lost program is the caller's: refused, naming what it waited for.
+    sim.with(|c| c.hold_back_first_feeds(3));
+    let Err(e) = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())) else {
+        panic!("connected with every program stopped before its first feed");
+    };
+    assert!(
+        matches!(e, mocomp_ur::UrError::Timeout { .. })
+            && e.to_string().contains("the control program to start"),
+        "{e}"
+    );
+    let (ev, _) = sim.with(|c| c.events());
+    assert_eq!(started(&ev, "first feed held back"), 5, "{ev:?}");
+}
+
+#[test]
 fn the_watchdog_stops_the_program_when_the_client_goes_silent() {
     let sim = sim(Model::Ur3e, SimClock::RealTime);
     let mut cfg = config_for(&sim);

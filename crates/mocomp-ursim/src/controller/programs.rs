@@ -32,6 +32,8 @@ pub(super) struct Watchdog {
     pub(super) register: usize,
     pub(super) hz: f64,
     pub(super) since_s: f64,
+    /// The client's first feed comes too late: the program stops at its first cycle.
+    pub(super) late: bool,
 }
 
 /// A program text the simulator recognises.
@@ -104,10 +106,13 @@ impl Controller {
                 self.regs.out_int[27] = 0;
                 self.regs.out_int[24] = mmode::IDLE;
                 self.regs.out_int[25] = self.regs.in_int[25];
+                let late = self.late_first_feeds > 0;
+                self.late_first_feeds = self.late_first_feeds.saturating_sub(1);
                 self.watchdog = (watchdog_hz > 0.0).then_some(Watchdog {
                     register: 25,
                     hz: watchdog_hz,
                     since_s: self.time_s,
+                    late,
                 });
                 self.record_event(format!(
                     "mocomp control program started (watchdog {watchdog_hz} Hz)"
@@ -166,7 +171,24 @@ impl Controller {
         }
     }
 
+    /// The next `programs` mocomp control programs find their client late: each is stopped by
+    /// its watchdog at its first cycle, before any command of the client's reaches it, as when
+    /// a busy PC holds the client back between the upload and its first feed for longer than
+    /// the watchdog allows. A test's way to make that race happen every time.
+    pub fn hold_back_first_feeds(&mut self, programs: u32) {
+        self.late_first_feeds = programs;
+    }
+
     pub(super) fn check_watchdog(&mut self) {
+        if let Some(w) = self.watchdog.filter(|w| w.late) {
+            self.stop_program(format!(
+                "RTDE watchdog: input_int_register_{} not updated within {:.0} ms of the \
+                 program's start (the client's first feed held back)",
+                w.register,
+                1e3 / w.hz
+            ));
+            return;
+        }
         if let Some((silence, w)) = self.watchdog_silence_at(self.time_s) {
             self.stop_program(format!(
                 "RTDE watchdog: input_int_register_{} not updated for {:.0} ms (limit {:.0} ms)",
@@ -350,6 +372,7 @@ impl Controller {
                         register: p.off_int,
                         hz,
                         since_s: self.time_s,
+                        late: false,
                     });
                 }
             }
