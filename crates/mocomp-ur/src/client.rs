@@ -550,6 +550,14 @@ impl UrRobot {
     }
 
     fn upload_and_wait_once(&mut self) -> Result<(), UrError> {
+        // A program of ours still running (a client before this one gone, its watchdog not yet
+        // run out) acknowledges this client's commands just as the new one will: it is ended
+        // first, so that only the program uploaded now can satisfy the wait below.
+        let running = |s: &RobotState| s.program_ours && s.runtime_state == RuntimeState::Playing;
+        if self.state().is_some_and(|s| running(&s)) {
+            self.command(cmd::EXIT, [0.0; 6], [0.0; 3])?;
+            self.wait_for("the control program left running to end", |s| !running(s))?;
+        }
         // Clear the command registers first: they keep their values, and a new program must not
         // resume the last servo target or speed (ur_rtde sends a clear command for the same
         // reason).

@@ -261,21 +261,30 @@ fn a_program_stopped_before_the_clients_first_feed_is_uploaded_again_twice_at_mo
     // Each lost program costs the client one wait for it to start: shorter than the default
     // so the test is quick, and still far beyond a start that takes a few cycles.
     cfg.program_start_timeout = Duration::from_secs(3);
-    let started = |ev: &[mocomp_ursim::SimEvent], what: &str| {
-        ev.iter().filter(|e| e.text.contains(what)).count()
+    // A client that goes leaves its program running until the watchdog: 10 s here, so the
+    // next client surely finds it running.
+    cfg.watchdog_hz = 0.1;
+    let count = |what: &str| {
+        let (ev, _) = sim.with(|c| c.events());
+        let n = ev.iter().filter(|e| e.text.contains(what)).count();
+        (n, ev)
     };
     sim.with(|c| c.hold_back_first_feeds(2));
     let mut robot = UrRobot::connect(cfg.clone(), Arc::new(MonotonicClock::new())).unwrap();
     let s = robot.state().unwrap();
     assert_eq!(s.fault(), None, "{s:?}");
     // And it is fed: it moves when told.
-    let q = s.actual_q;
-    robot.servo(&q, &ServoParams::for_period(0.002)).unwrap();
-    let (ev, _) = sim.with(|c| c.events());
-    assert_eq!(started(&ev, "first feed held back"), 2, "{ev:?}");
-    assert_eq!(started(&ev, "mocomp control program started"), 3, "{ev:?}");
+    robot
+        .servo(&s.actual_q, &ServoParams::for_period(0.002))
+        .unwrap();
+    let (n, ev) = count("first feed held back");
+    assert_eq!(n, 2, "{ev:?}");
+    let (n, ev) = count("mocomp control program started");
+    assert_eq!(n, 3, "{ev:?}");
     drop(robot);
-    // A third lost program is the caller's: refused, naming what it waited for.
+    // The next client finds that program still running, which would answer its wait for the
+    // new one: it ends it first. A third lost program is then the caller's: refused, naming
+    // what it waited for.
     sim.with(|c| c.hold_back_first_feeds(3));
     let Err(e) = UrRobot::connect(cfg, Arc::new(MonotonicClock::new())) else {
         panic!("connected with every program stopped before its first feed");
@@ -285,8 +294,10 @@ fn a_program_stopped_before_the_clients_first_feed_is_uploaded_again_twice_at_mo
             && e.to_string().contains("the control program to start"),
         "{e}"
     );
-    let (ev, _) = sim.with(|c| c.events());
-    assert_eq!(started(&ev, "first feed held back"), 5, "{ev:?}");
+    let (n, ev) = count("the control program received EXIT");
+    assert_eq!(n, 1, "{ev:?}");
+    let (n, ev) = count("first feed held back");
+    assert_eq!(n, 5, "{ev:?}");
 }
 
 #[test]
