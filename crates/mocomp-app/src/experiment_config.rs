@@ -92,7 +92,7 @@ pub fn from_config(cfg: &Config) -> Result<ExperimentConfig, AppError> {
 fn place_on_head(cfg: &Config, e: &mut ExperimentConfig) -> Result<(), AppError> {
     let x = &cfg.experiment;
     if x.loop_head == LoopHead::FittedEllipsoid {
-        let Head::Mesh(m) = e.head.shape() else {
+        let Some(m) = e.head.shape().scalp() else {
             return Err(AppError::Config(
                 "experiment.loop_head = \"fitted-ellipsoid\": needs a scalp (head.mesh) to fit"
                     .into(),

@@ -418,9 +418,9 @@ pub fn view(
 /// that way (the scalp's vertices, or the ellipsoid's equator), in the head's frame.
 fn outline(head: &mocomp_control::HeadModel) -> Vec<mocomp_geom::nalgebra::Point3<f64>> {
     use mocomp_geom::nalgebra::Point3;
-    let points: Vec<Point3<f64>> = match head.shape() {
-        mocomp_head::Head::Mesh(m) => m.vertices().to_vec(),
-        mocomp_head::Head::Ellipsoid(e) => {
+    let points: Vec<Point3<f64>> = match (head.shape().scalp(), head.as_ellipsoid()) {
+        (Some(m), _) => m.vertices().to_vec(),
+        (None, Some(e)) => {
             let r = e.radii();
             (0..144)
                 .map(|k| {
@@ -429,6 +429,7 @@ fn outline(head: &mocomp_control::HeadModel) -> Vec<mocomp_geom::nalgebra::Point
                 })
                 .collect()
         }
+        (None, None) => Vec::new(),
     };
     if points.is_empty() {
         return points;

@@ -8,7 +8,7 @@ use mocomp_app::config::{Config, Setup};
 use mocomp_app::frontend::{Controls, Note, Observer, Status, mode_name};
 use mocomp_control::{CycleRecord, Event, HeadModel, LoopConfig, Mode, Reason};
 use mocomp_geom::nalgebra::Isometry3;
-use mocomp_head::{Head, Mesh};
+use mocomp_head::Mesh;
 use mocomp_kin::Arm;
 use mocomp_session::{GateEvent, GateState, shut_reason};
 use serde::Serialize;
@@ -359,14 +359,13 @@ fn head_json(head: &HeadModel) -> (PoseJson, [f64; 3], Option<MeshJson>) {
             None,
         );
     }
-    let mesh = match head.shape() {
-        Head::Mesh(m) => Mesh {
+    let mesh = head.shape().scalp().map_or_else(Mesh::default, |m| {
+        Mesh {
             vertices: m.vertices().to_vec(),
             triangles: m.triangles().to_vec(),
         }
-        .decimated(PAGE_TRIANGLES),
-        Head::Ellipsoid(_) => Mesh::default(),
-    };
+        .decimated(PAGE_TRIANGLES)
+    });
     let round = |x: f64| ((x * 1e4).round() / 10.0) as f32;
     let json = MeshJson {
         vertices_mm: mesh
@@ -937,7 +936,7 @@ mod tests {
     #![allow(clippy::unwrap_used)] // test code
     use super::*;
     use mocomp_geom::nalgebra::Point3;
-    use mocomp_head::MeshHead;
+    use mocomp_head::{Head, MeshHead};
 
     #[test]
     fn the_page_gets_a_scalp_as_its_triangles_and_an_ellipsoid_as_its_axes() {

@@ -10,8 +10,9 @@ use mocomp_head::sampled::ClearanceMemory;
 use mocomp_head::{CoilSolid, Ellipsoid, Head, HeadError, HeadShape, ScanCut};
 use std::sync::Arc;
 
-/// The head the loop keeps the coil from, in the head (marker) frame. Clones share a mesh.
-#[derive(Debug, Clone)]
+/// The head the loop keeps the coil from, in the head (marker) frame. Clones share a mesh;
+/// two are equal as [`Head`]s are (ellipsoids by their axes, scalps only the same one).
+#[derive(Debug, Clone, PartialEq)]
 pub struct HeadModel {
     shape: Head,
 }
@@ -46,19 +47,13 @@ impl HeadModel {
 
     /// The ellipsoid, when the head is one.
     pub fn as_ellipsoid(&self) -> Option<&Ellipsoid> {
-        match &self.shape {
-            Head::Ellipsoid(e) => Some(e),
-            Head::Mesh(_) => None,
-        }
+        self.shape.as_ellipsoid()
     }
 
     /// Where the scan the scalp came from ends inside the head (none for an ellipsoid or a
     /// surface read whole): the model is flat there, not the patient.
     pub fn scan_cuts(&self) -> &[ScanCut] {
-        match &self.shape {
-            Head::Mesh(m) => m.cuts(),
-            Head::Ellipsoid(_) => &[],
-        }
+        self.shape.cuts()
     }
 
     /// Signed distance (m) from a point in the head frame to the surface: positive outside,
@@ -72,32 +67,7 @@ impl HeadModel {
     /// which spares the exact solve for the many points a check only needs to know are far
     /// enough.
     pub fn distance_below(&self, p_head: &Point3<f64>, cutoff: f64) -> f64 {
-        match &self.shape {
-            Head::Ellipsoid(e) => {
-                let p = e
-                    .head_from_ellipsoid()
-                    .inverse_transform_point(p_head)
-                    .coords;
-                let bound = p.norm() - e.radii().max();
-                if bound >= cutoff {
-                    bound
-                } else {
-                    ellipsoid_distance(&p, e.radii())
-                }
-            }
-            Head::Mesh(m) => m.distance_below(p_head, cutoff),
-        }
-    }
-}
-
-/// Two ellipsoids are equal by their axes; two scalps only when they are the same one.
-impl PartialEq for HeadModel {
-    fn eq(&self, other: &Self) -> bool {
-        match (&self.shape, &other.shape) {
-            (Head::Ellipsoid(a), Head::Ellipsoid(b)) => a == b,
-            (Head::Mesh(a), Head::Mesh(b)) => Arc::ptr_eq(a, b),
-            _ => false,
-        }
+        self.shape.distance_below(p_head, cutoff)
     }
 }
 
@@ -148,25 +118,20 @@ impl CoilModel {
     }
 
     /// Signed distance (m) from the coil at `head_from_coil` to `head`; negative when inside the
-    /// head. The cylinder against the ellipsoid: the nearest of its face's and back's centres
-    /// and rims (eight points each: a convex head meets a coil facing it there first); a casing
-    /// against the ellipsoid: exact (GJK). Against a scalp, the nearest of points every few
-    /// millimetres over the solid's surface ([`mocomp_head::sampled`]), which an ear or a nose
-    /// between the rim points cannot hide from, less what the scalp may bulge between them
-    /// ([`mocomp_head::sampled::between_samples_m`]): never more room than there is.
+    /// head, as the loop measures it ([`Head::loop_clearance_below`]): the cylinder against the
+    /// ellipsoid by its face's and back's centres and rims, a casing against it exactly (GJK),
+    /// against a scalp the nearest of points every few millimetres over the solid's surface,
+    /// less what the scalp may bulge between them: never more room than there is.
     pub fn distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
         self.distance_below(head, head_from_coil, f64::INFINITY)
     }
 
-    /// The distance a report measures the true coil by: against a scalp, the exact clearance of
-    /// the coil's solid (GJK on the triangles that can be nearest: tens of microseconds at
-    /// 100 k triangles, not for the loop); against the ellipsoid, [`Self::distance`], as reports
-    /// always measured it.
+    /// The distance a report measures the true coil by ([`Head::reported_clearance`]): against
+    /// a scalp exact, against the ellipsoid [`Self::distance`].
     pub fn measured_distance(&self, head: &HeadModel, head_from_coil: &Isometry3<f64>) -> f64 {
-        match (&head.shape, self.solid()) {
-            (Head::Mesh(m), Ok(solid)) => m.coil_clearance(head_from_coil, &solid),
-            _ => self.distance(head, head_from_coil),
-        }
+        self.solid().map_or(f64::NEG_INFINITY, |solid| {
+            head.shape.reported_clearance(head_from_coil, &solid)
+        })
     }
 
     /// [`Self::distance`] where it is below `cutoff`; elsewhere some value of at least `cutoff`
@@ -202,50 +167,10 @@ impl CoilModel {
     ) -> f64 {
         // Not a solid (the configuration refuses such a coil): as if cutting in, so every rule
         // keeps it away.
-        let solid = || self.solid().ok();
-        match (&head.shape, &self.casing) {
-            (Head::Mesh(m), _) => {
-                let Some(solid) = solid() else {
-                    return f64::NEG_INFINITY;
-                };
-                let margin = mocomp_head::sampled::between_samples_m(&solid);
-                let cutoff = cutoff + margin;
-                let sampled = match memory {
-                    Some(memory) => {
-                        m.coil_clearance_remembering(memory, head_from_coil, &solid, cutoff)
-                    }
-                    None => m.coil_clearance_sampled(head_from_coil, &solid, cutoff),
-                };
-                sampled - margin
-            }
-            // A casing against the ellipsoid: GJK on its hull, exact (no sample to miss a bulge
-            // between), spared where its bounding sphere is already far enough.
-            (Head::Ellipsoid(e), Some(_)) => solid().map_or(f64::NEG_INFINITY, |solid| {
-                e.coil_clearance_below(head_from_coil, &solid, cutoff)
-            }),
-            (Head::Ellipsoid(_), None) => self.cylinder_points_below(head, head_from_coil, cutoff),
-        }
-    }
-
-    /// The cylinder against the ellipsoid: the nearest of its face's and back's centres and rims
-    /// (a convex head meets a coil facing it there first).
-    fn cylinder_points_below(
-        &self,
-        head: &HeadModel,
-        head_from_coil: &Isometry3<f64>,
-        cutoff: f64,
-    ) -> f64 {
-        // The rim at every 45° and the centre, as unit offsets (no trigonometry per call: this
-        // runs several times a control cycle); the same points the head crate samples.
-        let r = self.radius;
-        let mut nearest = f64::INFINITY;
-        for z in [0.0, -self.thickness] {
-            for (c, s) in mocomp_head::shape::COIL_RIM {
-                let p = Point3::new(r * c, r * s, z);
-                nearest = nearest.min(head.distance_below(&(head_from_coil * p), cutoff));
-            }
-        }
-        nearest
+        self.solid().map_or(f64::NEG_INFINITY, |solid| {
+            head.shape
+                .loop_clearance_below(head_from_coil, &solid, cutoff, memory)
+        })
     }
 }
 

@@ -201,7 +201,47 @@ impl SupportMap for Support<'_> {
     }
 }
 
+impl Ellipsoid {
+    /// The coil's clearance as the control loop takes it: a casing exactly (GJK on its hull,
+    /// spared where its bounding sphere is far enough); a cylinder as the nearest of its face's
+    /// and back's centres and rims (a convex head meets a coil facing it there first), each by
+    /// [`HeadShape::distance_below`]. Where it is at least `cutoff`, any value of at least
+    /// `cutoff`.
+    pub fn loop_clearance_below(
+        &self,
+        head_from_coil: &Isometry3<f64>,
+        coil: &CoilSolid,
+        cutoff: f64,
+    ) -> f64 {
+        let Some((r, t)) = coil.as_cylinder() else {
+            return self.coil_clearance_below(head_from_coil, coil, cutoff);
+        };
+        // Unit offsets, no trigonometry per call: this runs several times a control cycle.
+        let mut nearest = f64::INFINITY;
+        for z in [0.0, -t] {
+            for (c, s) in crate::shape::COIL_RIM {
+                let p = Point3::new(r * c, r * s, z);
+                nearest = nearest.min(self.distance_below(&(head_from_coil * p), cutoff));
+            }
+        }
+        nearest
+    }
+}
+
 impl HeadShape for Ellipsoid {
+    /// Where the bounding sphere is at least `cutoff` away, its distance (no solve); else
+    /// [`ellipsoid_distance`]: exact outside, and inside the cheap lower bound of the depth the
+    /// loop has always taken (any depth there is a violation it acts on).
+    fn distance_below(&self, p: &Point3<f64>, cutoff: f64) -> f64 {
+        let q = self.head_from_ellipsoid.inverse_transform_point(p).coords;
+        let bound = q.norm() - self.radii.max();
+        if bound >= cutoff {
+            bound
+        } else {
+            ellipsoid_distance(&q, &self.radii)
+        }
+    }
+
     fn signed_distance(&self, p: &Point3<f64>) -> f64 {
         let q = self.head_from_ellipsoid.inverse_transform_point(p).coords;
         let d = ellipsoid_distance(&q, &self.radii);

@@ -188,6 +188,27 @@ impl ClearanceMemory {
 }
 
 impl MeshHead {
+    /// The coil's clearance as the control loop takes it: the sampled clearance
+    /// ([`Self::coil_clearance_sampled`], or remembering with `memory`, this call site's from
+    /// its last call) less what the scalp may bulge between the samples
+    /// ([`between_samples_m`]): never more room than there is. Where it is at least `cutoff`,
+    /// any value of at least `cutoff`.
+    pub fn loop_clearance_below(
+        &self,
+        head_from_coil: &Isometry3<f64>,
+        coil: &CoilSolid,
+        cutoff: f64,
+        memory: Option<&mut ClearanceMemory>,
+    ) -> f64 {
+        let margin = between_samples_m(coil);
+        let cutoff = cutoff + margin;
+        let sampled = match memory {
+            Some(memory) => self.coil_clearance_remembering(memory, head_from_coil, coil, cutoff),
+            None => self.coil_clearance_sampled(head_from_coil, coil, cutoff),
+        };
+        sampled - margin
+    }
+
     /// The coil's clearance for the loop: the least exact signed distance among its sampled
     /// points (see the module), negative when it cuts in. Where that is at least `cutoff`, any
     /// value of at least `cutoff` (the box's bound when the coil is far from the head); where

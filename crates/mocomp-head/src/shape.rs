@@ -322,7 +322,8 @@ pub trait HeadShape {
 
     /// [`Self::signed_distance`] where it is below `cutoff`; elsewhere a lower bound of it that
     /// is at least `cutoff` (the distance to the bounding box), which spares the exact query for
-    /// the many points a check only needs to know are far enough.
+    /// the many points a check only needs to know are far enough. Inside, a shape may answer a
+    /// cheaper bound of the depth (the ellipsoid does: [`crate::ellipsoid_distance`]).
     fn distance_below(&self, p: &Point3<f64>, cutoff: f64) -> f64 {
         let bound = self.bounds().distance(p);
         if bound >= cutoff {

@@ -19,7 +19,6 @@
 
 use mocomp_control::{CoilModel, HeadModel};
 use mocomp_geom::nalgebra::{Isometry3, Vector3};
-use mocomp_head::Head;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -97,13 +96,12 @@ impl Contact {
     pub fn depth(&self, head_from_coil: &Isometry3<f64>) -> f64 {
         // The world's own scalp as it is: a mesh's sampled distance without the margin the
         // loop keeps for what may lie between the samples.
-        let d = match self.head.shape() {
-            Head::Mesh(m) => self.coil.solid().map_or(f64::INFINITY, |solid| {
-                // Only a coil below the scalp has a depth: clear is all it needs to know.
-                m.coil_clearance_sampled(head_from_coil, &solid, 0.0)
-            }),
-            Head::Ellipsoid(_) => self.coil.distance(&self.head, head_from_coil),
-        };
+        // Only a coil below the scalp has a depth: clear (cutoff 0) is all it needs to know.
+        let d = self.coil.solid().map_or(f64::INFINITY, |solid| {
+            self.head
+                .shape()
+                .sampled_clearance_below(head_from_coil, &solid, 0.0)
+        });
         (-d).max(0.0)
     }
 
