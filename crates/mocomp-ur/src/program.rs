@@ -1,6 +1,9 @@
 //! mocomp's resident control program and its register protocol.
 //!
-//! The client uploads [`script`] to the controller's script port (30003) once per connection.
+//! The client uploads [`script`] to the controller's script port (30003) once per connection,
+//! after ending (EXIT) a program of ours it finds still running, which would otherwise answer
+//! for the new one; a program the watchdog stops before the client's first feed reaches it is
+//! uploaded again, twice at most.
 //! The program then runs at the controller rate and takes commands from RTDE input registers in
 //! the **external-client range 24–47** (registers 0–23 stay free for fieldbus/PLC use and for
 //! ur_rtde, so both can run side by side).
