@@ -718,6 +718,20 @@ fn pendant(ip: &str) -> Dashboard {
     .unwrap()
 }
 
+/// The operator at the pendant and the console after the arm was powered off: power on,
+/// release the brakes, and wait until the loop sees the arm ready with only its program stopped
+/// (on a busy machine the loop's state can lag the pendant: a resume before it sees the arm
+/// running is refused, "robot mode IDLE", and would need another the test would not count).
+fn power_on_and_release(c: &Cell, ip: &str) {
+    let mut d = pendant(ip);
+    d.power_on().unwrap();
+    d.brake_release().unwrap();
+    c.session
+        .wait_status_for("the loop seeing the arm ready", 60, |v| {
+            v["reason"] == "Robot(ProgramStopped)"
+        });
+}
+
 #[test]
 fn the_cells_own_faults_stop_the_arm_and_each_has_its_recovery() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
@@ -741,11 +755,7 @@ fn the_cells_own_faults_stop_the_arm_and_each_has_its_recovery() {
         "power off",
         Duration::from_millis(400),
         |_| pendant(ip).power_off().unwrap(),
-        |_| {
-            let mut d = pendant(ip);
-            d.power_on().unwrap();
-            d.brake_release().unwrap();
-        },
+        |c| power_on_and_release(c, ip),
     );
     // The emergency stop: a resume while it is pressed is refused and nothing moves; released,
     // powered and the brakes off, the resume brings the loop back.
@@ -771,10 +781,10 @@ fn the_cells_own_faults_stop_the_arm_and_each_has_its_recovery() {
             });
             let (_, v) = c.session.get("/api/status");
             assert_eq!(v["mode"], "faulted", "{v}");
+            // The injected fault still waits for the resume that is taken.
+            c.injecting();
             c.controller.cell("emergency stop release");
-            let mut d = pendant(ip);
-            d.power_on().unwrap();
-            d.brake_release().unwrap();
+            power_on_and_release(c, ip);
         },
     );
     let unplanned = c.unplanned();
