@@ -33,6 +33,7 @@ pub mod config_file;
 pub mod config_reference;
 pub mod demo_options;
 pub mod demo_record;
+pub mod demo_run;
 pub mod efield_calc;
 pub mod experiment_config;
 pub mod field_cache;

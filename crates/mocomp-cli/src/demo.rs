@@ -14,11 +14,10 @@ use mocomp_app::AppError;
 use mocomp_app::config::Config;
 use mocomp_app::config::Setup;
 use mocomp_app::demo_options::{DemoOverrides, demo_config};
-use mocomp_app::demo_record::DemoRecording;
-use mocomp_app::experiment::{Controller, Phase, Watch, run_experiment_watched};
-use mocomp_app::frontend::{Both, Controls, Observer, Silent};
+use mocomp_app::demo_run::DemoFront;
+use mocomp_app::experiment::Controller;
+use mocomp_app::frontend::Controls;
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
-use mocomp_kin::Arm;
 use mocomp_kin::Model;
 use std::io::Write;
 use std::net::IpAddr;
@@ -267,52 +266,19 @@ impl DemoCmd {
             let controls = Arc::clone(&controls);
             ctrlc::set_handler(move || controls.stop())?;
         }
-        if let Some(c) = &console {
-            c.phase("placing the robots");
-        }
-        let recording = match &config.record_mcap {
-            Some(path) => Some(DemoRecording::create(
-                path,
-                config.ros2.frames.clone(),
-                config.ros2.node_name.clone(),
-            )?),
-            None => None,
-        };
-        let arm = Arm::new(exp.coil_robot);
-        let mut observer = |c: Controller, loop_cfg: &mocomp_control::LoopConfig| {
-            let shown: Box<dyn Observer> = match &console {
-                Some(console) => Box::new(console.experiment_observer(c.name(), arm, loop_cfg)),
-                None => Box::new(Silent),
-            };
-            match &recording {
-                Some(r) => Box::new(Both(shown, r.observer(c, arm, loop_cfg))) as Box<dyn Observer>,
-                None => shown,
-            }
-        };
-        let watched = console.is_some() || recording.is_some();
-        let mut watch = Watch {
-            controls: &controls,
-            real_time: console.is_some(),
-            observer: &mut observer,
-        };
-        let outcome = run_experiment_watched(
+        let run = mocomp_app::demo_run::run(
+            &config,
             &exp,
             &order,
-            &mut |phase, f| {
-                let name = phase.to_string();
-                if let Some(c) = &console
-                    && !matches!(phase, Phase::Compensating(_))
-                {
-                    c.phase(&name);
-                }
-                bar.set_prefix(name);
+            console.as_ref().map(|c| c as &dyn DemoFront),
+            &controls,
+            &mut |name, f| {
+                bar.set_prefix(name.to_string());
                 bar.set_position((f * 1000.0) as u64);
             },
-            watched.then_some(&mut watch),
-        );
-        // The recording is closed whatever became of the experiment: what it holds is kept.
-        let record = recording.map(DemoRecording::finish);
-        let outcome = outcome?;
+        )?;
+        let record = run.record;
+        let outcome = run.outcome?;
         bar.finish_and_clear();
         if controls.stop_requested() {
             return Err(AppError::Refused(

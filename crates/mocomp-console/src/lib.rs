@@ -296,3 +296,18 @@ fn write_secret(path: &Path, secret: &str) -> std::io::Result<()> {
     writeln!(f, "{secret}")?;
     f.sync_all()
 }
+
+/// The console shows `mocomp demo`: its phases and each controller's run.
+impl mocomp_app::demo_run::DemoFront for Console {
+    fn phase(&self, what: &str) {
+        Console::phase(self, what);
+    }
+    fn observer(
+        &self,
+        controller: &'static str,
+        arm: mocomp_kin::Arm,
+        loop_cfg: &mocomp_control::LoopConfig,
+    ) -> Box<dyn mocomp_app::frontend::Observer> {
+        Box::new(self.experiment_observer(controller, arm, loop_cfg))
+    }
+}
