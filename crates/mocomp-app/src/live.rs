@@ -182,6 +182,36 @@ impl mocomp_control::drive::Pace for Live<'_> {
 /// end's, such as ROS 2's topic): made on the loop's clock once the world is up.
 pub type HeadSource = Box<dyn FnOnce(Arc<dyn Clock>) -> Box<dyn PoseSource> + Send>;
 
+/// What to say before the loop starts, each line with its kind (`warning: `, `note: `): a head
+/// model that is not the patient's, the session's wiring, the registration accepted (with `why`
+/// when its gate would otherwise refuse it; a refusal is the error), a simulated tracker's
+/// predictor.
+pub fn start_notes(
+    setup: &Setup,
+    accept_registration: Option<&str>,
+) -> Result<Vec<String>, AppError> {
+    let file = &setup.file;
+    let mut notes: Vec<String> = file
+        .head_note()
+        .map(|w| format!("warning: {w}"))
+        .into_iter()
+        .collect();
+    notes.extend(
+        crate::session_wiring::notes(file)
+            .into_iter()
+            .map(|n| format!("warning: {n}")),
+    );
+    if let Some(n) = crate::registration_gate::registration_gate(setup, accept_registration)? {
+        notes.push(format!("note: {n}"));
+    }
+    if file.tracker.source == crate::config::TrackerSource::Simulated
+        && let Some(n) = file.predictor_note()
+    {
+        notes.push(format!("note: {n}"));
+    }
+    Ok(notes)
+}
+
 /// Runs the loop on `setup` until `controls` asks it to stop or `duration_s`, then stops the
 /// robot and returns the report. `log_csv`: every cycle's record. `progress` is told what
 /// starts; the `observer`, what happens while the loop runs; `head`: the head's poses when

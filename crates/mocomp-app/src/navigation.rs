@@ -131,6 +131,8 @@ pub struct Placed {
     pub placement: CoilPlacement,
     /// The target in the image, m.
     pub image_point: Point3<f64>,
+    /// The coil face's distance from the scalp asked for, m (before any lift).
+    pub standoff_m: f64,
     /// The whole coil's clearance from the scalp at the goal, m (exact; the loop's goal check,
     /// which passed, measures it conservatively).
     pub clearance_m: f64,
@@ -295,6 +297,7 @@ pub fn place_target(
         target,
         placement,
         image_point,
+        standoff_m,
         clearance_m,
         dose: map,
     })

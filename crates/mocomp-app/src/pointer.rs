@@ -78,6 +78,26 @@ impl Pointer {
     }
 }
 
+/// What a calibration found, as a person reads it.
+impl std::fmt::Display for Pointer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [x, y, z] = self.tip_in_marker_mm;
+        write!(
+            f,
+            "{}: tip at ({x:.2}, {y:.2}, {z:.2}) mm in the marker's frame; the tips agree to \
+             {:.2} mm RMS, {:.2} mm at most ({} of {} poses kept, {} invalid left out, turned \
+             {:.0}°)",
+            self.device,
+            self.rms_mm,
+            self.max_mm,
+            self.kept,
+            self.kept + self.rejected,
+            self.invalid,
+            self.spread_deg,
+        )
+    }
+}
+
 /// `count` poses of `device` from the OpenIGTLink server at `addr` (`tracker_from_marker`, m),
 /// and how many more arrived marked invalid (left out); `each` is told how many are in.
 pub fn collect(

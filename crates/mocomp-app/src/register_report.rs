@@ -2,7 +2,8 @@
 //! the final fit, the sweep's fit and what was left out, the error bound at each target), why it
 //! was refused, and in a rehearsal its true error; as lines for a person or one JSON object.
 
-use crate::register::Registered;
+use crate::AppError;
+use crate::register::{Checked, Registered};
 use mocomp_nav::CONFIDENCE;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -120,4 +121,79 @@ pub fn json(r: &Registered, truth: Option<&[(String, f64)]>, file: Option<&str>)
         }
     }
     v
+}
+
+/// `register check`'s line: how far the landmark lies from where it was touched.
+impl std::fmt::Display for Checked {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: {:.2} mm from where it was touched at registration{}",
+            self.name,
+            self.moved_m * MM_PER_M,
+            if self.moved { "" } else { ": the marker holds" }
+        )
+    }
+}
+
+/// `register check`'s JSON.
+pub fn checked_json(c: &Checked) -> Value {
+    json!({
+        "landmark": c.name,
+        "moved_mm": c.moved_m * MM_PER_M,
+        "limit_mm": c.limit_m * MM_PER_M,
+        "moved": c.moved,
+    })
+}
+
+/// The refusal when the head marker moved on the head since the registration.
+pub fn checked_refusal(c: &Checked) -> Option<AppError> {
+    c.moved.then(|| {
+        AppError::Refused(format!(
+            "the head marker moved on the head ({:.1} mm at the {}, more than a touch's {:.1} mm): register again",
+            c.moved_m * MM_PER_M,
+            c.name,
+            c.limit_m * MM_PER_M
+        ))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn checked(moved_m: f64) -> Checked {
+        Checked {
+            name: "nasion".into(),
+            moved_m,
+            limit_m: 0.003,
+            moved: moved_m > 0.003,
+        }
+    }
+
+    #[test]
+    fn a_landmark_within_its_limit_holds_and_one_beyond_it_refuses_the_session() {
+        let held = checked(0.0012);
+        assert_eq!(
+            held.to_string(),
+            "nasion: 1.20 mm from where it was touched at registration: the marker holds"
+        );
+        assert!(checked_refusal(&held).is_none());
+        let moved = checked(0.0047);
+        assert_eq!(
+            moved.to_string(),
+            "nasion: 4.70 mm from where it was touched at registration"
+        );
+        let Some(AppError::Refused(why)) = checked_refusal(&moved) else {
+            panic!("a moved marker must refuse");
+        };
+        assert!(
+            why.contains("(4.7 mm at the nasion, more than a touch's 3.0 mm)"),
+            "{why}"
+        );
+        let json = checked_json(&moved);
+        assert_eq!(json["moved"], true);
+        assert!((json["moved_mm"].as_f64().unwrap_or(0.0) - 4.7).abs() < 1e-9);
+        assert!((json["limit_mm"].as_f64().unwrap_or(0.0) - 3.0).abs() < 1e-9);
+    }
 }

@@ -28,16 +28,36 @@ pub fn now() -> String {
     httpdate::fmt_http_date(std::time::SystemTime::now())
 }
 
-/// Adds the grid around the target `name`, on the head model of `setup`; returns the new names.
+/// Writes `new` into the targets file at `file`, each replacing a target of its name.
+pub fn teach_all(file: &Path, new: &[Target]) -> Result<(), AppError> {
+    let mut targets = load(file)?;
+    for t in new {
+        targets.teach(t.clone()).map_err(input)?;
+    }
+    save(file, &targets)
+}
+
+/// Deletes the target `name` from the targets file at `file`.
+pub fn delete(file: &Path, name: &str) -> Result<(), AppError> {
+    let mut targets = load(file)?;
+    targets.delete(name).map_err(input)?;
+    save(file, &targets)
+}
+
+/// Adds the grid around the target `name` (on the head model of `setup`) to the targets file at
+/// `file`; returns the new names.
 pub fn add_grid(
+    file: &Path,
     setup: &Setup,
-    targets: &mut Targets,
     name: &str,
     p: &GridParams,
 ) -> Result<Vec<String>, AppError> {
-    targets
+    let mut targets = load(file)?;
+    let names = targets
         .add_grid(&setup.file.head_model()?, name, p, &now())
-        .map_err(input)
+        .map_err(input)?;
+    save(file, &targets)?;
+    Ok(names)
 }
 
 /// Everything wrong with targets is the user's input: a file, a name, a grid's parameters.

@@ -3,6 +3,7 @@
 //! written out; `mocomp head eeg`: the 10-20 positions on that scalp.
 
 use clap::{Args, Subcommand};
+use mocomp_app::eeg_report;
 use mocomp_geom::LengthUnit;
 use std::io::Write;
 use std::path::PathBuf;
@@ -42,47 +43,14 @@ impl EegCmd {
         // Where the landmarks lie against the scalp: said on standard error, so the positions
         // stay the only thing on standard output.
         let offsets = mocomp_app::navigation::landmark_offsets(&setup)?;
-        let far: Vec<String> = offsets
-            .iter()
-            .filter(|(_, d)| d.abs() > mocomp_app::navigation::LANDMARK_OFF_SCALP_WARN_M)
-            .map(|(n, d)| {
-                format!(
-                    "{n} {:.1} mm {}",
-                    d.abs() * 1e3,
-                    if *d > 0.0 { "outside" } else { "inside" }
-                )
-            })
-            .collect();
-        let all: Vec<String> = offsets
-            .iter()
-            .map(|(n, d)| format!("{n} {:+.1}", d * 1e3))
-            .collect();
-        eprintln!(
-            "landmarks off the scalp (mm, + outside): {}",
-            all.join(", ")
-        );
-        if !far.is_empty() {
-            eprintln!(
-                "warning: landmarks more than {:.0} mm from the scalp: {}; the positions are \
-                 measured from the scalp points nearest them: place the landmarks on the skin \
-                 in [head.landmarks]",
-                mocomp_app::navigation::LANDMARK_OFF_SCALP_WARN_M * 1e3,
-                far.join(", ")
-            );
+        for line in eeg_report::landmark_lines(&offsets) {
+            eprintln!("{line}");
         }
         if self.json {
-            let map: serde_json::Map<String, serde_json::Value> = positions
-                .iter()
-                .map(|p| {
-                    let mm = mocomp_app::navigation::mm_from_point(&p.point);
-                    (p.name.to_string(), serde_json::json!(mm))
-                })
-                .collect();
-            writeln!(out, "{}", serde_json::Value::Object(map))?;
+            writeln!(out, "{}", eeg_report::json(&positions))?;
         } else {
             for p in &positions {
-                let [x, y, z] = mocomp_app::navigation::mm_from_point(&p.point);
-                writeln!(out, "{:<4} {x:8.1} {y:8.1} {z:8.1}  mm (image RAS)", p.name)?;
+                writeln!(out, "{}", eeg_report::line(p))?;
             }
         }
         Ok(())

@@ -4,7 +4,8 @@
 
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
-use mocomp_app::placement::{Region, TargetReach, Targets, pose_vector};
+use mocomp_app::placement::{Region, TargetReach, Targets};
+use mocomp_app::placement_report as report;
 use mocomp_geom::nalgebra::Isometry3;
 use std::io::Write;
 use std::path::PathBuf;
@@ -67,37 +68,6 @@ struct SearchCmd {
     yaw_step_deg: f64,
 }
 
-fn json_of(reaches: &[TargetReach]) -> serde_json::Value {
-    use mocomp_control::compensator::reach::Way;
-    reaches
-        .iter()
-        .map(|r| {
-            let at = r.reach.at_goal.map(|g| {
-                serde_json::json!({
-                    "branch": g.branch.to_string(),
-                    "joints_rad": g.joints,
-                    "joint_margin_deg": g.joint_margin_rad.to_degrees(),
-                    "singularity_margin": g.singularity_margin,
-                    "headroom_followed": g.headroom_ok,
-                    "headroom_singularity_margin": g.headroom_singularity_margin,
-                })
-            });
-            serde_json::json!({
-                "name": r.name,
-                "reachable": r.refusal.is_none(),
-                "refusal": r.refusal.map(|x| x.to_string()),
-                "refusal_code": r.refusal.map(|x| format!("{x:?}")),
-                "way": match r.reach.way {
-                    Ok(Way::Shell) => "shell".to_string(),
-                    Ok(Way::Transit(_)) => "transit".to_string(),
-                    Err(_) => "none".to_string(),
-                },
-                "at_goal": at,
-            })
-        })
-        .collect()
-}
-
 impl Which {
     fn load(&self) -> anyhow::Result<(Setup, Goals, Targets)> {
         let setup = Setup::load(&self.config)?;
@@ -106,7 +76,6 @@ impl Which {
         Ok((setup, goals, targets))
     }
 
-    /// Draws the placements when `--png` asks.
     fn draw(
         &self,
         setup: &Setup,
@@ -128,7 +97,6 @@ impl Which {
     }
 }
 
-/// The targets' names and goals.
 type Goals = Vec<(String, Isometry3<f64>)>;
 
 impl PlacementCmd {
@@ -143,47 +111,19 @@ impl PlacementCmd {
 
 fn check(w: &Which, out: &mut dyn Write) -> anyhow::Result<()> {
     let (setup, goals, targets) = w.load()?;
-    let mocomp_app::placement::Configured {
-        place,
-        rest,
-        reaches,
-    } = targets.at_configured(&setup)?;
-    let refused = reaches.iter().filter(|r| r.refusal.is_some()).count();
-    w.draw(&setup, &goals, (&place, &reaches), None, out)?;
+    let c = targets.at_configured(&setup)?;
+    w.draw(&setup, &goals, (&c.place, &c.reaches), None, out)?;
     if w.json {
-        writeln!(
-            out,
-            "{}",
-            serde_json::json!({
-                "base_from_head": pose_vector(&place),
-                "rest_joints_rad": rest,
-                "targets": json_of(&reaches),
-            })
-        )?;
+        writeln!(out, "{}", report::configured_json(&c))?;
     } else {
-        for r in &reaches {
+        for r in &c.reaches {
             writeln!(out, "{r}")?;
         }
     }
-    if refused > 0 {
-        anyhow::bail!(
-            "{refused} of {} targets not reachable with the head at \
-             tracker.simulated.base_from_head = {}: `mocomp placement search --config {}` finds \
-             a place",
-            reaches.len(),
-            fmt_pose(&place),
-            w.config.display()
-        );
+    match report::configured_refusal(&c, &w.config) {
+        Some(e) => Err(e.into()),
+        None => Ok(()),
     }
-    Ok(())
-}
-
-fn fmt_pose(p: &Isometry3<f64>) -> String {
-    let v = pose_vector(p);
-    format!(
-        "[{:.3}, {:.3}, {:.3}, {:.4}, {:.4}, {:.4}]",
-        v[0], v[1], v[2], v[3], v[4], v[5]
-    )
 }
 
 fn search(s: &SearchCmd, out: &mut dyn Write) -> anyhow::Result<()> {
@@ -201,61 +141,19 @@ fn search(s: &SearchCmd, out: &mut dyn Write) -> anyhow::Result<()> {
     let found = mocomp_app::placement::search(&targets, &centre, &region, |p| {
         setup.initial_joints_at(p).ok()
     });
-    let Some((place, score, reaches)) = &found.best else {
-        anyhow::bail!(
-            "none of {} placements within ±{:.0}, ±{:.0}, ±{:.0} mm and ±{:.0}° of the configured \
-             one reaches every target: a larger --region-mm or --yaw-deg, or fewer targets",
-            found.tried,
-            s.region_mm[0],
-            s.region_mm[1],
-            s.region_mm[2],
-            s.yaw_deg
-        );
-    };
+    let searched = report::Searched::new(&found, &centre, &region)?;
     let configured = targets.at_configured(&setup)?;
     s.which.draw(
         &setup,
         &goals,
         (&configured.place, &configured.reaches),
-        Some((place, reaches)),
+        Some((searched.place(), searched.reaches())),
         out,
     )?;
-    let shift = (place.translation.vector - centre.translation.vector) * 1e3;
-    let turn = (place.rotation * centre.rotation.inverse())
-        .euler_angles()
-        .2;
     if s.which.json {
-        writeln!(
-            out,
-            "{}",
-            serde_json::json!({
-                "tried": found.tried,
-                "reaching": found.reaching,
-                "score": score,
-                "base_from_head": pose_vector(place),
-                "moved_mm": [shift.x, shift.y, shift.z],
-                "turned_deg": turn.to_degrees(),
-                "targets": json_of(reaches),
-            })
-        )?;
-        return Ok(());
-    }
-    writeln!(
-        out,
-        "{} placements tried, {} reach every target; the most margin ({score:.2}) with the head \
-         moved ({:.0}, {:.0}, {:.0}) mm in the robot's base frame and turned {:.0}° about the \
-         vertical:",
-        found.tried,
-        found.reaching,
-        shift.x,
-        shift.y,
-        shift.z,
-        turn.to_degrees()
-    )?;
-    writeln!(out, "[tracker.simulated]")?;
-    writeln!(out, "base_from_head = {}", fmt_pose(place))?;
-    for r in reaches {
-        writeln!(out, "  {r}")?;
+        writeln!(out, "{}", searched.json())?;
+    } else {
+        write!(out, "{searched}")?;
     }
     Ok(())
 }

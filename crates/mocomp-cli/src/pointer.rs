@@ -83,33 +83,13 @@ impl PointerCmd {
             &mut |n| page.samples(n, c.samples),
         )
         .and_then(|(poses, invalid)| mocomp_app::pointer::calibrate(&c.device, &poses, invalid));
-        let p = match calibrated {
-            Ok(p) => p,
-            Err(e) => {
-                page.failed(&e.to_string());
-                return Err(e.into());
-            }
-        };
+        let p = calibrated.inspect_err(|e| page.failed(&e.to_string()))?;
         page.pivoted(&p);
         mocomp_app::pointer::save(&c.out, &p)?;
         if c.json {
             writeln!(out, "{}", serde_json::to_string(&p)?)?;
         } else {
-            let [x, y, z] = p.tip_in_marker_mm;
-            writeln!(
-                out,
-                "{}: tip at ({x:.2}, {y:.2}, {z:.2}) mm in the marker's frame; the tips agree to \
-                 {:.2} mm RMS, {:.2} mm at most ({} of {} poses kept, {} invalid left out, turned \
-                 {:.0}°); written to {}",
-                p.device,
-                p.rms_mm,
-                p.max_mm,
-                p.kept,
-                p.kept + p.rejected,
-                p.invalid,
-                p.spread_deg,
-                c.out.display()
-            )?;
+            writeln!(out, "{p}; written to {}", c.out.display())?;
         }
         Ok(())
     }

@@ -5,8 +5,10 @@
 
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
-use mocomp_app::register::{Asked, Follow, Streams};
-use mocomp_app::rehearsal::{POINTER_DEVICE, Rehearsal, ask_for};
+use mocomp_app::register::{Asked, Follow};
+use mocomp_app::register_open::{Opened, Source};
+use mocomp_app::register_report as report;
+use mocomp_app::rehearsal::ask_for;
 use mocomp_sim::operator::Ask;
 use std::io::Write;
 use std::path::PathBuf;
@@ -62,16 +64,7 @@ struct Common {
     seed: Option<u64>,
 }
 
-/// The streams and the pointer to register with, and the rehearsal serving them if any.
-struct Opened {
-    setup: Setup,
-    streams: Streams,
-    pointer: mocomp_app::pointer::Pointer,
-    rehearsal: Option<Rehearsal>,
-}
-
 impl Common {
-    /// The configuration.
     fn load(&self) -> anyhow::Result<Setup> {
         crate::args::positive("--timeout", self.timeout)?;
         let config = self
@@ -81,60 +74,20 @@ impl Common {
         Ok(Setup::load(config)?)
     }
 
-    /// The streams and the pointer for `setup` (with --simulate: the rehearsal started, the
-    /// pointer calibrated on it unless given).
     fn open(&self, setup: Setup, progress: &mut dyn Write) -> anyhow::Result<Opened> {
-        let timeout = Duration::from_secs_f64(self.timeout);
-        let (addr, head_device, rehearsal) = if self.simulate {
-            let r = Rehearsal::start(&setup, self.seed)?;
-            (r.addr(), setup.file.tracker.device.clone(), Some(r))
-        } else {
-            let addr = self
-                .igtl
-                .clone()
-                .ok_or_else(|| crate::UsageError("--igtl: needed".into()))?;
-            (addr, self.head_device.clone(), None)
+        let source = Source {
+            rehearse: self.simulate.then_some(self.seed),
+            igtl: self.igtl.clone(),
+            head_device: self.head_device.clone(),
+            pointer: self.pointer.clone(),
+            timeout: Duration::from_secs_f64(self.timeout),
         };
-        let pointer = match (&self.pointer, &rehearsal) {
-            (Some(p), _) => mocomp_app::pointer::load(p)?,
-            (None, Some(r)) => simulated_pointer(r, timeout, progress)?,
-            (None, None) => mocomp_app::pointer::load(std::path::Path::new("pointer.toml"))?,
-        };
-        let streams = Streams {
-            addr,
-            head_device,
-            timeout,
-        };
-        Ok(Opened {
-            setup,
-            streams,
-            pointer,
-            rehearsal,
-        })
+        let o = mocomp_app::register_open::open(setup, &source)?;
+        if let Some(said) = &o.said {
+            writeln!(progress, "{said}")?;
+        }
+        Ok(o)
     }
-}
-
-/// The simulated operator pivots the pointer; it is calibrated as `pointer calibrate` does.
-fn simulated_pointer(
-    r: &Rehearsal,
-    timeout: Duration,
-    progress: &mut dyn Write,
-) -> anyhow::Result<mocomp_app::pointer::Pointer> {
-    r.ask(Ask::Pivot);
-    let (poses, invalid) =
-        mocomp_app::pointer::collect(&r.addr(), POINTER_DEVICE, 300, timeout, &mut |_| {})?;
-    r.ask(Ask::Rest);
-    let p = mocomp_app::pointer::calibrate(POINTER_DEVICE, &poses, invalid)?;
-    let [x, y, z] = p.tip_in_marker_mm;
-    writeln!(
-        progress,
-        "simulated pointer calibrated: tip at ({x:.2}, {y:.2}, {z:.2}) mm, {:.2} mm RMS over {} \
-         poses (truly at {:?} mm)",
-        p.rms_mm,
-        p.kept,
-        mocomp_app::rehearsal::TIP_IN_MARKER_MM
-    )?;
-    Ok(p)
 }
 
 #[derive(Debug, Clone, Args)]
@@ -219,37 +172,16 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     if console.is_some() {
         page.wait_for_go(&controls)?;
     }
-    let rehearsal = o.rehearsal.as_ref();
     let result = mocomp_app::register::register_live(
         &o.setup,
         &o.streams,
         &o.pointer,
         &asked,
         &mut Shown { page: &mut page },
-        &mut |p| {
-            if let Some(r) = rehearsal {
-                r.ask(ask_for(p));
-            }
-        },
+        &mut |p| o.ask(ask_for(p)),
     );
-    let r = match result {
-        Ok(r) => r,
-        Err(e) => {
-            page.failed(&e.to_string());
-            return Err(e.into());
-        }
-    };
-    let truth = match (&o.rehearsal, &r.outcome.registration) {
-        (Some(sim), Ok(reg)) => {
-            let targets = mocomp_app::registration_gate::targets(&o.setup, None)?;
-            Some(mocomp_app::rehearsal::true_errors(
-                &targets,
-                &reg.image_from_marker,
-                &sim.image_from_marker(),
-            ))
-        }
-        _ => None,
-    };
+    let r = result.inspect_err(|e| page.failed(&e.to_string()))?;
+    let truth = o.true_errors(&r)?;
     let written = match &r.file {
         Some(file) => {
             mocomp_app::registration_file::save(&a.out, file)?;
@@ -257,10 +189,10 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let lines = mocomp_app::register_report::lines(&r, truth.as_deref());
+    let lines = report::lines(&r, truth.as_deref());
     page.registered(&lines, r.usable());
     if a.json {
-        let json = mocomp_app::register_report::json(&r, truth.as_deref(), written.as_deref());
+        let json = report::json(&r, truth.as_deref(), written.as_deref());
         writeln!(out, "{json}")?;
     } else {
         for l in &lines {
@@ -280,12 +212,9 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
 }
 
 fn check(c: CheckArgs, out: &mut dyn Write) -> anyhow::Result<()> {
-    let mut stderr = std::io::stderr();
     let setup = c.common.load()?;
-    let o = c.common.open(setup, &mut stderr)?;
-    if let Some(r) = &o.rehearsal {
-        r.ask(Ask::Touch(c.landmark.clone()));
-    }
+    let o = c.common.open(setup, &mut std::io::stderr())?;
+    o.ask(Ask::Touch(c.landmark.clone()));
     let r = mocomp_app::register::check_live(
         &o.setup,
         &o.streams,
@@ -294,28 +223,12 @@ fn check(c: CheckArgs, out: &mut dyn Write) -> anyhow::Result<()> {
         &mut |s| eprintln!("{s}"),
     )?;
     if c.json {
-        writeln!(
-            out,
-            "{}",
-            serde_json::json!({"landmark": r.name, "moved_mm": r.moved_m * 1e3, "limit_mm": r.limit_m * 1e3, "moved": r.moved})
-        )?;
+        writeln!(out, "{}", report::checked_json(&r))?;
     } else {
-        writeln!(
-            out,
-            "{}: {:.2} mm from where it was touched at registration{}",
-            r.name,
-            r.moved_m * 1e3,
-            if r.moved { "" } else { ": the marker holds" }
-        )?;
+        writeln!(out, "{r}")?;
     }
-    if r.moved {
-        return Err(mocomp_app::AppError::Refused(format!(
-            "the head marker moved on the head ({:.1} mm at the {}, more than a touch's {:.1} mm): register again",
-            r.moved_m * 1e3,
-            r.name,
-            r.limit_m * 1e3
-        ))
-        .into());
+    match report::checked_refusal(&r) {
+        Some(e) => Err(e.into()),
+        None => Ok(()),
     }
-    Ok(())
 }

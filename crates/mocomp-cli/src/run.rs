@@ -75,22 +75,8 @@ impl RunCmd {
                 file.record_mcap.clone_from(&self.record);
             }
         })?;
-        if let Some(warning) = setup.file.head_note() {
-            eprintln!("warning: {warning}");
-        }
-        for note in mocomp_app::session_wiring::notes(&setup.file) {
-            eprintln!("warning: {note}");
-        }
-        if let Some(note) = mocomp_app::registration_gate::registration_gate(
-            &setup,
-            self.accept_registration.as_deref(),
-        )? {
-            eprintln!("note: {note}");
-        }
-        if setup.file.tracker.source == mocomp_app::config::TrackerSource::Simulated
-            && let Some(note) = setup.file.predictor_note()
-        {
-            eprintln!("note: {note}");
+        for note in mocomp_app::live::start_notes(&setup, self.accept_registration.as_deref())? {
+            eprintln!("{note}");
         }
         let controls = Controls::new();
         {

@@ -5,6 +5,7 @@ use crate::UsageError;
 use anyhow::Context;
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
+use mocomp_app::navigation::{DoseTargeting, TargetSpec};
 use mocomp_session::GridParams;
 use std::io::Write;
 use std::path::PathBuf;
@@ -151,47 +152,38 @@ impl ImportCmd {
         let setup = Setup::load(&self.config)?;
         let text = std::fs::read_to_string(&self.from_file)
             .with_context(|| format!("reading {}", self.from_file.display()))?;
-        if !(self.standoff_mm.is_finite() && self.standoff_mm >= 0.0) {
-            return Err(UsageError(format!(
-                "--standoff-mm {}: must be a distance, 0 or more",
-                self.standoff_mm
-            ))
-            .into());
-        }
         let found = mocomp_app::target_import::import(
             &setup,
             self.from,
             &self.from_file.display().to_string(),
             &text,
-            self.standoff_mm * 1e-3,
+            standoff_m(self.standoff_mm)?,
             &mocomp_nav::Handle::default(),
         )?;
-        let mut targets = mocomp_app::targets::load(file)?;
-        for t in &found {
-            targets
-                .teach(t.clone())
-                .map_err(|e| UsageError(e.to_string()))?;
-        }
-        mocomp_app::targets::save(file, &targets)?;
+        mocomp_app::targets::teach_all(file, &found)?;
         for t in &found {
             writeln!(out, "{}", t.line())?;
         }
-        writeln!(
-            out,
-            "imported {} targets into {}",
-            found.len(),
-            file.display()
-        )?;
+        let n = found.len();
+        writeln!(out, "imported {n} targets into {}", file.display())?;
         Ok(())
     }
 }
 
+/// `--standoff-mm`, checked, in metres.
+fn standoff_m(mm: f64) -> Result<f64, UsageError> {
+    if !(mm.is_finite() && mm >= 0.0) {
+        return Err(UsageError(format!(
+            "--standoff-mm {mm}: must be a distance, 0 or more"
+        )));
+    }
+    Ok(mm * 1e-3)
+}
+
 impl AddCmd {
-    fn run(self, file: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()> {
+    fn spec(&self) -> anyhow::Result<TargetSpec> {
         use mocomp_app::affine_file::read_affine;
-        use mocomp_app::navigation::{TargetSpec, mm_from_point, place_target};
-        let setup = Setup::load(&self.config)?;
-        let spec = match (self.image, self.mni, self.eeg) {
+        Ok(match (self.image, self.mni, &self.eeg) {
             (Some(p), _, _) => TargetSpec::Image(p),
             (_, Some(p), _) => TargetSpec::Mni(
                 p,
@@ -200,16 +192,15 @@ impl AddCmd {
                     None => None,
                 },
             ),
-            (_, _, Some(name)) => TargetSpec::Eeg(name),
+            (_, _, Some(name)) => TargetSpec::Eeg(name.clone()),
             _ => return Err(UsageError("--image, --mni or --eeg".into()).into()),
-        };
-        if !(self.standoff_mm.is_finite() && self.standoff_mm >= 0.0) {
-            return Err(UsageError(format!(
-                "--standoff-mm {}: must be a distance, 0 or more",
-                self.standoff_mm
-            ))
-            .into());
-        }
+        })
+    }
+
+    fn run(self, file: &std::path::Path, out: &mut dyn Write) -> anyhow::Result<()> {
+        let setup = Setup::load(&self.config)?;
+        let spec = self.spec()?;
+        let standoff_m = standoff_m(self.standoff_mm)?;
         if !self.handle_turn_deg.is_finite() {
             return Err(UsageError("--handle-turn-deg: not a finite number".into()).into());
         }
@@ -217,17 +208,15 @@ impl AddCmd {
             toward: self.handle.into(),
             turn_rad: self.handle_turn_deg.to_radians(),
         };
-        let dose = self
-            .optimize_dose
-            .then_some(mocomp_app::navigation::DoseTargeting {
-                radius_m: self.dose_radius_mm * 1e-3,
-                direction: self.dose_direction,
-            });
-        let placed = place_target(
+        let dose = self.optimize_dose.then_some(DoseTargeting {
+            radius_m: self.dose_radius_mm * 1e-3,
+            direction: self.dose_direction,
+        });
+        let placed = mocomp_app::navigation::place_target(
             &setup,
             &self.name,
             &spec,
-            self.standoff_mm * 1e-3,
+            standoff_m,
             &handle,
             &self.note,
             dose.as_ref(),
@@ -235,101 +224,29 @@ impl AddCmd {
         if let (Some(map), Some(path)) = (&placed.dose, &self.dose_map) {
             mocomp_app::navigation::write_dose_map(path, map)?;
         }
-        let mut targets = mocomp_app::targets::load(file)?;
-        targets
-            .teach(placed.target.clone())
-            .map_err(|e| UsageError(e.to_string()))?;
-        mocomp_app::targets::save(file, &targets)?;
-        let [sx, sy, sz] = mm_from_point(&placed.placement.scalp_point);
-        writeln!(
-            out,
-            "added {} from {}: the coil over the scalp at ({sx:.1}, {sy:.1}, {sz:.1}) mm (image), \
-             the target {:.1} mm below it, the face {:.1} mm off the scalp{}, the whole coil {:.1} \
-             mm clear of the scalp",
-            self.name,
-            placed.target.source,
-            placed.placement.depth_m * 1e3,
-            self.standoff_mm + placed.placement.lift_m * 1e3,
-            if placed.placement.lift_m > 1e-4 {
-                format!(
-                    " (lifted {:.1} mm to clear the scalp around it)",
-                    placed.placement.lift_m * 1e3
-                )
-            } else {
-                String::new()
-            },
-            placed.clearance_m * 1e3
-        )?;
-        if let Some(map) = &placed.dose {
-            let (best, plain) = (&map.best, &map.plain);
-            writeln!(
-                out,
-                "targeted by dose: {:.1} V/m at the target, {:+.1} % on the coil placed over the \
-                 nearest scalp ({:.1} V/m); its centre {:.1} mm from there, turned {:.0}° from the \
-                 handle asked; {} places and turns evaluated",
-                best.dose_v_per_m,
-                100.0 * (best.dose_v_per_m / plain.dose_v_per_m - 1.0),
-                plain.dose_v_per_m,
-                best.offset_m.0.hypot(best.offset_m.1) * 1e3,
-                best.turn_rad.to_degrees().rem_euclid(360.0),
-                map.evaluated.len()
-            )?;
+        mocomp_app::targets::teach_all(file, std::slice::from_ref(&placed.target))?;
+        write!(out, "{placed}")?;
+        let reach = mocomp_app::target_report::reach_lines(&setup, &placed.target, &self.config)?;
+        for line in reach {
+            writeln!(out, "{line}")?;
         }
-        writeln!(out, "{}", placed.target.line())?;
-        reach_note(&setup, &self.name, &placed.target, &self.config, out)
+        Ok(())
     }
-}
-
-/// Whether the arm reaches a new target with the head at the configured placement: said, not
-/// refused (the placement is what changes; `mocomp placement search` finds one).
-fn reach_note(
-    setup: &Setup,
-    name: &str,
-    target: &mocomp_session::Target,
-    config: &std::path::Path,
-    out: &mut dyn Write,
-) -> anyhow::Result<()> {
-    use mocomp_app::placement::Targets;
-    let goal = mocomp_app::targets::head_from_coil(setup, target);
-    let targets = Targets::new(setup, &[(name.to_string(), goal)])?;
-    let configured = match targets.at_configured(setup) {
-        Ok(c) => c,
-        Err(e) => {
-            writeln!(out, "reach not checked: {e}")?;
-            return Ok(());
-        }
-    };
-    for r in &configured.reaches {
-        writeln!(out, "at the configured placement: {r}")?;
-        if r.refusal.is_some() {
-            writeln!(
-                out,
-                "NOT REACHABLE where the head is configured (tracker.simulated.base_from_head): \
-                 `mocomp placement search --config {}` finds a place that reaches every target",
-                config.display()
-            )?;
-        }
-    }
-    Ok(())
 }
 
 impl TargetsCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
-        let mut targets = mocomp_app::targets::load(&self.file)?;
         match self.command {
             TargetsCommand::List { json } => {
-                for t in &targets.targets {
+                for t in &mocomp_app::targets::load(&self.file)?.targets {
                     writeln!(out, "{}", if json { t.json() } else { t.line() })?;
                 }
             }
             TargetsCommand::Add(add) => return add.run(&self.file, out),
             TargetsCommand::Import(import) => return import.run(&self.file, out),
             TargetsCommand::Delete { name } => {
-                targets
-                    .delete(&name)
-                    .map_err(|e| UsageError(e.to_string()))?;
-                mocomp_app::targets::save(&self.file, &targets)?;
+                mocomp_app::targets::delete(&self.file, &name)?;
                 writeln!(out, "deleted {name}")?;
             }
             TargetsCommand::Grid {
@@ -345,8 +262,7 @@ impl TargetsCmd {
                     rows,
                     cols,
                 };
-                let names = mocomp_app::targets::add_grid(&setup, &mut targets, &name, &p)?;
-                mocomp_app::targets::save(&self.file, &targets)?;
+                let names = mocomp_app::targets::add_grid(&self.file, &setup, &name, &p)?;
                 writeln!(out, "added {} targets: {}", names.len(), names.join(", "))?;
             }
         }
