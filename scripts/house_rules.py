@@ -11,8 +11,10 @@ Rules (each crate's `src/`, the code before a file's first `#[cfg(test)]`: tests
 - no file longer than 1,000 lines;
 - the control loop's crate (mocomp-control) depends on no protocol's crate (mocomp-ur,
   mocomp-igtl, mocomp-ros2): it reaches the robot through mocomp-robot's trait.
-The command line's size is printed against its goal of 2,200 lines (it parses, calls and
-prints); that goal is not yet met, so it is reported, not enforced.
+- the command line (mocomp-cli) parses, calls and prints: what runs (its code apart from the
+  clap argument definitions, each option with its help text) at most 2,200 lines, and the
+  whole crate at most 3,200 (a ceiling that keeps it from growing; the definitions alone are
+  about 1,100 lines for its twenty commands).
 Import circles among a crate's modules are scripts/module_cycles.py's.
 """
 
@@ -25,7 +27,10 @@ import tomllib
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 FN_LIMIT = 120
 FILE_LIMIT = 1000
-CLI_GOAL = 2200
+CLI_CRATE = "mocomp-cli"
+CLI_CODE_LIMIT = 2200
+CLI_TOTAL_LIMIT = 3200
+ARG_DERIVE = re.compile(r"^#\[derive\(.*\b(Args|Parser|Subcommand|ValueEnum)\b")
 LOOP_CRATE = "mocomp-control"
 PROTOCOL_CRATES = {"mocomp-ur", "mocomp-igtl", "mocomp-ros2"}
 FN = re.compile(r"^(\s*)(pub(\([a-z:]+\))? )?(const )?(async )?(unsafe )?fn ([a-z_0-9]+)")
@@ -69,6 +74,36 @@ def measure(root):
     return per_crate, sorted(files, reverse=True), sorted(fns, reverse=True)
 
 
+def argument_definitions(lines):
+    """Lines of the clap argument definitions: each item deriving Args, Parser, Subcommand or
+    ValueEnum, with its doc comments and attributes, to its closing brace at column 0."""
+    n, i = 0, 0
+    while i < len(lines):
+        if ARG_DERIVE.match(lines[i]):
+            start = i
+            while start > 0 and lines[start - 1].lstrip().startswith(("///", "#[")):
+                start -= 1
+            end = i
+            while end < len(lines) and lines[end] != "}":
+                end += 1
+            n += end - start + 1
+            i = end + 1
+        else:
+            i += 1
+    return n
+
+
+def cli_split(root):
+    """(all lines, argument-definition lines) of the command line's crate, tests aside."""
+    total = defs = 0
+    src = os.path.join(root, "crates", CLI_CRATE, "src")
+    for f in glob.glob(os.path.join(src, "**", "*.rs"), recursive=True):
+        lines = code_lines(open(f, encoding="utf-8").read())
+        total += len(lines)
+        defs += argument_definitions(lines)
+    return total, defs
+
+
 def protocol_deps(root):
     with open(os.path.join(root, "crates", LOOP_CRATE, "Cargo.toml"), "rb") as f:
         deps = tomllib.load(f).get("dependencies", {})
@@ -83,6 +118,12 @@ def check(root, figures):
     breaches += [f"{f}: {n} lines (limit {FILE_LIMIT})" for n, f in files if n > FILE_LIMIT]
     breaches += [f"crates/{LOOP_CRATE}/Cargo.toml: depends on {d}, a protocol's crate"
                  for d in protocol_deps(root)]
+    cli_total, cli_defs = cli_split(root)
+    if cli_total - cli_defs > CLI_CODE_LIMIT:
+        breaches.append(f"crates/{CLI_CRATE}: {cli_total - cli_defs} lines besides its argument "
+                        f"definitions (limit {CLI_CODE_LIMIT}): move the work into the crates")
+    if cli_total > CLI_TOTAL_LIMIT:
+        breaches.append(f"crates/{CLI_CRATE}: {cli_total} lines (limit {CLI_TOTAL_LIMIT})")
     if figures:
         print("lines per crate (src, tests aside):")
         for c, n in sorted(per_crate.items(), key=lambda x: -x[1]):
@@ -99,8 +140,9 @@ def check(root, figures):
     n, f, at, name = fns[0]
     print(f"longest fn: {name} ({f}:{at}), {n} lines of {len(fns)} functions; largest file: "
           f"{files[0][1]}, {files[0][0]} lines; {LOOP_CRATE} links no protocol: "
-          f"{'no' if protocol_deps(root) else 'yes'}; the command line: "
-          f"{per_crate.get('mocomp-cli', 0)} lines (goal {CLI_GOAL}, not yet enforced)")
+          f"{'no' if protocol_deps(root) else 'yes'}; the command line: {cli_total} lines "
+          f"(limit {CLI_TOTAL_LIMIT}), {cli_total - cli_defs} besides its argument definitions "
+          f"(limit {CLI_CODE_LIMIT})")
     return 1 if breaches else 0
 
 
@@ -112,7 +154,13 @@ def self_test():
     text = "\n".join(ok + long + ["#[cfg(test)]", "mod tests {", *long, "}"])
     got = list(functions(code_lines(text)))
     assert got == [("fits", 1, FN_LIMIT), ("too_long", FN_LIMIT + 1, FN_LIMIT + 1)], got
-    print("self-test: a 120-line function passes, a 121-line one is found, tests are aside")
+    cli = ["use clap::Args;", "", "/// A command.", "#[derive(Debug, Args)]",
+           "#[command(about)]", "pub struct Cmd {", "    /// An option.", "    #[arg(long)]",
+           "    x: u8,", "}", "", "impl Cmd {", "    fn run(&self) {}", "}"]
+    assert argument_definitions(cli) == 8, argument_definitions(cli)
+    assert argument_definitions(cli[9:]) == 0
+    print("self-test: a 120-line function passes, a 121-line one is found, tests are aside; an "
+          "argument definition is counted with its docs and attributes, code is not")
     return 0
 
 
