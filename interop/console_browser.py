@@ -29,6 +29,7 @@ import json
 import os
 import statistics
 import sys
+import tempfile
 import time
 
 # Selenium must not try to fetch a browser or driver: use Debian's.
@@ -44,6 +45,8 @@ from selenium.webdriver.common.by import By  # noqa: E402
 # suites and stress-ng on two cores, the browser rendering without a GPU) once took more than
 # 30 s to show an applied change. Waiting longer costs nothing when the page is right.
 HUNG_S = 180.0
+# The driver's log, one per helper process, removed when the helper succeeds.
+DRIVER_LOG = os.path.join(tempfile.gettempdir(), f"mocomp-chromedriver-{os.getpid()}.log")
 
 
 def wait(what, f, show=None):
@@ -166,8 +169,21 @@ def browser():
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                 "--window-size=1400,1200", "--no-first-run", "--disable-extensions"):
         options.add_argument(arg)
-    service = Service(executable_path=os.environ.get("MOCOMP_CHROMEDRIVER", "/usr/bin/chromedriver"))
+    # The driver's log of each command and the browser's answer, with times: shown when the
+    # helper fails, so a command that hangs says where (the page, the driver or the machine).
+    service = Service(executable_path=os.environ.get("MOCOMP_CHROMEDRIVER", "/usr/bin/chromedriver"),
+                      log_output=DRIVER_LOG, service_args=["--log-level=INFO"])
     return webdriver.Chrome(options=options, service=service)
+
+
+def driver_log_tail(lines=60, width=300):
+    """The driver log's last lines, each cut to `width` characters (screenshots are long)."""
+    try:
+        with open(DRIVER_LOG, encoding="utf-8", errors="replace") as f:
+            tail = f.readlines()[-lines:]
+    except OSError as e:
+        return f"(no driver log: {e})"
+    return "".join(line if len(line) <= width else line[:width] + " …\n" for line in tail)
 
 
 def loop_session(url, shots):
@@ -539,4 +555,9 @@ if __name__ == "__main__":
     run = {"camera": camera_session, "calibrate": calibrate_session,
            "session": session_session, "head": head_session,
            "register": register_session, "mri": mri_session}.get(which, loop_session)
-    print(json.dumps(run(sys.argv[1], sys.argv[2])))
+    try:
+        print(json.dumps(run(sys.argv[1], sys.argv[2])))
+        os.remove(DRIVER_LOG)
+    except Exception:
+        print(f"the driver's log ({DRIVER_LOG}), its last lines:\n{driver_log_tail()}", file=sys.stderr)
+        raise
