@@ -3,8 +3,8 @@
 //! file and the points file are read here with size limits; the field is `mocomp-efield`'s.
 
 use crate::AppError;
-use crate::capped_file::read_capped_text;
 use crate::config::Setup;
+use crate::files::capped::read_capped_text;
 use mocomp_efield::{FIT_RADIUS_M, PlacedCoil, Sphere, local_sphere};
 use mocomp_geom::nalgebra::{Isometry3, Matrix4, Point3};
 use mocomp_geom::units::mm_to_m;
@@ -149,7 +149,7 @@ pub fn parse_points(file: &str, text: &str) -> Result<Vec<[f64; 3]>, AppError> {
 
 /// The field at each point.
 pub fn compute(req: &Request<'_>) -> Result<Report, AppError> {
-    let coil = crate::coil_config::read_coil(req.coil)?;
+    let coil = crate::config::coil::read_coil(req.coil)?;
     let m = Matrix4::from_row_slice(&req.matsimnibs);
     let image_from_coil = mocomp_geom::iso_from_matrix_mm(&m, RIGID_TOLERANCE)
         .map_err(|e| AppError::Config(format!("--pose: not a coil pose: {e}")))?;

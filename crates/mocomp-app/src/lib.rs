@@ -2,8 +2,19 @@
 //! loaded and checked once into a [`config::Setup`]), connects the world it describes
 //! ([`world::World`]: a UR or an in-process simulated controller, an OpenIGTLink tracker or the
 //! simulated one), and does one job on it: the live loop ([`live`]), a calibration collection
-//! ([`collect`]) or teaching the goal ([`teach`]). Front ends (the `mocomp` CLI, the web console,
-//! the ROS 2 bridge) parse their input, call these and present the results; none of them computes.
+//! ([`robot::collect`]) or teaching the goal ([`robot::teach`]). Front ends (the `mocomp` CLI, the
+//! web console, the ROS 2 bridge) parse their input, call these and present the results; none of
+//! them computes.
+//!
+//! The modules, grouped by what a clinic does with them, each group using only those above it:
+//! [`files`] (read under a limit, written whole, the caches); [`config`] (the file's sections,
+//! what is loaded from them, its template and reference); [`camera`] (a depth camera as a
+//! tracker, frames and recordings); [`world`] (what a session connects to); [`navigation`] (the
+//! head, its EEG positions, targets placed and imported, the arm's reach); [`registration`] (the
+//! pointer, the registration live and rehearsed, its report and gate); [`live`] (the loop, its
+//! logger, the clinical session around it, its front ends: ROS 2 and 3D Slicer); [`robot`]
+//! (calibration collection, teaching, the servo check); [`demo`] (the built-in world's
+//! experiment); and, alone, `blame`, `listen`, `pose_lines`, `efield_calc`, `session_export`.
 //!
 //! I/O lives here (sockets, threads, files, the wall clock); the math it calls does none.
 //!
@@ -18,59 +29,19 @@ macro_rules! refuse {
     };
 }
 
-pub mod affine_file;
 pub mod blame;
-pub mod cache_files;
 pub mod camera;
-pub mod camera_k4a;
-pub mod camera_sim;
-pub mod capped_file;
-pub mod coil_config;
-pub mod collect;
 pub mod config;
-pub mod config_check;
-pub mod config_file;
-pub mod config_reference;
-pub mod demo_options;
-pub mod demo_record;
-pub mod demo_run;
-pub mod eeg_report;
+pub mod demo;
 pub mod efield_calc;
-pub mod experiment_config;
-pub mod field_cache;
-pub mod frames;
-pub mod head_file;
-pub mod k4a;
-pub mod k4a_record;
+pub mod files;
 pub mod listen;
 pub mod live;
-pub mod live_log;
-pub mod live_session;
 pub mod navigation;
-pub mod placement;
-pub mod placement_report;
-pub mod pointer;
 pub mod pose_lines;
-pub mod register;
-pub mod register_open;
-pub mod register_report;
-pub mod registration_config;
-pub mod registration_file;
-pub mod registration_gate;
-pub mod rehearsal;
-pub mod ros2;
-pub mod scalp_cache;
-pub mod servo_check;
+pub mod registration;
+pub mod robot;
 pub mod session_export;
-pub mod session_link;
-pub mod session_wiring;
-pub mod slicer;
-pub mod target_import;
-pub mod target_report;
-pub mod targets;
-pub mod teach;
-pub mod tuning;
-pub mod whole_file;
 pub mod world;
 
 /// The experiment, the driver and the calibration procedure, from their own crate (the live

@@ -62,7 +62,7 @@ impl ExportSource {
                 .head
                 .mesh
                 .as_ref()
-                .filter(|m| crate::head_file::nifti_extension(m).is_some())
+                .filter(|m| crate::files::head::nifti_extension(m).is_some())
                 .map(|m| self.dir.join(m)),
         }
     }
@@ -104,7 +104,7 @@ pub fn bids(source: &ExportSource, dir: &Path, o: &BidsOptions) -> Result<Export
     }
     let t1 = source.t1(o.t1.as_deref());
     let t1_ext = match &t1 {
-        Some(p) => Some(crate::head_file::nifti_extension(p).ok_or_else(|| {
+        Some(p) => Some(crate::files::head::nifti_extension(p).ok_or_else(|| {
             AppError::Config(format!(
                 "--t1 {}: not a NIfTI (.nii or .nii.gz)",
                 p.display()
@@ -212,5 +212,5 @@ fn exported(source: &ExportSource, files: Vec<PathBuf>) -> Exported {
 
 /// Writes `bytes` to `path` whole, making its folder.
 fn write(path: &Path, bytes: &[u8]) -> Result<(), AppError> {
-    crate::whole_file::write_whole_making_folder(path, bytes, "the record's file")
+    crate::files::whole::write_whole_making_folder(path, bytes, "the record's file")
 }

@@ -405,14 +405,14 @@ fn start_camera(
         TrackerSource::Camera => {
             let link = VisionLink::new(file.tracker.camera.params);
             (
-                Some(crate::camera_sim::start(setup, Arc::clone(&link))?),
+                Some(crate::camera::sim::start(setup, Arc::clone(&link))?),
                 Some(link),
             )
         }
         TrackerSource::K4a => {
             let link = VisionLink::new(file.tracker.k4a.params);
             (
-                Some(crate::camera_k4a::start(setup, Arc::clone(&link))?),
+                Some(crate::camera::k4a::start(setup, Arc::clone(&link))?),
                 Some(link),
             )
         }

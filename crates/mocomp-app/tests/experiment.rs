@@ -15,7 +15,7 @@ use std::net::IpAddr;
 /// The defaults, the robots on `127.0.0.{hosts.0}` and `{hosts.1}` (each test its own), for
 /// `seconds`.
 fn config(hosts: (u8, u8), seconds: f64) -> ExperimentConfig {
-    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
+    let mut cfg = mocomp_app::demo::experiment_config::defaults().unwrap();
     cfg.coil_host = IpAddr::from([127, 0, 0, hosts.0]);
     cfg.head_host = IpAddr::from([127, 0, 0, hosts.1]);
     cfg.duration_s = seconds;
@@ -224,7 +224,7 @@ fn a_wandering_recorded_head_places_the_head_robot_for_the_whole_motion() {
 fn weighing_by_the_dose_loses_less_dose_where_the_arm_cannot_do_everything() {
     let coils = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../mocomp-efield/tests/data/coils/MagStim_D70.ccd");
-    let coil = mocomp_app::coil_config::read_coil(&coils).unwrap();
+    let coil = mocomp_app::config::coil::read_coil(&coils).unwrap();
     let didt = coil.didt_max_a_per_s.unwrap();
     let examples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
     let run = |weigh: bool| {

@@ -336,7 +336,7 @@ fn configuration_targets_traces_pairs_affines() {
     });
     let affine = ["# image_from_mni\n1 0 0 -1.5\n0 1 0 2\n0 0 1 -3\n0 0 0 1\n".to_string()];
     text_campaign("affine", 0x4146_4649, 5000, &affine, &mut |t| {
-        named(mocomp_app::affine_file::parse_affine("a.txt", t))
+        named(mocomp_app::files::affine::parse_affine("a.txt", t))
     });
 }
 

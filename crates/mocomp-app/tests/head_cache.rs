@@ -4,7 +4,7 @@
 //! Colin27's T1.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
-use mocomp_app::head_file::{ScalpFrom, load_head_keeping_in};
+use mocomp_app::files::head::{ScalpFrom, load_head_keeping_in};
 use mocomp_control::HeadModel;
 use mocomp_geom::LengthUnit;
 use mocomp_geom::nalgebra::{Isometry3, Point3};

@@ -45,7 +45,7 @@ fn run(mesh: &str, loop_head: LoopHead, hosts: [u8; 2]) -> (f64, f64) {
 fn run_config(mut cfg: Config, hosts: [u8; 2]) -> (f64, f64) {
     let loop_head = cfg.experiment.loop_head;
     cfg.experiment.duration_s = 8.0;
-    let mut exp = mocomp_app::experiment_config::from_config(&cfg).unwrap();
+    let mut exp = mocomp_app::demo::experiment_config::from_config(&cfg).unwrap();
     exp.coil_host = IpAddr::from([127, 0, 0, hosts[0]]);
     exp.head_host = IpAddr::from([127, 0, 0, hosts[1]]);
     let out = run_experiment(&exp, &[Controller::Mocomp], &mut |_, _| {}).unwrap();

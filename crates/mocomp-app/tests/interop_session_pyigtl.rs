@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
 use mocomp_app::frontend::Note;
-use mocomp_app::live_session::{SessionLog, SessionSetup, forward_pulses};
+use mocomp_app::live::session::{SessionLog, SessionSetup, forward_pulses};
 use mocomp_igtl::client::{Client, ClientConfig, MonotonicClock};
 use mocomp_session::{GateEvent, SessionParams, Shut};
 use mocomp_testkit::{PythonPeer, wait_until};

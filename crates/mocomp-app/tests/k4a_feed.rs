@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
 
 use mocomp_app::camera::FeedEvent;
-use mocomp_app::camera_k4a::recording_feed;
+use mocomp_app::camera::k4a::recording_feed;
 use mocomp_app::camera_link::FeedEnd;
 use mocomp_app::config::PlaybackPace;
 use mocomp_k4a::{DepthMode, Recorder, Sdk};

@@ -21,7 +21,7 @@
     clippy::print_stderr
 )] // test code
 
-use mocomp_app::rehearsal::{OfflineWorld, TIP_IN_MARKER_MM, rehearse_offline};
+use mocomp_app::registration::rehearsal::{OfflineWorld, TIP_IN_MARKER_MM, rehearse_offline};
 use mocomp_geom::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use mocomp_head::{Head, HeadShape, Mesh, MeshHead, ScanCut, repair};
 use mocomp_nav::registration::{on_scalp, register_on_scalp};
@@ -278,7 +278,7 @@ fn settings_for(case: &Case, sweep: Sweep) -> Settings {
     Settings {
         landmarks: case.touch.iter().map(|s| s.to_string()).collect(),
         noise: noise(),
-        capture: mocomp_app::registration_config::capture_options(&noise()),
+        capture: mocomp_app::config::registration::capture_options(&noise()),
         sweep: SweepOptions::default(),
         min_points: 40,
         max_points: if sweep == Sweep::Guided { 300 } else { 250 },

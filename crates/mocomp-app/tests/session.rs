@@ -30,7 +30,7 @@ fn nods() -> HeadMotion {
 }
 
 fn session_run(coil: [u8; 4], head: [u8; 4], bump: Option<f64>) -> (ExperimentConfig, Run) {
-    let mut cfg = mocomp_app::experiment_config::defaults().unwrap();
+    let mut cfg = mocomp_app::demo::experiment_config::defaults().unwrap();
     cfg.coil_host = IpAddr::from(coil);
     cfg.head_host = IpAddr::from(head);
     cfg.motion = nods();
@@ -45,7 +45,7 @@ fn session_run(coil: [u8; 4], head: [u8; 4], bump: Option<f64>) -> (ExperimentCo
     cfg.duration_s = plan.duration_s();
     cfg.session = Some(plan);
     // SimNIBS's Magstim D70 at 60 %: each tick's true dose, and each pulse's as measured.
-    let coil = mocomp_app::coil_config::read_coil(
+    let coil = mocomp_app::config::coil::read_coil(
         &mocomp_testkit::workspace_root()
             .join("crates/mocomp-efield/tests/data/coils/MagStim_D70.ccd"),
     )

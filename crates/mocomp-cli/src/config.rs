@@ -44,10 +44,10 @@ impl ConfigCmd {
                     Some(path) => Setup::load(&path)?.file,
                     None => mocomp_app::config::Config::default(),
                 };
-                write!(out, "{}", mocomp_app::config_file::print(&cfg)?)?;
+                write!(out, "{}", mocomp_app::config::template::print(&cfg)?)?;
             }
             ConfigCommand::Reference => {
-                write!(out, "{}", mocomp_app::config_reference::markdown()?)?;
+                write!(out, "{}", mocomp_app::config::reference::markdown()?)?;
             }
             ConfigCommand::Check { file } => {
                 let setup = Setup::load(&file)?;
@@ -65,7 +65,7 @@ impl ConfigCmd {
                     setup.model,
                     setup.file.tracker.source
                 )?;
-                for note in mocomp_app::session_wiring::notes(&setup.file) {
+                for note in mocomp_app::live::session_wiring::notes(&setup.file) {
                     writeln!(out, "note: {note}")?;
                 }
             }

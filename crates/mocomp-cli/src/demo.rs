@@ -13,8 +13,8 @@ use clap::Args;
 use mocomp_app::AppError;
 use mocomp_app::config::Config;
 use mocomp_app::config::Setup;
-use mocomp_app::demo_options::{DemoOverrides, demo_config};
-use mocomp_app::demo_run::DemoFront;
+use mocomp_app::demo::options::{DemoOverrides, demo_config};
+use mocomp_app::demo::run::DemoFront;
 use mocomp_app::experiment::Controller;
 use mocomp_app::frontend::Controls;
 use mocomp_geom::units::{deg_to_rad, mm_to_m};
@@ -225,7 +225,7 @@ impl DemoCmd {
     /// Runs the demo (or prints its configuration).
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let config = self.configuration()?;
-        let mut exp = mocomp_app::experiment_config::from_config(&config)?;
+        let mut exp = mocomp_app::demo::experiment_config::from_config(&config)?;
         if let Some(name) = &self.target {
             let dir = self
                 .config
@@ -233,8 +233,12 @@ impl DemoCmd {
                 .and_then(std::path::Path::parent)
                 .map(std::path::Path::to_path_buf)
                 .unwrap_or_default();
-            exp.coil_design =
-                mocomp_app::targets::goal_named(&config, &dir, name, self.targets.as_deref())?;
+            exp.coil_design = mocomp_app::navigation::targets::goal_named(
+                &config,
+                &dir,
+                name,
+                self.targets.as_deref(),
+            )?;
             exp.validate()
                 .map_err(|e| crate::UsageError(format!("--target {name}: {e}")))?;
         }
@@ -247,7 +251,7 @@ impl DemoCmd {
             .map_err(|e| crate::UsageError(e.to_string()))?;
         }
         let order = self.order()?;
-        let file = mocomp_app::config_file::print(&config)?;
+        let file = mocomp_app::config::template::print(&config)?;
         if self.print_config {
             write!(out, "{file}")?;
             return Ok(());
@@ -266,7 +270,7 @@ impl DemoCmd {
             let controls = Arc::clone(&controls);
             ctrlc::set_handler(move || controls.stop())?;
         }
-        let run = mocomp_app::demo_run::run(
+        let run = mocomp_app::demo::run::run(
             &config,
             &exp,
             &order,

@@ -1,9 +1,9 @@
 //! `mocomp head inspect FILE`: a head surface read and mended, or a T1 MRI's scalp segmented
-//! ([`mocomp_app::head_file`]), what it held and what was done, the mesh and a picture of it
+//! ([`mocomp_app::files::head`]), what it held and what was done, the mesh and a picture of it
 //! written out; `mocomp head eeg`: the 10-20 positions on that scalp.
 
 use clap::{Args, Subcommand};
-use mocomp_app::eeg_report;
+use mocomp_app::navigation::eeg_report;
 use mocomp_geom::LengthUnit;
 use std::io::Write;
 use std::path::PathBuf;
@@ -102,12 +102,12 @@ impl HeadCmd {
                     e.why
                 ))
             })?;
-        let (mesh, report) = mocomp_app::head_file::inspect_file(&c.file, c.units, &segment)?;
+        let (mesh, report) = mocomp_app::files::head::inspect_file(&c.file, c.units, &segment)?;
         if let Some(p) = &c.write_mesh {
-            mocomp_app::head_file::write_mesh(p, &mesh)?;
+            mocomp_app::files::head::write_mesh(p, &mesh)?;
         }
         if let Some(p) = &c.png {
-            mocomp_app::head_file::write_views(p, &mesh, 400)?;
+            mocomp_app::files::head::write_views(p, &mesh, 400)?;
         }
         crate::print::report(out, &report, c.json)?;
         if !c.json {

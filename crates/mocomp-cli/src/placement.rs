@@ -1,11 +1,11 @@
 //! `mocomp placement check|search --config FILE`: whether the arm reaches a session's targets
 //! with the head where it is configured, and where the head should sit for it to reach them all
-//! ([`mocomp_app::placement`]).
+//! ([`mocomp_app::navigation::placement`]).
 
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
-use mocomp_app::placement::{Region, TargetReach, Targets};
-use mocomp_app::placement_report as report;
+use mocomp_app::navigation::placement::{Region, TargetReach, Targets};
+use mocomp_app::navigation::placement_report as report;
 use mocomp_geom::nalgebra::Isometry3;
 use std::io::Write;
 use std::path::PathBuf;
@@ -71,7 +71,11 @@ struct SearchCmd {
 impl Which {
     fn load(&self) -> anyhow::Result<(Setup, Goals, Targets)> {
         let setup = Setup::load(&self.config)?;
-        let goals = mocomp_app::placement::goals(&setup, self.targets.as_deref(), &self.target)?;
+        let goals = mocomp_app::navigation::placement::goals(
+            &setup,
+            self.targets.as_deref(),
+            &self.target,
+        )?;
         let targets = Targets::new(&setup, &goals)?;
         Ok((setup, goals, targets))
     }
@@ -87,7 +91,7 @@ impl Which {
         let Some(path) = &self.png else {
             return Ok(());
         };
-        let view = mocomp_app::placement::view(setup, goals, configured, found)?;
+        let view = mocomp_app::navigation::placement::view(setup, goals, configured, found)?;
         let png = mocomp_report::placement::png(&view)?;
         std::fs::write(path, png).map_err(|e| anyhow::anyhow!("--png {}: {e}", path.display()))?;
         if !self.json {
@@ -138,7 +142,7 @@ fn search(s: &SearchCmd, out: &mut dyn Write) -> anyhow::Result<()> {
         .check()
         .map_err(|e| crate::UsageError(e.to_string()))?;
     let centre = setup.file.tracker.simulated.base_from_head.iso();
-    let found = mocomp_app::placement::search(&targets, &centre, &region, |p| {
+    let found = mocomp_app::navigation::placement::search(&targets, &centre, &region, |p| {
         setup.initial_joints_at(p).ok()
     });
     let searched = report::Searched::new(&found, &centre, &region)?;

@@ -1,5 +1,5 @@
 //! `mocomp pointer calibrate`: a tracked pointer's tip from pivoting it on a divot, its poses
-//! streamed over OpenIGTLink ([`mocomp_app::pointer`]), written to a file.
+//! streamed over OpenIGTLink ([`mocomp_app::registration::pointer`]), written to a file.
 
 use clap::{Args, Subcommand};
 use std::io::Write;
@@ -75,17 +75,19 @@ impl PointerCmd {
             "pivot the tip of {} in a divot, turning it every way, until {} poses are in",
             c.device, c.samples
         );
-        let calibrated = mocomp_app::pointer::collect(
+        let calibrated = mocomp_app::registration::pointer::collect(
             &c.igtl,
             &c.device,
             c.samples,
             Duration::from_secs_f64(c.timeout),
             &mut |n| page.samples(n, c.samples),
         )
-        .and_then(|(poses, invalid)| mocomp_app::pointer::calibrate(&c.device, &poses, invalid));
+        .and_then(|(poses, invalid)| {
+            mocomp_app::registration::pointer::calibrate(&c.device, &poses, invalid)
+        });
         let p = calibrated.inspect_err(|e| page.failed(&e.to_string()))?;
         page.pivoted(&p);
-        mocomp_app::pointer::save(&c.out, &p)?;
+        mocomp_app::registration::pointer::save(&c.out, &p)?;
         if c.json {
             writeln!(out, "{}", serde_json::to_string(&p)?)?;
         } else {

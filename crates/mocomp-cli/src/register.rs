@@ -1,14 +1,14 @@
 //! `mocomp register`: patient-to-image registration with the calibrated pointer
-//! ([`mocomp_app::register`]): the landmarks touched in turn, the scalp swept, the result written
+//! ([`mocomp_app::registration::register`]): the landmarks touched in turn, the scalp swept, the result written
 //! with what it is worth; `mocomp register check`: whether the head marker moved on the head
 //! since.
 
 use clap::{Args, Subcommand};
 use mocomp_app::config::Setup;
-use mocomp_app::register::{Asked, Follow};
-use mocomp_app::register_open::{Opened, Source};
-use mocomp_app::register_report as report;
-use mocomp_app::rehearsal::ask_for;
+use mocomp_app::registration::open::{Opened, Source};
+use mocomp_app::registration::register::{Asked, Follow};
+use mocomp_app::registration::rehearsal::ask_for;
+use mocomp_app::registration::report;
 use mocomp_sim::operator::Ask;
 use std::io::Write;
 use std::path::PathBuf;
@@ -82,7 +82,7 @@ impl Common {
             pointer: self.pointer.clone(),
             timeout: Duration::from_secs_f64(self.timeout),
         };
-        let o = mocomp_app::register_open::open(setup, &source)?;
+        let o = mocomp_app::registration::open::open(setup, &source)?;
         if let Some(said) = &o.said {
             writeln!(progress, "{said}")?;
         }
@@ -164,7 +164,7 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
         sweep_points: a.sweep_points.unwrap_or(section.sweep_points),
     };
     // The image's landmarks on the scalp before a pointer is pivoted or a tip read.
-    mocomp_app::register::check_landmarks(&setup, &asked.landmarks)?;
+    mocomp_app::registration::register::check_landmarks(&setup, &asked.landmarks)?;
     let o = a.common.open(setup, progress)?;
     let controls = mocomp_app::frontend::Controls::new();
     let console = a.dashboard.start(&o.setup, &controls, progress)?;
@@ -172,7 +172,7 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     if console.is_some() {
         page.wait_for_go(&controls)?;
     }
-    let result = mocomp_app::register::register_live(
+    let result = mocomp_app::registration::register::register_live(
         &o.setup,
         &o.streams,
         &o.pointer,
@@ -184,7 +184,7 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let truth = o.true_errors(&r)?;
     let written = match &r.file {
         Some(file) => {
-            mocomp_app::registration_file::save(&a.out, file)?;
+            mocomp_app::config::registration_file::save(&a.out, file)?;
             Some(a.out.display().to_string())
         }
         None => None,
@@ -205,7 +205,7 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
             )?;
         }
     }
-    match mocomp_app::register::refused(&r) {
+    match mocomp_app::registration::register::refused(&r) {
         Some(e) => Err(e.into()),
         None => Ok(()),
     }
@@ -215,7 +215,7 @@ fn check(c: CheckArgs, out: &mut dyn Write) -> anyhow::Result<()> {
     let setup = c.common.load()?;
     let o = c.common.open(setup, &mut std::io::stderr())?;
     o.ask(Ask::Touch(c.landmark.clone()));
-    let r = mocomp_app::register::check_live(
+    let r = mocomp_app::registration::register::check_live(
         &o.setup,
         &o.streams,
         &o.pointer,

@@ -4,7 +4,7 @@
 use crate::dashboard::DashboardArgs;
 use clap::Args;
 use mocomp_app::frontend::{Both, Controls, Observer};
-use mocomp_app::ros2::Ros2FrontEnd;
+use mocomp_app::live::ros2::Ros2FrontEnd;
 use mocomp_app::{AppError, config::Setup};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -93,7 +93,7 @@ impl RunCmd {
         let mut observer: Box<dyn Observer> = if self.quiet {
             Box::new(mocomp_app::frontend::Silent)
         } else {
-            Box::new(mocomp_app::live_log::Lines(std::io::stderr()))
+            Box::new(mocomp_app::live::logger::Lines(std::io::stderr()))
         };
         if let Some(c) = &console {
             observer = Box::new(Both(observer, c.observer()));
@@ -102,12 +102,13 @@ impl RunCmd {
             observer = Box::new(Both(observer, o));
         }
         if let Some(addr) = &self.slicer {
-            let slicer = mocomp_app::slicer::Slicer::serve(&setup, addr, self.slicer_rate_hz)?;
+            let slicer =
+                mocomp_app::live::slicer::Slicer::serve(&setup, addr, self.slicer_rate_hz)?;
             writeln!(
                 progress,
                 "3D Slicer: OpenIGTLink on {} ({}, image RAS)",
                 slicer.local_addr(),
-                mocomp_app::slicer::DEVICES.join(", ")
+                mocomp_app::live::slicer::DEVICES.join(", ")
             )?;
             observer = Box::new(Both(observer, slicer));
         }

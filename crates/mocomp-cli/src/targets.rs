@@ -1,5 +1,5 @@
 //! `mocomp targets list|add|delete|grid --file FILE`: the session's named targets
-//! ([`mocomp_app::targets`]).
+//! ([`mocomp_app::navigation::targets`]).
 
 use crate::UsageError;
 use anyhow::Context;
@@ -138,7 +138,7 @@ struct ImportCmd {
     from_file: PathBuf,
     /// Which navigator wrote it.
     #[arg(long, value_name = "simnibs|localite|brainsight|slicer")]
-    from: mocomp_app::target_import::Source,
+    from: mocomp_app::navigation::target_import::Source,
     /// The configuration whose `[head]` holds the scan and head_from_image.
     #[arg(long, value_name = "FILE")]
     config: PathBuf,
@@ -152,7 +152,7 @@ impl ImportCmd {
         let setup = Setup::load(&self.config)?;
         let text = std::fs::read_to_string(&self.from_file)
             .with_context(|| format!("reading {}", self.from_file.display()))?;
-        let found = mocomp_app::target_import::import(
+        let found = mocomp_app::navigation::target_import::import(
             &setup,
             self.from,
             &self.from_file.display().to_string(),
@@ -160,7 +160,7 @@ impl ImportCmd {
             standoff_m(self.standoff_mm)?,
             &mocomp_nav::Handle::default(),
         )?;
-        mocomp_app::targets::teach_all(file, &found)?;
+        mocomp_app::navigation::targets::teach_all(file, &found)?;
         for t in &found {
             writeln!(out, "{}", t.line())?;
         }
@@ -182,7 +182,7 @@ fn standoff_m(mm: f64) -> Result<f64, UsageError> {
 
 impl AddCmd {
     fn spec(&self) -> anyhow::Result<TargetSpec> {
-        use mocomp_app::affine_file::read_affine;
+        use mocomp_app::files::affine::read_affine;
         Ok(match (self.image, self.mni, &self.eeg) {
             (Some(p), _, _) => TargetSpec::Image(p),
             (_, Some(p), _) => TargetSpec::Mni(
@@ -224,9 +224,13 @@ impl AddCmd {
         if let (Some(map), Some(path)) = (&placed.dose, &self.dose_map) {
             mocomp_app::navigation::write_dose_map(path, map)?;
         }
-        mocomp_app::targets::teach_all(file, std::slice::from_ref(&placed.target))?;
+        mocomp_app::navigation::targets::teach_all(file, std::slice::from_ref(&placed.target))?;
         write!(out, "{placed}")?;
-        let reach = mocomp_app::target_report::reach_lines(&setup, &placed.target, &self.config)?;
+        let reach = mocomp_app::navigation::target_report::reach_lines(
+            &setup,
+            &placed.target,
+            &self.config,
+        )?;
         for line in reach {
             writeln!(out, "{line}")?;
         }
@@ -239,14 +243,14 @@ impl TargetsCmd {
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         match self.command {
             TargetsCommand::List { json } => {
-                for t in &mocomp_app::targets::load(&self.file)?.targets {
+                for t in &mocomp_app::navigation::targets::load(&self.file)?.targets {
                     writeln!(out, "{}", if json { t.json() } else { t.line() })?;
                 }
             }
             TargetsCommand::Add(add) => return add.run(&self.file, out),
             TargetsCommand::Import(import) => return import.run(&self.file, out),
             TargetsCommand::Delete { name } => {
-                mocomp_app::targets::delete(&self.file, &name)?;
+                mocomp_app::navigation::targets::delete(&self.file, &name)?;
                 writeln!(out, "deleted {name}")?;
             }
             TargetsCommand::Grid {
@@ -262,7 +266,8 @@ impl TargetsCmd {
                     rows,
                     cols,
                 };
-                let names = mocomp_app::targets::add_grid(&self.file, &setup, &name, &p)?;
+                let names =
+                    mocomp_app::navigation::targets::add_grid(&self.file, &setup, &name, &p)?;
                 writeln!(out, "added {} targets: {}", names.len(), names.join(", "))?;
             }
         }

@@ -1,5 +1,5 @@
 //! `mocomp teach-goal --config FILE`: the coil's current pose relative to the head becomes the
-//! goal ([`mocomp_app::teach`]), written into the file in place.
+//! goal ([`mocomp_app::robot::teach`]), written into the file in place.
 
 use clap::Args;
 use mocomp_app::config::Setup;
@@ -36,15 +36,15 @@ impl TeachCmd {
     /// Runs it.
     pub fn run(self, out: &mut dyn Write) -> anyhow::Result<()> {
         let setup = Setup::load(&self.config)?;
-        let t = mocomp_app::teach::teach(&setup, self.samples, out)?;
+        let t = mocomp_app::robot::teach::teach(&setup, self.samples, out)?;
         write!(out, "{}", t.text())?;
         if let Some(name) = &self.name {
-            let file = mocomp_app::targets::session_file(&setup);
+            let file = mocomp_app::navigation::targets::session_file(&setup);
             if self.dry_run {
                 writeln!(out, "--dry-run: {} not changed", file.display())?;
                 return Ok(());
             }
-            mocomp_app::targets::write_taught(&file, name, &self.note, &t)?;
+            mocomp_app::robot::teach::write_taught(&file, name, &self.note, &t)?;
             writeln!(out, "wrote target {name:?} to {}", file.display())?;
             return Ok(());
         }
@@ -52,7 +52,7 @@ impl TeachCmd {
             writeln!(out, "--dry-run: {} not changed", self.config.display())?;
             return Ok(());
         }
-        mocomp_app::teach::write_goal(&self.config, &t)?;
+        mocomp_app::robot::teach::write_goal(&self.config, &t)?;
         writeln!(out, "wrote the goal to {}", self.config.display())?;
         Ok(())
     }

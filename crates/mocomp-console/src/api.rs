@@ -281,7 +281,7 @@ async fn config(State(api): State<Api>, headers: HeaderMap) -> Response {
     }
     axum::Json(json!({
         "config": api.shared.config(),
-        "live_sections": mocomp_app::tuning::LIVE_SECTIONS,
+        "live_sections": mocomp_app::live::tuning::LIVE_SECTIONS,
         "authorized": api.token.carried_by(&headers),
     }))
     .into_response()
@@ -301,7 +301,7 @@ async fn params(State(api): State<Api>, headers: HeaderMap, body: Bytes) -> Resp
                 .into_response();
         }
     };
-    let tuned = match mocomp_app::tuning::apply(&api.shared.config(), &patch) {
+    let tuned = match mocomp_app::live::tuning::apply(&api.shared.config(), &patch) {
         Ok(t) => t,
         Err(refusal) => {
             return (
@@ -448,7 +448,7 @@ async fn target(State(api): State<Api>, headers: HeaderMap, body: Bytes) -> Resp
         Ok(r) => r,
         Err(e) => return refuse(StatusCode::BAD_REQUEST, &format!("body: {e}")),
     };
-    match mocomp_app::live_session::select_target(
+    match mocomp_app::live::session::select_target(
         &api.shared.config(),
         &api.shared.controls,
         &req.name,
@@ -462,7 +462,7 @@ fn set_freedrive(api: &Api, headers: &HeaderMap, on: bool) -> Response {
     if let Err(r) = api.may_change(headers) {
         return r;
     }
-    match mocomp_app::live_session::set_freedrive(&api.shared.controls, on) {
+    match mocomp_app::live::session::set_freedrive(&api.shared.controls, on) {
         Ok(()) => axum::Json(json!({ "freedrive": on })).into_response(),
         Err(e) => refuse(StatusCode::CONFLICT, &e.to_string()),
     }
@@ -528,7 +528,7 @@ async fn teach(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Resp
     // Averaging and the file's rewrite take a while: off the server's thread.
     let done = tokio::task::spawn_blocking(move || -> Result<serde_json::Value, String> {
         let setup = &shared.setup;
-        let taught = mocomp_app::teach::teach_live(setup, &shared.teach_window())
+        let taught = mocomp_app::robot::teach::teach_live(setup, &shared.teach_window())
             .map_err(|e| e.to_string())?;
         shared
             .controls
@@ -541,7 +541,7 @@ async fn teach(State(api): State<Api>, headers: HeaderMap, _body: Bytes) -> Resp
         // Kept across restarts: the configuration file gets the goal, its comments kept.
         let written = match &setup.path {
             Some(path) => {
-                mocomp_app::teach::write_goal(path, &taught).map_err(|e| {
+                mocomp_app::robot::teach::write_goal(path, &taught).map_err(|e| {
                     format!("the goal is in use, but writing it to the file failed: {e}")
                 })?;
                 Some(path.display().to_string())

@@ -17,9 +17,9 @@ pub mod page;
 pub mod state;
 
 use auth::{Site, Token};
-use mocomp_app::collect::Progress;
 use mocomp_app::config::Setup;
 use mocomp_app::frontend::Controls;
+use mocomp_app::robot::collect::Progress;
 use state::{CalibrationJson, ConsoleObserver, Frames, Shared};
 use std::io::Write;
 use std::net::{SocketAddr, TcpListener};
@@ -298,7 +298,7 @@ fn write_secret(path: &Path, secret: &str) -> std::io::Result<()> {
 }
 
 /// The console shows `mocomp demo`: its phases and each controller's run.
-impl mocomp_app::demo_run::DemoFront for Console {
+impl mocomp_app::demo::run::DemoFront for Console {
     fn phase(&self, what: &str) {
         Console::phase(self, what);
     }

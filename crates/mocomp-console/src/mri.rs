@@ -114,7 +114,7 @@ impl MriView {
             .units
             .as_deref()
             .and_then(|u| mocomp_head::formats::parse_unit(u).ok());
-        let volume = match mocomp_app::head_file::read_image(&path, unit) {
+        let volume = match mocomp_app::files::head::read_image(&path, unit) {
             Ok(v) => v,
             Err(e) => return none(format!("no MRI: {e}")),
         };
@@ -148,7 +148,7 @@ impl MriView {
                     .collect()
             })
             .unwrap_or_default();
-        let targets = mocomp_app::live_session::SessionSetup::from_setup(setup)
+        let targets = mocomp_app::live::session::SessionSetup::from_setup(setup)
             .map(|s| {
                 s.targets
                     .iter()
@@ -204,5 +204,5 @@ impl MriView {
 }
 
 fn is_nifti(p: &Path) -> bool {
-    mocomp_app::head_file::nifti_extension(p).is_some()
+    mocomp_app::files::head::nifti_extension(p).is_some()
 }

@@ -60,7 +60,7 @@ impl<'a> Page<'a> {
         let prompt = p.prompt();
         let step = match &prompt {
             Prompt::Touch(_) | Prompt::TakeAway(_) => {
-                mocomp_app::register::prompt_line(&prompt).unwrap_or_default()
+                mocomp_app::registration::register::prompt_line(&prompt).unwrap_or_default()
             }
             Prompt::Sweep {
                 region: Some(r), ..
@@ -118,7 +118,7 @@ impl<'a> Page<'a> {
     }
 
     /// The pointer is calibrated.
-    pub fn pivoted(&mut self, p: &mocomp_app::pointer::Pointer) {
+    pub fn pivoted(&mut self, p: &mocomp_app::registration::pointer::Pointer) {
         self.shown.state = "done";
         let [x, y, z] = p.tip_in_marker_mm;
         self.shown.result = vec![

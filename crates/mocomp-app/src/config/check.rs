@@ -25,7 +25,7 @@ impl Config {
         }
         Check::positive("coil.radius_m", self.coil.radius_m)?;
         Check::positive("coil.thickness_m", self.coil.thickness_m)?;
-        crate::coil_config::check(&self.coil)?;
+        coil::check(&self.coil)?;
         self.servo.check()?;
         self.robot.check()?;
         Ok(())

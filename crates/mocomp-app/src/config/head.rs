@@ -8,11 +8,11 @@ use super::*;
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LoadedHead {
     /// The registration as read, and the file's absolute path.
-    pub registered: Option<(PathBuf, crate::registration_file::Record)>,
+    pub registered: Option<(PathBuf, registration_file::Record)>,
     /// The mesh as read, mended and built.
     pub model: Option<HeadModel>,
     /// Where the loaded mesh's scalp came from (a T1's segmented now or kept from before).
-    pub scalp_from: Option<crate::head_file::ScalpFrom>,
+    pub scalp_from: Option<crate::files::head::ScalpFrom>,
 }
 
 /// `[head]`: the patient's scalp from a scan (`mesh`), or else an ellipsoid, in the head
@@ -94,7 +94,7 @@ impl Config {
             .map(|c| c.side)
             .filter(|s| *s != "inferior")
             .collect();
-        let kept = self.loaded.scalp_from == Some(crate::head_file::ScalpFrom::Kept);
+        let kept = self.loaded.scalp_from == Some(crate::files::head::ScalpFrom::Kept);
         (!sides.is_empty()).then(|| {
             if kept {
                 return format!(
@@ -169,7 +169,7 @@ impl Config {
             return Ok(());
         }
         let path = dir.join(file);
-        let read = crate::registration_file::load(&path)
+        let read = registration_file::load(&path)
             .map_err(|e| AppError::Config(format!("head.registration: {e}")))?;
         let record = read.registration;
         self.head.head_from_image = Pose::try_from(record.head_from_image)
@@ -187,7 +187,7 @@ impl Config {
     /// where it is).
     pub fn load_head(&mut self, dir: &Path) -> Result<(), AppError> {
         self.load_registration(dir)?;
-        crate::coil_config::resolve(&mut self.coil, dir)?;
+        coil::resolve(&mut self.coil, dir)?;
         self.load_landmarks(dir)?;
         let Some(mesh) = &self.head.mesh else {
             return Ok(());
@@ -204,8 +204,12 @@ impl Config {
             ),
         };
         let segment = self.segment_options()?;
-        let (head, from) =
-            crate::head_file::load_head(&path, units, &segment, &self.head.head_from_image.iso())?;
+        let (head, from) = crate::files::head::load_head(
+            &path,
+            units,
+            &segment,
+            &self.head.head_from_image.iso(),
+        )?;
         self.loaded.scalp_from = Some(from);
         // Absolute from now on, so a printed configuration reads the same file wherever it is.
         self.head.mesh = Some(std::fs::canonicalize(&path).unwrap_or(path));

@@ -11,16 +11,23 @@
 //!
 //! Unknown keys and bad values are refused naming the key's path (and, where the TOML itself is
 //! at fault, its line). Choices are enums; poses are [`Pose`]; ranges go through [`Check`].
+
 mod check;
+pub mod coil;
 mod collect;
 mod experiment;
 mod frames;
 mod head;
 mod pose;
+pub mod range;
+pub mod reference;
+pub mod registration;
+pub mod registration_file;
 mod robot;
 mod ros2;
 mod session;
 mod setup;
+pub mod template;
 mod tracker;
 
 pub use collect::*;
@@ -34,8 +41,8 @@ pub use session::*;
 pub use setup::*;
 pub use tracker::*;
 
-pub use crate::coil_config::CoilSection;
-pub use crate::config_check::Check;
+pub use crate::config::coil::CoilSection;
+pub use crate::config::range::Check;
 use crate::{AppError, Context};
 use mocomp_control::baseline::PaperController;
 use mocomp_control::{CoilModel, HeadModel, LoopConfig, LoopParams, PredictorConfig};
@@ -72,7 +79,7 @@ pub struct Config {
     /// The head's collision model.
     pub head: HeadSection,
     /// `mocomp register`: patient-to-image registration.
-    pub registration: crate::registration_config::RegistrationSection,
+    pub registration: registration::RegistrationSection,
     /// The coil's collision model.
     pub coil: CoilSection,
     /// servoj settings.

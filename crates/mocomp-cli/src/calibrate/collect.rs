@@ -1,11 +1,11 @@
 //! `mocomp calibrate collect --config FILE`: the calibration collection on the live robot
-//! ([`mocomp_app::collect`]) with a progress bar; prints the report and where it was saved.
+//! ([`mocomp_app::robot::collect`]) with a progress bar; prints the report and where it was saved.
 
 use crate::dashboard::DashboardArgs;
 use clap::Args;
-use mocomp_app::collect::Progress;
 use mocomp_app::config::Setup;
 use mocomp_app::frontend::Controls;
+use mocomp_app::robot::collect::Progress;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -48,7 +48,7 @@ impl CollectCmd {
             self.quiet,
         );
         bar.set_prefix("collecting");
-        let result = mocomp_app::collect::collect(
+        let result = mocomp_app::robot::collect::collect(
             &setup,
             self.out.as_deref(),
             out,

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use mocomp_app::servo_check::StateReport;
+use mocomp_app::robot::servo_check::StateReport;
 use mocomp_kin::Model;
 use std::io::Write;
 use std::net::IpAddr;

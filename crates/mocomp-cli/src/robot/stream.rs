@@ -1,8 +1,8 @@
-//! `mocomp robot stream`: the servo streaming check ([`mocomp_app::servo_check`]), printed.
+//! `mocomp robot stream`: the servo streaming check ([`mocomp_app::robot::servo_check`]), printed.
 
 use anyhow::{Result, bail};
 use clap::Args;
-use mocomp_app::servo_check::{StreamOptions, stream};
+use mocomp_app::robot::servo_check::{StreamOptions, stream};
 use mocomp_kin::Model;
 use std::io::Write;
 use std::net::IpAddr;

@@ -1,12 +1,12 @@
 //! `mocomp track`: fiducial tracking in a directory of IR + depth frames
-//! ([`mocomp_app::frames`]) or an Azure Kinect recording ([`mocomp_app::k4a`]), one line per
+//! ([`mocomp_app::camera::frames`]) or an Azure Kinect recording ([`mocomp_app::camera::k4a_recording`]), one line per
 //! frame; `track render` writes such a directory (and recording).
 
 mod render;
 
 use anyhow::Result;
 use clap::{Args, Subcommand};
-use mocomp_app::{frames, k4a};
+use mocomp_app::camera::{frames, k4a_recording as k4a};
 use mocomp_vision::{FrameResult, TrackParams, Tracker};
 use std::io::Write;
 use std::path::PathBuf;

@@ -4,8 +4,8 @@
 use crate::args::DepthModeArg;
 use anyhow::Result;
 use clap::Args;
-use mocomp_app::frames::{self, RenderOptionsDir};
-use mocomp_app::k4a;
+use mocomp_app::camera::frames::{self, RenderOptionsDir};
+use mocomp_app::camera::k4a_recording as k4a;
 use mocomp_vision::Intrinsics;
 use std::io::Write;
 use std::path::PathBuf;
@@ -67,9 +67,15 @@ impl RenderCmd {
             _ => Intrinsics::kinect_v2(),
         };
         let mut recording = match (&self.recording, &self.k4a_calibration, &sdk) {
-            (Some(path), Some(c), Some(sdk)) => Some(
-                mocomp_app::k4a_record::RecordingSink::create(sdk, path, mode, mode.max_fps(), c)?,
-            ),
+            (Some(path), Some(c), Some(sdk)) => {
+                Some(mocomp_app::camera::k4a_writer::RecordingSink::create(
+                    sdk,
+                    path,
+                    mode,
+                    mode.max_fps(),
+                    c,
+                )?)
+            }
             _ => None,
         };
         let o = RenderOptionsDir {
