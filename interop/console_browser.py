@@ -169,6 +169,15 @@ def browser():
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
                 "--window-size=1400,1200", "--no-first-run", "--disable-extensions"):
         options.add_argument(arg)
+    # Nothing of the browser's own beside the page: a non-root run on a starved machine once
+    # took 103 s to type five keys and 165 s to click, while Chromium's on-device model service
+    # failed to load its GPU backend in the same minutes; and a test browser has no
+    # use for background downloads, component updates, sync or translation either.
+    for arg in ("--disable-background-networking", "--disable-component-update",
+                "--disable-default-apps", "--disable-sync",
+                "--disable-features=OptimizationGuideOnDeviceModel,OptimizationGuideModelExecution,"
+                "OptimizationHints,Translate,MediaRouter,AutofillServerCommunication"):
+        options.add_argument(arg)
     # The driver's log of each command and the browser's answer, with times: shown when the
     # helper fails, so a command that hangs says where (the page, the driver or the machine).
     service = Service(executable_path=os.environ.get("MOCOMP_CHROMEDRIVER", "/usr/bin/chromedriver"),
