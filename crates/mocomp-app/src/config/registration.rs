@@ -25,8 +25,7 @@ use crate::AppError;
 use mocomp_nav::{CaptureOptions, Limits, NoiseModel, Settings, SweepOptions, Target};
 use serde::{Deserialize, Serialize};
 
-/// Millimetres in a metre.
-const MM_PER_M: f64 = 1000.0;
+use mocomp_geom::units::MM_PER_M;
 
 /// How a touch is told apart under `noise`: a burst of tips is still when every tip is within
 /// 4 σ of the tracked tip's noise of its median (1 mm at least).

@@ -5,8 +5,7 @@ use crate::navigation::{LANDMARK_OFF_SCALP_WARN_M, mm_from_point};
 use mocomp_nav::EegPosition;
 use serde_json::{Map, Value, json};
 
-/// Millimetres in a metre.
-const MM_PER_M: f64 = 1000.0;
+use mocomp_geom::units::MM_PER_M;
 
 /// A position's line: name, then x, y, z in mm (image RAS).
 pub fn line(p: &EegPosition) -> String {

@@ -21,9 +21,7 @@ use mocomp_nav::{
 };
 use mocomp_session::Target;
 
-/// Millimetres in a metre: the configuration's and the command line's landmarks and targets
-/// are in mm.
-const MM_PER_M: f64 = 1000.0;
+use mocomp_geom::units::MM_PER_M;
 
 /// A point given in millimetres, in metres.
 pub fn point_from_mm(mm: [f64; 3]) -> Point3<f64> {

@@ -10,8 +10,7 @@ use serde_json::{Value, json};
 use std::fmt;
 use std::path::Path;
 
-/// Millimetres in a metre.
-const MM_PER_M: f64 = 1000.0;
+use mocomp_geom::units::MM_PER_M;
 
 /// Each target's reach as JSON: reachable, the rule that refuses it, the way there, the arm at
 /// the goal.

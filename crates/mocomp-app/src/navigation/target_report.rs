@@ -10,8 +10,7 @@ use mocomp_session::Target;
 use std::fmt;
 use std::path::Path;
 
-/// Millimetres in a metre.
-const MM_PER_M: f64 = 1000.0;
+use mocomp_geom::units::MM_PER_M;
 
 /// A placed target as a person reads it.
 impl fmt::Display for Placed {

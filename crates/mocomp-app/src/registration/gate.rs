@@ -7,8 +7,7 @@ use crate::config::Setup;
 use mocomp_geom::nalgebra::{Isometry3, Point3};
 use mocomp_head::{HeadShape, Reframed};
 
-/// Millimetres in a metre (the file's and the threshold's unit).
-const MM_PER_M: f64 = 1000.0;
+use mocomp_geom::units::MM_PER_M;
 
 /// The registration's error bound at the goal compensation starts on, against `[head]
 /// max_tre_mm`: `Ok(note)` to print when it is within, or when the operator overrides it with

@@ -8,8 +8,7 @@ use mocomp_nav::CONFIDENCE;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 
-/// Millimetres in a metre.
-const MM_PER_M: f64 = 1000.0;
+use mocomp_geom::units::MM_PER_M;
 
 /// The report's lines; `truth` is a rehearsal's true error at each target (m).
 pub fn lines(r: &Registered, truth: Option<&[(String, f64)]>) -> Vec<String> {
