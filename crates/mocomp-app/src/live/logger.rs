@@ -63,6 +63,9 @@ pub(crate) struct Summary {
     /// The controller's time of the last cycle's state (NaN: none).
     last_robot_s: f64,
     missed: u64,
+    /// Cycles run on a state an earlier cycle had answered (none newer came within the loop's
+    /// patience): cycles of the loop's, not the controller's.
+    repeated: u64,
     period_ms: Vec<f64>,
     compute_us: Vec<f64>,
     delay_ms: Vec<f64>,
@@ -165,6 +168,13 @@ fn unanswered(robot_s: (f64, f64), t: (f64, f64), period: f64) -> u64 {
     } else {
         0
     }
+}
+
+/// This cycle's state is the one the last cycle answered (by the controller's time of it): the
+/// loop waited its patience for a newer one and cycled anyway to keep the controller's watchdog
+/// fed. A controller restarted from zero sends new states whose times repeat none.
+fn answered_again(last_robot_s: f64, robot_s: f64) -> bool {
+    last_robot_s.is_finite() && robot_s == last_robot_s
 }
 
 pub(crate) fn logger(
@@ -273,6 +283,9 @@ fn tally(s: &mut Summary, r: &CycleRecord, period: f64) -> Option<f64> {
     } else {
         s.period_ms.push((r.t - s.last_t) * 1e3);
         s.missed += unanswered((s.last_robot_s, r.robot_s), (s.last_t, r.t), period);
+        if answered_again(s.last_robot_s, r.robot_s) {
+            s.repeated += 1;
+        }
     }
     s.last_t = r.t;
     s.last_robot_s = r.robot_s;
@@ -396,6 +409,11 @@ pub struct RunReport {
     pub missed_cycles: u64,
     /// Of all periods.
     pub missed_percent: f64,
+    /// Cycles run on a state an earlier cycle had already answered (no newer one came within the
+    /// loop's patience, so it resent its command rather than let the controller's watchdog
+    /// starve): counted in `cycles`, so `cycles − repeated_cycles + missed_cycles` is the
+    /// controller's cycles over the run.
+    pub repeated_cycles: u64,
     /// Records the logger could not take (it fell behind); the loop never waits for it.
     pub log_records_dropped: u64,
     /// Cycle period, median.
@@ -559,12 +577,13 @@ impl RunReport {
         writeln!(out, "\nsummary")?;
         writeln!(
             out,
-            "  cycles            {} in {:.2} s ({:.1} Hz); missed {} ({:.2} %); log records dropped {}",
+            "  cycles            {} in {:.2} s ({:.1} Hz); missed {} ({:.2} %); on a state already answered {}; log records dropped {}",
             r.cycles,
             r.seconds,
             r.rate_hz,
             r.missed_cycles,
             r.missed_percent,
+            r.repeated_cycles,
             r.log_records_dropped
         )?;
         writeln!(
@@ -748,7 +767,9 @@ impl RunReport {
             seconds: span,
             rate_hz: s.cycles.saturating_sub(1) as f64 / span.max(1e-9),
             missed_cycles: s.missed,
-            missed_percent: 100.0 * s.missed as f64 / (s.cycles + s.missed).max(1) as f64,
+            missed_percent: 100.0 * s.missed as f64
+                / (s.cycles - s.repeated + s.missed).max(1) as f64,
+            repeated_cycles: s.repeated,
             log_records_dropped: s.dropped,
             period_median_ms: percentile(&mut s.period_ms, 0.5),
             period_p99_ms: percentile(&mut s.period_ms, 0.99),
@@ -894,9 +915,12 @@ impl std::fmt::Display for NotReached {
 
 #[cfg(test)]
 mod tests {
-    use super::{Event, Reason, RunReport, StopOutcome, Summary, protective_stops, unanswered};
+    use super::{
+        Event, Reason, RunReport, StopOutcome, Summary, answered_again, protective_stops, tally,
+        unanswered,
+    };
     use crate::live::session::SessionReport;
-    use mocomp_control::Mode;
+    use mocomp_control::{CycleRecord, Mode};
 
     #[test]
     fn a_run_that_never_tracked_has_no_deviation_figure_and_one_that_did_has_its_rms() {
@@ -937,6 +961,44 @@ mod tests {
         );
         // A controller restarted from zero is no gap.
         assert_eq!(unanswered((5.0, 0.002), (1.0, 1.002), p), 0);
+    }
+
+    /// A cycle the loop ran on a state it had answered (none newer within its patience) is one
+    /// of the loop's cycles and none of the controller's: with the missed ones, the cycles on
+    /// new states are the controller's, however the loop's patience ran out.
+    #[test]
+    fn cycles_on_a_state_already_answered_are_counted_apart_from_the_controllers() {
+        let p = 0.002;
+        // The controller's 8 cycles 0.100..0.114: the loop answers 0.100, 0.102, waits out its
+        // patience twice on 0.102, answers 0.104, skips 0.106 and 0.108, answers 0.110..0.114.
+        let robot = [0.100, 0.102, 0.102, 0.102, 0.104, 0.110, 0.112, 0.114];
+        let mut s = Summary::default();
+        for (k, robot_s) in robot.iter().enumerate() {
+            let mut r = CycleRecord::new(1.0 + 0.002 * k as f64, Mode::Tracking, [0.0; 6]);
+            r.robot_s = *robot_s;
+            tally(&mut s, &r, p);
+        }
+        let report = RunReport::new(
+            &mut s,
+            None,
+            &Mode::Tracking,
+            StopOutcome::Standstill { after_s: 0.1 },
+            SessionReport::default(),
+        );
+        assert_eq!(report.cycles, 8);
+        assert_eq!(report.repeated_cycles, 2);
+        assert_eq!(report.missed_cycles, 2);
+        let controllers = report.cycles - report.repeated_cycles + report.missed_cycles;
+        assert_eq!(controllers, 8);
+        assert!(
+            (report.missed_percent - 25.0).abs() < 1e-9,
+            "{}",
+            report.missed_percent
+        );
+        // Without the controller's clock nothing says a state repeated.
+        assert!(!answered_again(f64::NAN, f64::NAN));
+        assert!(!answered_again(f64::NAN, 0.1));
+        assert!(answered_again(0.1, 0.1));
     }
 
     #[test]
