@@ -20,6 +20,8 @@ case "${1:-build}" in
     fi
     "$BIN/mocomp" config reference > book/src/reference/configuration.md
     python3 scripts/book_crates.py > book/src/contributing/crates.md
+    python3 scripts/book_links.py --self-test
+    python3 scripts/book_links.py book/src
     .tools/bin/mdbook build book
     ;;
   *)
