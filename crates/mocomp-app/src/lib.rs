@@ -90,6 +90,21 @@ pub enum AppError {
     },
 }
 
+/// An error and each of its causes in one line (`what: why: why`), for a page that shows no
+/// chain: a console saying only "calibrate collect stopped the robot" leaves the operator
+/// without the reason. A cause whose words its error already says is not said twice.
+pub fn in_full(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut out = e.to_string();
+    for cause in std::iter::successors(e.source(), |c| c.source()) {
+        let words = cause.to_string();
+        if !words.is_empty() && !out.contains(&words) {
+            out.push_str(": ");
+            out.push_str(&words);
+        }
+    }
+    out
+}
+
 /// A navigator's file that is not what it should be is bad input, as the configuration is.
 impl From<mocomp_navfiles::FileError> for AppError {
     fn from(e: mocomp_navfiles::FileError) -> Self {
@@ -116,5 +131,29 @@ pub trait Context<T> {
 impl<T, E: Into<Cause>> Context<T> for Result<T, E> {
     fn what<S: Into<String>>(self, what: impl FnOnce() -> S) -> Result<T, AppError> {
         self.map_err(|e| AppError::failed(what(), e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)] // test code
+    use super::{AppError, in_full};
+
+    /// The console's failure line carries the reason, however deep, once.
+    #[test]
+    fn an_error_in_full_names_every_cause_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::TimedOut, "no robot state for 250 ms");
+        let inner = AppError::failed("the move to pose 5 did not arrive", io);
+        let outer = AppError::failed("calibrate collect stopped the robot", inner);
+        assert_eq!(
+            in_full(&outer),
+            "calibrate collect stopped the robot: the move to pose 5 did not arrive: \
+             no robot state for 250 ms"
+        );
+        // A message that already says its cause's words does not repeat them.
+        let io = std::io::Error::other("disk full");
+        let said = AppError::failed("writing the log: disk full", io);
+        assert_eq!(in_full(&said), "writing the log: disk full");
+        assert_eq!(in_full(&AppError::Refused("no".into())), "no");
     }
 }

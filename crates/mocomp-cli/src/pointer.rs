@@ -85,7 +85,7 @@ impl PointerCmd {
         .and_then(|(poses, invalid)| {
             mocomp_app::registration::pointer::calibrate(&c.device, &poses, invalid)
         });
-        let p = calibrated.inspect_err(|e| page.failed(&e.to_string()))?;
+        let p = calibrated.inspect_err(|e| page.failed(&mocomp_app::in_full(e)))?;
         page.pivoted(&p);
         mocomp_app::registration::pointer::save(&c.out, &p)?;
         if c.json {

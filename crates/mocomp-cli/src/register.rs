@@ -180,7 +180,7 @@ fn live(a: LiveArgs, out: &mut dyn Write) -> anyhow::Result<()> {
         &mut Shown { page: &mut page },
         &mut |p| o.ask(ask_for(p)),
     );
-    let r = result.inspect_err(|e| page.failed(&e.to_string()))?;
+    let r = result.inspect_err(|e| page.failed(&mocomp_app::in_full(e)))?;
     let truth = o.true_errors(&r)?;
     let written = match &r.file {
         Some(file) => {

@@ -78,7 +78,7 @@ impl CollectCmd {
         if let Some(c) = &console {
             c.calibration_finished(match &result {
                 Ok(got) => Ok(got.one_line()),
-                Err(e) => Err(e.to_string()),
+                Err(e) => Err(mocomp_app::in_full(e)),
             });
         }
         write!(out, "{}", result?.text(&setup))?;
