@@ -219,11 +219,7 @@ impl Config {
             self.head_from_coil()?,
             period,
         );
-        cfg.servo = ServoParams {
-            time_s: period,
-            lookahead_s: self.servo.lookahead_s,
-            gain: self.servo.gain,
-        };
+        cfg.servo = self.servo.params(period);
         cfg.predictor = self.predictor;
         cfg.head = self.head_model()?;
         cfg.coil = self.coil_model();
@@ -264,6 +260,10 @@ mod tests {
                 "tracker.simulated.motion.sway_m",
             ),
             ("[servo]\ngain = 50.0\n", "servo.gain"),
+            (
+                "[servo]\nlookahead_s = 0.5\n",
+                "servo.lookahead_s = 0.5: must be in [0.03, 0.2]",
+            ),
             ("[coil]\nradius_m = 0.0\n", "coil.radius_m"),
             ("[calibrate]\nposes = 2\n", "calibrate.poses"),
             (

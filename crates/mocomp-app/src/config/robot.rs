@@ -53,11 +53,32 @@ impl Default for ServoSection {
 }
 
 impl ServoSection {
-    /// servoj's ranges (UR's).
+    /// The servo parameters at a controller period (the robot model's).
+    pub fn params(&self, period_s: f64) -> ServoParams {
+        ServoParams {
+            time_s: period_s,
+            lookahead_s: self.lookahead_s,
+            gain: self.gain,
+        }
+    }
+
+    /// servoj's ranges, by the robot interface's own rule (the one every servo command is held
+    /// to), so the file and the command cannot disagree; the error names the key.
     pub(super) fn check(&self) -> Result<(), AppError> {
-        Check::range("servo.lookahead_s", self.lookahead_s, 0.03, 0.2, false)?;
-        Check::range("servo.gain", self.gain, 100.0, 2000.0, false)?;
-        Ok(())
+        // Any period the interface accepts: the section has none of its own.
+        let at_500_hz = self.params(0.002);
+        at_500_hz.validate().map_err(|e| match e {
+            mocomp_robot::RobotError::OutOfRange {
+                field,
+                value,
+                min,
+                max,
+            } => AppError::Config(format!(
+                "{} = {value}: must be in [{min}, {max}]",
+                field.replace("servo ", "servo.")
+            )),
+            other => AppError::Config(format!("servo: {other}")),
+        })
     }
 }
 
