@@ -367,7 +367,14 @@ def calibrate_session(url, shots):
         start().click()
         wait("the confirmation", lambda: d.find_element(By.ID, "calibrate-dialog").is_displayed())
         d.find_element(By.ID, "confirm-calibrate").click()
-        wait("the first pose", lambda: int(d.find_element(By.ID, "cal-progress").get_attribute("value")) >= 1)
+        # A collection that failed says why on the page at once: no reason to wait it out.
+        def first_pose_or_failure():
+            if "failed" in text(d, "mode"):
+                return text(d, "cal-text") or "failed"
+            return int(d.find_element(By.ID, "cal-progress").get_attribute("value")) >= 1
+
+        if isinstance(got := wait("the first pose", first_pose_or_failure), str):
+            raise AssertionError(f"the collection failed: {got!r}")
         seen["collecting"] = text(d, "mode")
         wait_text(d, "the outcome", "cal-text", lambda t: "saved" in t)
         rows = d.execute_script(

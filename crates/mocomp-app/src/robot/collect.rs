@@ -13,7 +13,7 @@ use mocomp_calib::{
 };
 use mocomp_geom::nalgebra::Isometry3;
 use mocomp_geom::{PoseSource, rotation_error, translation_error};
-use mocomp_ur::Robot;
+use mocomp_ur::{Robot, RobotFault};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -77,19 +77,57 @@ pub struct Collected {
     pub y_change: PoseError,
     /// With the simulated world: the errors of Y and X against its truth, (m, rad) each.
     pub against_truth: Option<(PoseError, PoseError)>,
+    /// Times the control program, stopped by its watchdog, was started again.
+    pub rearmed: usize,
+}
+
+/// Restarts of a stopped control program one collection makes by itself, at most.
+pub const MAX_REARMS: usize = 3;
+
+/// Rule `CollectionRearm`: whether a collection may start the control program again by itself,
+/// `done` restarts already made. Only when the program alone stopped (the arm connected,
+/// powered, running, in no safety stop): what a PC that left the program's 50 ms watchdog unfed
+/// causes. No patient is under the arm while it calibrates, and the arm only goes on with the
+/// sweep the operator started, so losing a 15-pose collection to a 50 ms hiccup helps nobody. A
+/// protective or emergency stop, a lost connection or an arm not running is the operator's, as
+/// is a program that keeps stopping.
+pub fn may_rearm(fault: Option<RobotFault>, done: usize) -> Result<(), String> {
+    match fault {
+        Some(RobotFault::ProgramStopped) if done < MAX_REARMS => Ok(()),
+        Some(RobotFault::ProgramStopped) => Err(format!(
+            "the control program stopped {} times: is this PC starving it (real time)?",
+            done + 1
+        )),
+        Some(other) => Err(format!("{other}: the operator's to clear")),
+        None => Err("the robot reports no fault".into()),
+    }
 }
 
 impl Collected {
     /// One line for a front end: how many poses were measured, the residuals, the file.
     pub fn one_line(&self) -> String {
         format!(
-            "{} of {} poses measured; residuals {:.3} mm, {:.3}° RMS; saved {}",
+            "{} of {} poses measured; residuals {:.3} mm, {:.3}° RMS; saved {}{}",
             self.pairs.len(),
             self.planned,
             self.solved.rms_mm,
             self.solved.rms_deg,
-            self.out.display()
+            self.out.display(),
+            self.rearm_words()
+                .map(|w| format!("; {w}"))
+                .unwrap_or_default()
         )
+    }
+
+    /// The restarts, in words, if any.
+    fn rearm_words(&self) -> Option<String> {
+        (self.rearmed > 0).then(|| {
+            format!(
+                "the control program, stopped by its watchdog, started again {} time(s) (this \
+                 PC left it unfed for over 50 ms: see the real-time warning)",
+                self.rearmed
+            )
+        })
     }
 
     /// The report: what was measured, the calibration's own report, where it was written and
@@ -108,6 +146,9 @@ impl Collected {
             self.solved,
             self.out.display()
         );
+        if let Some(w) = self.rearm_words() {
+            let _ = writeln!(s, "note: {w}");
+        }
         // Writing to a String cannot fail.
         if let Some(p) = &self.pairs_csv {
             let _ = writeln!(
@@ -153,6 +194,8 @@ struct Live<'a> {
     c: &'a CollectSection,
     /// A front end's stop, checked while the station waits.
     controls: Option<&'a Controls>,
+    /// Restarts of the control program so far ([`may_rearm`]).
+    rearmed: usize,
 }
 
 impl Live<'_> {
@@ -167,6 +210,41 @@ impl Live<'_> {
             .keep_alive()
             .what(|| "keeping the robot's program running")
     }
+
+    /// Starts the control program again where [`may_rearm`] allows it; where it does not, why
+    /// (the caller then stops, saying so).
+    fn rearm(&mut self) -> Result<Option<String>, AppError> {
+        let fault = self.world.robot.state().and_then(|s| s.fault());
+        if let Err(why) = may_rearm(fault, self.rearmed) {
+            return Ok(Some(why));
+        }
+        self.world
+            .robot
+            .restart_program()
+            .what(|| "starting the control program its watchdog stopped")?;
+        self.rearmed += 1;
+        Ok(None)
+    }
+
+    /// `movej` to `q`, starting a control program its watchdog stopped first.
+    fn send_move(&mut self, q: &[f64; 6]) -> Result<i32, AppError> {
+        let c = self.c;
+        match self
+            .world
+            .robot
+            .move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)
+        {
+            Ok(seq) => Ok(seq),
+            Err(e) => match self.rearm()? {
+                None => self
+                    .world
+                    .robot
+                    .move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)
+                    .what(|| format!("a calibration move (after {e})")),
+                Some(why) => Err(AppError::failed(format!("a calibration move: {why}"), e)),
+            },
+        }
+    }
 }
 
 impl Station for Live<'_> {
@@ -174,16 +252,18 @@ impl Station for Live<'_> {
 
     fn move_to(&mut self, q: &[f64; 6]) -> Result<(), AppError> {
         let c = self.c;
-        let seq = self
-            .world
-            .robot
-            .move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)
-            .what(|| "a calibration move")?;
-        let start = Instant::now();
+        let mut seq = self.send_move(q)?;
+        let mut start = Instant::now();
         loop {
             if let Some(s) = self.world.robot.state() {
                 if let Some(f) = s.fault() {
-                    refuse!("the robot stopped during a calibration move: {f}");
+                    if let Err(why) = may_rearm(Some(f), self.rearmed) {
+                        refuse!("the robot stopped during a calibration move: {why}");
+                    }
+                    // The move again from where the arm stopped, on the program started anew.
+                    seq = self.send_move(q)?;
+                    start = Instant::now();
+                    continue;
                 }
                 match move_state(&s, q, seq) {
                     MoveState::Arrived => return Ok(()),
@@ -280,6 +360,7 @@ pub fn collect(
         source: &mut source,
         c: &c,
         controls,
+        rearmed: 0,
     };
     let result = calibration::collect(
         &mut station,
@@ -290,6 +371,7 @@ pub fn collect(
         c.samples_per_pose,
         &mut |index, seen| progress(Progress::Pose { index, seen }),
     );
+    let rearmed = station.rearmed;
     let calibration::Collection { pairs, missed } = match result {
         Ok(got) => got,
         Err(e) => {
@@ -330,6 +412,7 @@ pub fn collect(
         out: out_path,
         pairs_csv,
         against_truth,
+        rearmed,
     })
 }
 
@@ -463,4 +546,95 @@ fn against(
             )
         });
     (err(&solved.base_from_tracker, &y_old), against_truth)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test code
+    use super::{Live, MAX_REARMS, may_rearm};
+    use crate::config::{Config, Setup};
+    use crate::world::World;
+    use mocomp_calib::procedure::Station;
+    use mocomp_ur::{Robot, RobotFault, RobotMode, SafetyMode};
+    use std::time::{Duration, Instant};
+
+    /// On the built-in world (the simulated UR3e speaking RTDE on loopback): a program stopped
+    /// under a calibration move is started again and the move made, until the rule says no more.
+    #[test]
+    fn a_stopped_program_is_started_again_for_the_move_until_it_keeps_stopping() {
+        let mut file = Config::default();
+        // An address of its own (a taken one moves to the next free).
+        file.robot.host = "127.0.0.151".into();
+        let setup = Setup::new(file, None, std::path::PathBuf::from(".")).unwrap();
+        let q0 = setup.initial_joints().unwrap();
+        let mut world = World::connect(&setup, q0, &mut std::io::sink(), None).unwrap();
+        let client = world.client(&setup, &setup.file.tracker.device);
+        let mut source = client.pose_source();
+        let sim = world.sim.clone().expect("the built-in world");
+        let c = setup.file.calibrate.clone();
+        let mut station = Live {
+            world: &mut world,
+            source: &mut source,
+            c: &c,
+            controls: None,
+            rearmed: 0,
+        };
+        let mut aside = q0;
+        aside[0] += 0.05;
+        let mut refused = None;
+        for k in 0..=MAX_REARMS {
+            sim.with(|ctl| ctl.stop_program("stopped by the test".into()));
+            let t = Instant::now();
+            while !station
+                .world
+                .robot
+                .state()
+                .is_some_and(|s| s.fault() == Some(RobotFault::ProgramStopped))
+            {
+                assert!(
+                    t.elapsed() < mocomp_testkit::HUNG,
+                    "the program never stopped"
+                );
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            let target = if k % 2 == 0 { aside } else { q0 };
+            match station.move_to(&target) {
+                Ok(()) => {
+                    let q = station.world.robot.state().unwrap().actual_q;
+                    assert!((q[0] - target[0]).abs() < 1e-3, "arrived: {q:?}");
+                }
+                Err(e) => {
+                    refused = Some(crate::in_full(&e));
+                    break;
+                }
+            }
+        }
+        // Each stop restarted once (a busy machine's own watchdog stops only bring the end
+        // nearer), and the one past the rule's count refused by name.
+        let refused = refused.expect("refused once the program kept stopping");
+        assert_eq!(station.rearmed, MAX_REARMS, "{refused}");
+        assert!(refused.contains("stopped 4 times"), "{refused}");
+    }
+
+    /// `CollectionRearm`: a program its watchdog stopped is started again, a few times; every
+    /// other stop is the operator's.
+    #[test]
+    fn a_collection_restarts_only_a_stopped_program_and_only_a_few_times() {
+        for done in 0..MAX_REARMS {
+            assert_eq!(may_rearm(Some(RobotFault::ProgramStopped), done), Ok(()));
+        }
+        let again = may_rearm(Some(RobotFault::ProgramStopped), MAX_REARMS).unwrap_err();
+        assert!(again.contains("stopped 4 times"), "{again}");
+        for other in [
+            RobotFault::ProtectiveStop,
+            RobotFault::EmergencyStop,
+            RobotFault::Disconnected,
+            RobotFault::Safety(SafetyMode::Violation),
+            RobotFault::NotRunning(RobotMode::PowerOff),
+        ] {
+            let why = may_rearm(Some(other), 0).unwrap_err();
+            assert!(why.contains("operator"), "{other}: {why}");
+        }
+        assert!(may_rearm(None, 0).is_err());
+    }
 }
