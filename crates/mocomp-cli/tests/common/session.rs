@@ -185,7 +185,7 @@ impl Session {
     /// printed. For waits where no operator's hold is meant (a resume ends one).
     #[allow(dead_code)] // not every test file that shares this module uses it
     pub fn wait_status_rearming(&self, what: &str, f: impl Fn(&Value) -> bool) -> Value {
-        let deadline = Instant::now() + Duration::from_secs(30);
+        let deadline = Instant::now() + mocomp_testkit::HUNG;
         let mut rearmed_at = f64::NEG_INFINITY;
         loop {
             let (code, s) = self.get("/api/status");
