@@ -188,6 +188,11 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
 /// Servos a smooth joint trajectory (joints 1 and 6 out by up to `amplitude` and back) on the
 /// controller at `host` at its rate, from this thread in real time, and measures the tracking
 /// error and the loop timing. `notice` is told of a real-time refusal.
+///
+/// The trajectory runs on the controller's clock, the one it judges each setpoint's speed by: a
+/// real controller's keeps to the wall clock, but a simulator that a busy machine stopped gives
+/// cycles up and falls behind, and a target taken at the wall clock would then jump by what it
+/// gave up (a protective stop for a setpoint too fast).
 pub fn stream(
     model: Model,
     host: IpAddr,
@@ -208,6 +213,7 @@ pub fn stream(
     };
     let arm = Arm::new(model);
     let q0 = s0.actual_q;
+    let c0 = s0.controller_s;
     let params = ServoParams {
         time_s: period,
         lookahead_s: a.lookahead,
@@ -240,9 +246,7 @@ pub fn stream(
     let mut k = 0usize;
     let mut skipped = 0usize;
     while k < n {
-        // Absolute deadlines; a late wake-up skips the deadlines it missed instead of sending
-        // them in a burst, and the target is taken at the real time, so the trajectory the
-        // controller sees stays smooth whatever this thread's timing.
+        // Absolute deadlines: a late wake-up skips those it missed rather than bursting.
         mocomp_rt::sleep_until(t0 + Duration::from_secs_f64(k as f64 * period));
         let t = clock.now_s() - start;
         let next = (k.max((t / period).floor() as usize) + 1).min(n);
@@ -264,7 +268,8 @@ pub fn stream(
                 break;
             }
         }
-        let q = target(t);
+        let tc = s.controller_s - c0 + period; // the controller's next cycle
+        let q = target(tc);
         let sent = clock.now_s();
         let seq = robot.servo(&q, &params).what(|| "servoj")?;
         calls.push((clock.now_s() - sent) * 1e6);
@@ -273,11 +278,11 @@ pub fn stream(
             periods.push((sent - last_send) * 1e3);
         }
         last_send = sent;
-        if t > 1.0 {
+        if tc > 1.0 {
             // Error against the target commanded at the state's time (includes the servo's
             // lag) and against the target one lookahead earlier (the lag a servo with lookahead
-            // shows). The state is the controller's newest, received at `received_s`.
-            let ts = s.received_s - start - period;
+            // shows). The state is the controller's newest, at its `controller_s`.
+            let ts = s.controller_s - c0;
             let now_t = target(ts);
             let e = (0..6).fold(0.0f64, |m, j| m.max((s.actual_q[j] - now_t[j]).abs()));
             joint_err.push(e);
