@@ -235,6 +235,10 @@ impl Live<'_> {
             .move_joints(q, c.joint_speed_rad_s, c.joint_accel_rad_s2)
         {
             Ok(seq) => Ok(seq),
+            // Refused with no fault (a bad target): nothing to restart, the refusal is the why.
+            Err(e) if self.world.robot.state().and_then(|s| s.fault()).is_none() => {
+                Err(AppError::failed("a calibration move", e))
+            }
             Err(e) => match self.rearm()? {
                 None => self
                     .world
