@@ -7,6 +7,7 @@ use mocomp_geom::{Clock, MonotonicClock, translation_error};
 use mocomp_kin::{Arm, Model};
 use mocomp_ur::{Robot, ServoParams, UrConfig, UrRobot};
 use serde::Serialize;
+use std::collections::VecDeque;
 use std::io::Write;
 use std::net::IpAddr;
 use std::sync::Arc;
@@ -185,6 +186,19 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
     v[((p / 100.0) * (v.len() - 1) as f64).round() as usize]
 }
 
+/// How much trajectory time one command may advance over the one before, per second since that
+/// one left: the trajectory catches up after a stall at half again its own speed, far below the
+/// controller's limit.
+const CATCH_UP: f64 = 1.5;
+
+/// The next command's trajectory time after `previous`, when the controller's next cycle is at
+/// `controller_next` (both from the stream's start) and `since` seconds have passed since the
+/// previous command left: the controller's, or at most [`CATCH_UP`] times the time since (a
+/// period at least) on where a stall left the trajectory behind it.
+fn trajectory_time(previous: f64, controller_next: f64, since: f64, period: f64) -> f64 {
+    controller_next.min(previous + CATCH_UP * since.max(period))
+}
+
 /// Servos a smooth joint trajectory (joints 1 and 6 out by up to `amplitude` and back) on the
 /// controller at `host` at its rate, from this thread in real time, and measures the tracking
 /// error and the loop timing. `notice` is told of a real-time refusal.
@@ -193,6 +207,15 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
 /// real controller's keeps to the wall clock, but a simulator that a busy machine stopped gives
 /// cycles up and falls behind, and a target taken at the wall clock would then jump by what it
 /// gave up (a protective stop for a setpoint too fast).
+///
+/// Each command's trajectory time also advances over the one before by at most [`CATCH_UP`]
+/// times the time since that one left. The controller judges a setpoint's step over its own time since the last one arrived,
+/// and this client cannot know when that was: a command computed from a stale state (a receive
+/// thread the host left unscheduled) or held between its computing and its sending arrives late,
+/// and the next, from a fresh state, would step by the whole stall within one cycle (C204A3 at
+/// the trajectory's peak speed). Bounded, a stall slows the trajectory for a moment instead; the
+/// errors are measured against the command the state acknowledges, so that moment is not
+/// counted as the arm's error.
 pub fn stream(
     model: Model,
     host: IpAddr,
@@ -232,78 +255,51 @@ pub fn stream(
     };
     let target_speed = |t: f64| a.amplitude * 0.5 * w * (w * t).sin();
     let n = (a.seconds / period).round() as usize;
-    let mut periods = Vec::with_capacity(n);
-    let mut acks = Vec::with_capacity(n);
-    let mut calls = Vec::with_capacity(n);
-    let mut joint_err = Vec::with_capacity(n);
-    let mut comp_err = Vec::with_capacity(n);
-    let mut tcp_err = Vec::with_capacity(n);
-    let mut pending: std::collections::VecDeque<(i32, f64)> = std::collections::VecDeque::new();
+    let mut errors = Errors::with_capacity(n);
+    let mut tau = 0.0f64;
     let start = clock.now_s();
+    let mut left = start;
     let t0 = Instant::now();
-    let mut last_send = f64::NAN;
-    let mut fault = None;
     let mut k = 0usize;
-    let mut skipped = 0usize;
     while k < n {
         // Absolute deadlines: a late wake-up skips those it missed rather than bursting.
         mocomp_rt::sleep_until(t0 + Duration::from_secs_f64(k as f64 * period));
         let t = clock.now_s() - start;
         let next = (k.max((t / period).floor() as usize) + 1).min(n);
-        skipped += next - k - 1;
+        errors.skipped += next - k - 1;
         k = next;
         let Some(s) = robot.state() else {
-            skipped += 1;
+            errors.skipped += 1;
             continue;
         };
         if let Some(f) = s.fault() {
-            fault = Some((t, f.to_string()));
+            errors.fault = Some((t, f.to_string()));
             break;
         }
-        while let Some(&(seq, sent)) = pending.front() {
-            if s.acked_seq.wrapping_sub(seq) >= 0 {
-                acks.push((s.received_s - sent) * 1e3);
-                pending.pop_front();
-            } else {
-                break;
-            }
-        }
+        let answered = errors.acknowledged(s.acked_seq, s.received_s);
         let tc = s.controller_s - c0 + period; // the controller's next cycle
-        let q = target(tc);
         let sent = clock.now_s();
-        let seq = robot.servo(&q, &params).what(|| "servoj")?;
-        calls.push((clock.now_s() - sent) * 1e6);
-        pending.push_back((seq, sent));
-        if !last_send.is_nan() {
-            periods.push((sent - last_send) * 1e3);
-        }
-        last_send = sent;
-        if tc > 1.0 {
-            // Error against the target commanded at the state's time (includes the servo's
-            // lag) and against the target one lookahead earlier (the lag a servo with lookahead
-            // shows). The state is the controller's newest, at its `controller_s`.
-            let ts = s.controller_s - c0;
+        tau = trajectory_time(tau, tc, sent - left, period);
+        let seq = robot.servo(&target(tau), &params).what(|| "servoj")?;
+        // Once the call returned the command has left, however late the host let it go.
+        left = clock.now_s();
+        errors.sent(seq, tau, sent, left);
+        if let Some(ts) = answered.filter(|&ts| ts > 1.0) {
+            // Error against the target the controller servos to (includes the servo's lag) and
+            // against the target one lookahead earlier (the lag a servo with lookahead shows).
             let now_t = target(ts);
-            let e = (0..6).fold(0.0f64, |m, j| m.max((s.actual_q[j] - now_t[j]).abs()));
-            joint_err.push(e);
-            let lagged = target(ts - a.lookahead);
-            comp_err.push((0..6).fold(0.0f64, |m, j| m.max((s.actual_q[j] - lagged[j]).abs())));
-            tcp_err.push(translation_error(&arm.fk(&now_t), &s.base_from_tcp) * 1e3);
+            let err =
+                |q: &[f64; 6]| (0..6).fold(0.0f64, |m, j| m.max((s.actual_q[j] - q[j]).abs()));
+            errors.joint_err.push(err(&now_t));
+            errors.comp_err.push(err(&target(ts - a.lookahead)));
+            errors
+                .tcp_err
+                .push(translation_error(&arm.fk(&now_t), &s.base_from_tcp) * 1e3);
         }
     }
     robot.stop(4.0).what(|| "stopping the robot")?;
     let expected_lag_rad =
         a.lookahead * (0..n).fold(0.0f64, |m, k| m.max(target_speed(k as f64 * period).abs()));
-    let errors = Errors {
-        periods,
-        acks,
-        calls,
-        joint_err,
-        comp_err,
-        tcp_err,
-        skipped,
-        fault,
-    };
     Ok(errors.report(
         model,
         robot.controller_version().to_string(),
@@ -332,9 +328,68 @@ struct Errors {
     skipped: usize,
     /// When and why the controller stopped the stream, if it did.
     fault: Option<(f64, String)>,
+    /// (sequence, sent at) of each command not yet acknowledged.
+    pending: VecDeque<(i32, f64)>,
+    /// (sequence, trajectory time) of each command not yet overtaken by a newer acknowledged
+    /// one.
+    commanded: VecDeque<(i32, f64)>,
+    /// When the last command was sent, s.
+    last_send: Option<f64>,
 }
 
 impl Errors {
+    fn with_capacity(n: usize) -> Self {
+        Self {
+            periods: Vec::with_capacity(n),
+            acks: Vec::with_capacity(n),
+            calls: Vec::with_capacity(n),
+            joint_err: Vec::with_capacity(n),
+            comp_err: Vec::with_capacity(n),
+            tcp_err: Vec::with_capacity(n),
+            skipped: 0,
+            fault: None,
+            pending: VecDeque::new(),
+            commanded: VecDeque::new(),
+            last_send: None,
+        }
+    }
+
+    /// Takes in a state that acknowledges command `acked` and was received at `received_s`:
+    /// the latency of each command it acknowledges first, and the trajectory time of the command
+    /// it answers (the arm's current target), if this client sent it.
+    fn acknowledged(&mut self, acked: i32, received_s: f64) -> Option<f64> {
+        while let Some(&(seq, sent)) = self.pending.front() {
+            if acked.wrapping_sub(seq) < 0 {
+                break;
+            }
+            self.acks.push((received_s - sent) * 1e3);
+            self.pending.pop_front();
+        }
+        while self
+            .commanded
+            .get(1)
+            .is_some_and(|&(seq, _)| acked.wrapping_sub(seq) >= 0)
+        {
+            self.commanded.pop_front();
+        }
+        self.commanded
+            .front()
+            .filter(|&&(seq, _)| acked.wrapping_sub(seq) >= 0)
+            .map(|&(_, t)| t)
+    }
+
+    /// Notes command `seq` for trajectory time `tau`, its call begun at `sent` and returned at
+    /// `returned`, s.
+    fn sent(&mut self, seq: i32, tau: f64, sent: f64, returned: f64) {
+        self.calls.push((returned - sent) * 1e6);
+        self.pending.push_back((seq, sent));
+        self.commanded.push_back((seq, tau));
+        if let Some(last) = self.last_send {
+            self.periods.push((sent - last) * 1e3);
+        }
+        self.last_send = Some(sent);
+    }
+
     /// The report of a stream at `period` with options `a`.
     fn report(
         mut self,
@@ -378,5 +433,98 @@ impl Errors {
             fault: self.fault,
             realtime,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const P: f64 = 0.002;
+
+    /// Trajectory times for commands leaving at `left` (s) with the controller's next cycle at
+    /// `tc`, each pair in turn.
+    fn taus(commands: &[(f64, f64)]) -> Vec<f64> {
+        let (mut tau, mut last) = (0.0, 0.0);
+        commands
+            .iter()
+            .map(|&(left, tc)| {
+                tau = trajectory_time(tau, tc, left - last, P);
+                last = left;
+                tau
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_stale_state_slows_the_trajectory_and_never_steps_it_by_the_stall() {
+        // A command each cycle; from 100 ms the states stall 30 ms (the client reads the same
+        // controller time), then they are fresh again.
+        let mut c: Vec<(f64, f64)> = (1..=50).map(|k| (k as f64 * P, k as f64 * P)).collect();
+        c.extend((51..=65).map(|k| (k as f64 * P, 50.0 * P)));
+        c.extend((66..=200).map(|k| (k as f64 * P, k as f64 * P)));
+        let taus = taus(&c);
+        let steps: Vec<f64> = taus.windows(2).map(|w| w[1] - w[0]).collect();
+        assert!(
+            steps.iter().all(|d| *d >= 0.0 && *d <= 1.5 * P + 1e-12),
+            "{steps:?}"
+        );
+        // In step with the controller until the stall, then caught up again, never ahead.
+        assert!((taus[49] - 0.1).abs() < 1e-12);
+        assert!((taus.last().unwrap() - 0.4).abs() < 1e-12, "{taus:?}");
+        assert!(taus.iter().zip(&c).all(|(t, (_, tc))| *t <= tc + 1e-12));
+    }
+
+    #[test]
+    fn a_command_held_before_it_left_is_not_overtaken_by_a_jump() {
+        // The command computed at 100 ms leaves at 125 ms (the host held this thread); the
+        // next leaves 2 ms later from a fresh state. Without the bound it would step 26 ms of
+        // trajectory within the controller's one cycle.
+        let taus = taus(&[
+            (0.098, 0.098),
+            (0.100, 0.100),
+            (0.125, 0.100),
+            (0.127, 0.127),
+        ]);
+        assert!((taus[2] - 0.100).abs() < 1e-12);
+        assert!(taus[3] - taus[2] <= 1.5 * P + 1e-12, "{taus:?}");
+    }
+
+    #[test]
+    fn a_client_slower_than_the_controller_keeps_its_pace() {
+        // Commands every 6 ms (two of three deadlines skipped): each steps the controller's 6 ms.
+        let c: Vec<(f64, f64)> = (1..=100)
+            .map(|k| (k as f64 * 0.006, k as f64 * 0.006))
+            .collect();
+        let taus = taus(&c);
+        assert!(
+            taus.iter()
+                .zip(&c)
+                .all(|(t, (_, tc))| (t - tc).abs() < 1e-12)
+        );
+    }
+
+    #[test]
+    fn errors_are_against_the_command_the_state_answers() {
+        let mut e = Errors::with_capacity(8);
+        assert_eq!(e.acknowledged(0, 0.0), None, "nothing sent yet");
+        e.sent(1, 0.10, 1.000, 1.0001);
+        e.sent(2, 0.11, 1.002, 1.0021);
+        e.sent(3, 0.12, 1.004, 1.0041);
+        // A state from before this client's first command answers none of them.
+        assert_eq!(e.acknowledged(0, 1.001), None);
+        assert_eq!(e.acknowledged(2, 1.005), Some(0.11));
+        assert_eq!(e.acks.len(), 2);
+        assert!((e.acks[0] - 5.0).abs() < 1e-9 && (e.acks[1] - 3.0).abs() < 1e-9);
+        // The same answer again, then the newest.
+        assert_eq!(e.acknowledged(2, 1.006), Some(0.11));
+        assert_eq!(e.acknowledged(3, 1.007), Some(0.12));
+        assert_eq!(e.acks.len(), 3);
+        assert_eq!(e.periods.len(), 2);
+        // Sequence numbers wrap.
+        let mut w = Errors::with_capacity(2);
+        w.sent(i32::MAX, 1.0, 0.0, 0.0);
+        w.sent(i32::MIN, 2.0, 0.002, 0.002);
+        assert_eq!(w.acknowledged(i32::MIN, 0.003), Some(2.0));
     }
 }

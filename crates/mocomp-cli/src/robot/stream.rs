@@ -54,7 +54,7 @@ impl StreamCmd {
                 );
             }
         }
-        let _sim = self
+        let sim = self
             .ursim
             .then(|| crate::ursim::start(self.model, self.host, &Default::default()))
             .transpose()?;
@@ -68,11 +68,22 @@ impl StreamCmd {
         let r = stream(self.model, self.host, o, &mut std::io::stderr())?;
         crate::print::report(out, &r, self.json)?;
         if let Some((t, f)) = &r.fault {
+            // The simulated controller's own words for it, where it is this process's.
+            let why = sim
+                .as_ref()
+                .and_then(|s| {
+                    s.with(|c| c.events().0)
+                        .into_iter()
+                        .rev()
+                        .find(|e| e.text.contains("stop"))
+                })
+                .map(|e| format!("; the simulator at {:.3} s: {}", e.time_s, e.text))
+                .unwrap_or_default();
             // Whose silence it was: a gap here past the watchdog is this client's (its host),
             // none is the controller's side.
             bail!(
                 "the stream ended in a fault at {t:.3} s: {f} (longest gap between this \
-                 client's commands: {:.1} ms)",
+                 client's commands: {:.1} ms){why}",
                 r.period_max_ms
             );
         }
