@@ -72,10 +72,29 @@ fn the_example_config_compensates_on_the_simulated_robot() {
     );
     let tracking: Vec<_> = rows.iter().filter(|r| &r[1] == "tracking").collect();
     assert!(tracking.len() > 200, "{}", tracking.len());
-    // The deviation while tracking stays within a centimetre.
+    // The deviation while tracking stays within a centimetre, but while the coil catches up
+    // after a hold: the loop resumes straight on its goal from up to `servo_deviation_m` (20 mm)
+    // off it, where the head went while it held (how far depends on how long the machine held
+    // the loop up), and must close that within a second of loop time.
+    let mut catching_up_since: Option<f64> = None;
     for r in tracking {
-        let dev: f64 = r[8].parse().unwrap();
-        assert!(dev < 10.0, "{r:?}");
+        let (t, dev): (f64, f64) = (r[0].parse().unwrap(), r[8].parse().unwrap());
+        if &r[2] == "Resume" {
+            assert!(dev < 20.0, "resumed straight from too far: {r:?}");
+            catching_up_since = Some(t);
+        }
+        match catching_up_since {
+            Some(t0) if dev >= 10.0 => {
+                assert!(
+                    t - t0 < 1.0 && dev < 20.0,
+                    "not caught up since {t0} s: {r:?}"
+                );
+            }
+            _ => {
+                catching_up_since = None;
+                assert!(dev < 10.0, "{r:?}");
+            }
+        }
     }
 }
 
@@ -99,7 +118,7 @@ fn contact_mode_on_the_simulated_scalp_holds_its_force_and_logs_it() {
         "--config",
         &path,
         "--seconds",
-        "8",
+        "10",
         "--log-csv",
         &csv,
         "--json",
@@ -117,8 +136,10 @@ fn contact_mode_on_the_simulated_scalp_holds_its_force_and_logs_it() {
     assert!(stalled || v["protective_stops"] == 0, "{v}");
     let max = v["contact_force_n_max"].as_f64().unwrap();
     assert!(max > 2.0 && (stalled || max < 15.0), "{v}");
-    // On the scalp while tracking in the last 4 s: the force read stays near the set 3 N (the
-    // sensor's noise and the nods' tracking error around it).
+    // On the scalp while tracking in the last 6 s (from 4 s in, the approach done): the force
+    // read stays near the set 3 N (the sensor's noise and the nods' tracking error around it).
+    // How many of those cycles track is the machine's: one that holds the loop up holds the
+    // coil too, and a hold takes its cycles; half a second of them is plenty for the figures.
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     let header = reader.headers().unwrap().clone();
     let col = header.iter().position(|h| h == "contact_force_n").unwrap();
@@ -126,10 +147,10 @@ fn contact_mode_on_the_simulated_scalp_holds_its_force_and_logs_it() {
     let t_end: f64 = rows.last().unwrap()[0].parse().unwrap();
     let mut late: Vec<f64> = rows
         .iter()
-        .filter(|r| &r[1] == "tracking" && r[0].parse::<f64>().unwrap() > t_end - 4.0)
+        .filter(|r| &r[1] == "tracking" && r[0].parse::<f64>().unwrap() > t_end - 6.0)
         .map(|r| r[col].parse().unwrap())
         .collect();
-    assert!(late.len() > 1000, "{} cycles tracking", late.len());
+    assert!(late.len() > 250, "{} cycles tracking: {v}", late.len());
     let mean = late.iter().sum::<f64>() / late.len() as f64;
     late.sort_by(f64::total_cmp);
     let p99 = late[late.len() * 99 / 100];
