@@ -19,6 +19,7 @@
 
 mod common;
 use common::example_changed;
+use common::on_goal::OnGoal;
 use common::session::Session;
 use mocomp_testkit::controller::ChildController;
 use mocomp_testkit::proxy::{Direction, FaultProxy};
@@ -416,7 +417,7 @@ impl Cell {
             assert_eq!(r["undecoded"], 0, "{}", r["counts"]);
             assert_eq!(r["counts"]["/mocomp/cycle"], v["cycles"], "{}", r["counts"]);
         }
-        let on_goal = OnGoal::read(&self.dir.path("run.csv"));
+        let on_goal = OnGoal::read(&self.dir.path("run.csv"), CAUGHT_UP_MM);
         (v, on_goal)
     }
 }
@@ -431,82 +432,6 @@ fn held_for_a_stale_tracker(status: &Value) -> bool {
 
 /// Below this deviation (mm) a coil that resumed straight on its goal has caught up with it.
 const CAUGHT_UP_MM: f64 = 1.0;
-
-/// How the coil kept to its goal while tracking, from the run's log. A hold stands the arm while
-/// the head moves on, and a coil that resumes within `servo_deviation_m` of its goal goes
-/// straight to tracking and closes the rest within the command's limits (by design: no path for
-/// a few millimetres): that catch-up is tracking, but not on the goal, and how far the head
-/// went during the hold depends on where in its motion the hold fell, so it is judged apart.
-#[derive(Debug)]
-struct OnGoal {
-    /// The largest deviation (mm) while tracking, outside catch-ups.
-    max_mm: f64,
-    /// Each straight resume: when (s into the run), its deviation then (mm), and how long it
-    /// took to come within [`CAUGHT_UP_MM`] (`None`: held again before it did; infinite: the run
-    /// ended tracking and it never did).
-    catch_ups: Vec<(f64, f64, Option<f64>)>,
-}
-
-impl OnGoal {
-    fn read(csv_path: &str) -> Self {
-        let mut log = csv::Reader::from_path(csv_path).unwrap();
-        let header = log.headers().unwrap().clone();
-        let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-        let (t_col, mode_col, event_col, dev_col) =
-            (col("t_s"), col("mode"), col("event"), col("deviation_mm"));
-        let mut on_goal = OnGoal {
-            max_mm: 0.0,
-            catch_ups: Vec::new(),
-        };
-        let mut catching_up: Option<usize> = None;
-        for row in log.records() {
-            let row = row.unwrap();
-            let t: f64 = row[t_col].parse().unwrap();
-            let dev: f64 = row[dev_col].parse().unwrap();
-            let tracking = &row[mode_col] == "tracking";
-            if tracking && &row[event_col] == "Resume" {
-                on_goal.catch_ups.push((t, dev, None));
-                catching_up = Some(on_goal.catch_ups.len() - 1);
-            }
-            if !tracking {
-                catching_up = None;
-                continue;
-            }
-            if let Some(i) = catching_up {
-                if dev < CAUGHT_UP_MM {
-                    on_goal.catch_ups[i].2 = Some(t - on_goal.catch_ups[i].0);
-                    catching_up = None;
-                }
-                continue;
-            }
-            if dev > on_goal.max_mm {
-                on_goal.max_mm = dev;
-            }
-        }
-        // Tracking to the end and never caught up: as long as it could be.
-        if let Some(i) = catching_up {
-            on_goal.catch_ups[i].2 = Some(f64::INFINITY);
-        }
-        on_goal
-    }
-
-    /// The coil never left its goal by `max_mm` or more while tracking on it, and every catch-up
-    /// that was not interrupted closed within `within_s`.
-    fn check(&self, max_mm: f64, within_s: f64, v: &Value) {
-        eprintln!("on the goal: {self:?}");
-        assert!(
-            self.max_mm < max_mm,
-            "deviation max {} mm while tracking on the goal: {v}",
-            self.max_mm
-        );
-        assert!(
-            self.catch_ups
-                .iter()
-                .all(|(_, _, took)| took.is_none_or(|s| s < within_s)),
-            "a catch-up took longer than {within_s} s: {self:?}"
-        );
-    }
-}
 
 /// The loop's re-arms.
 fn rearms(ev: &[String]) -> usize {

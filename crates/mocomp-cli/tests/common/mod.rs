@@ -1,6 +1,7 @@
 //! Helpers shared by the CLI test files (each includes this with `mod common;`).
 #![allow(dead_code)] // not every test file uses every helper
 
+pub mod on_goal;
 pub mod session;
 
 use mocomp_testkit::{TempDir, workspace_root};
