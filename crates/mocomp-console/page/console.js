@@ -10,6 +10,7 @@ const state = {
   config: null,
   history: [], // [t, deviation_mm, head_speed_mm_s]
   latencies: [], // loop → page, ms (the newest 2000)
+  statuses: 0, // how many the page has shown: the latencies are capped, this is not
   view: { az: -0.9, el: 0.45, dist: 0.7 }, // framed on the head (about 45 % of the view); the wheel zooms out to the arm
 };
 // For tests and the latency benchmark.
@@ -40,6 +41,7 @@ async function refreshScene() {
 
 function showStatus(s) {
   state.status = s;
+  state.statuses += 1;
   // An experiment's run places its own scene: fetch it again when it changes.
   if (state.scene && s.scene_version !== state.scene.version && !state.sceneLoading) {
     state.sceneLoading = true;
