@@ -380,7 +380,8 @@ pub fn browse(s: &Session, shots: &str, mode: &str) -> Value {
         });
     assert!(
         out.status.success(),
-        "the browser helper failed (see its message above); {}",
+        "the browser helper's {mode} session failed: its traceback and the driver's log are \
+         above (a ModuleNotFoundError there means the peers are missing: {})",
         mocomp_testkit::INSTALL_HINT
     );
     let seen: Value = serde_json::from_slice(&out.stdout).unwrap();
