@@ -72,9 +72,9 @@ fn the_example_config_compensates_on_the_simulated_robot() {
     );
     let tracking: Vec<_> = rows.iter().filter(|r| &r[1] == "tracking").collect();
     assert!(tracking.len() > 200, "{}", tracking.len());
-    // The deviation while tracking stays within a centimetre, but while the coil catches up
-    // after a hold (judged apart: how far the head went while the loop held depends on how long
-    // the machine held it up), which ends within a second.
+    // The deviation while tracking stays within a centimetre, except while the coil catches up
+    // after a hold, which must end within a second (judged apart: how far the head went while
+    // the loop held depends on how long the machine held it up).
     common::on_goal::OnGoal::read(&csv, 5.0).check(10.0, 1.0, &v);
 }
 
