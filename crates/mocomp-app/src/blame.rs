@@ -93,7 +93,7 @@ pub fn classify(e: &(dyn std::error::Error + 'static)) -> Option<Blame> {
             | ExperimentError::Scene(_)
             | ExperimentError::Dose(_) => Blame::Input,
             ExperimentError::Io { .. }
-            | ExperimentError::Timeout(_)
+            | ExperimentError::Timeout { .. }
             | ExperimentError::Calibration { .. } => Blame::Run,
         });
     }
@@ -169,7 +169,10 @@ mod tests {
         assert_eq!(blame(&crate::AppError::failed("log_csv", full)), Blame::Run);
         // A simulator that timed out, a refusal, an error nobody classified: the run's.
         assert_eq!(
-            blame(&ExperimentError::Timeout("the robots' states")),
+            blame(&ExperimentError::Timeout {
+                what: "the robots' states",
+                seen: None
+            }),
             Blame::Run
         );
         assert_eq!(

@@ -15,7 +15,7 @@ use mocomp_sim::TrackerSim;
 use mocomp_ur::{Robot, ServoParams};
 use mocomp_ursim::Sim;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 impl Rig {
     /// Brings both robots back to their start and restarts the tracker (same seed), so each
@@ -340,9 +340,7 @@ fn shut_gate(pace: &mut Lockstep<'_, '_>) -> Result<(), ExperimentError> {
         robot1
             .set_digital_output(bit, false)
             .map_err(|e| io("shutting the gate output", e))?;
-        spin(Duration::from_secs(5), "the gate output to arrive", || {
-            sim1.stats().inputs > n
-        })?;
+        spin("the gate output to arrive", || sim1.stats().inputs > n)?;
     }
     Ok(())
 }

@@ -139,9 +139,7 @@ impl Lockstep<'_, '_> {
                 .map_err(|e| io("commanding the coil robot", e))?;
         }
         let (sim1, inputs) = (&w.sim1, self.inputs);
-        spin(Duration::from_secs(5), "a command to arrive", || {
-            sim1.stats().inputs > inputs
-        })?;
+        spin("a command to arrive", || sim1.stats().inputs > inputs)?;
         w.advance()
     }
 
@@ -219,9 +217,7 @@ impl Lockstep<'_, '_> {
                 .set_digital_output(bit, step.gate_open)
                 .map_err(|e| io("setting the gate output", e))?;
             // Taken before the next cycle's command is counted.
-            spin(Duration::from_secs(5), "the gate output to arrive", || {
-                sim1.stats().inputs > n
-            })?;
+            spin("the gate output to arrive", || sim1.stats().inputs > n)?;
             self.gate_level = step.gate_open;
         }
         Ok(step.gate_open)

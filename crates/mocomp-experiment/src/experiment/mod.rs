@@ -84,9 +84,14 @@ pub enum ExperimentError {
         #[source]
         source: Box<dyn std::error::Error + Send + Sync>,
     },
-    /// Something did not happen in time (a message, a state).
-    #[error("timed out waiting for {0}")]
-    Timeout(&'static str),
+    /// Something did not happen in time (a message, a state): the rig is hung.
+    #[error("timed out waiting for {what}{}", seen.as_deref().map(|s| format!(" ({s})")).unwrap_or_default())]
+    Timeout {
+        /// What was waited for.
+        what: &'static str,
+        /// What was seen instead, when known.
+        seen: Option<String>,
+    },
     /// The calibration failed.
     #[error("calibration of {robot}: {detail}")]
     Calibration {
@@ -233,18 +238,47 @@ struct Watching<'a> {
     held: bool,
 }
 
-/// Spins until `f` holds or `limit` passes.
-fn spin(
-    limit: Duration,
+/// How long the rig may go without doing what it was asked before it is called hung. The rig
+/// runs in lockstep on a stepped clock, so the machine's speed changes no result, only how long
+/// a tick takes: this catches a rig that stopped answering, not a slow machine (a 2-core machine
+/// beside other work has kept the experiment's threads off its CPUs for seconds).
+pub(crate) const RIG_PATIENCE: Duration = Duration::from_secs(60);
+
+/// How long a wait spins before it sleeps between looks: a lockstep tick's answer comes within
+/// microseconds, and a longer wait should leave the CPUs to the threads it waits for.
+const SPIN_FIRST: Duration = Duration::from_millis(2);
+
+/// Waits until `f` holds; fails naming `what` after [`RIG_PATIENCE`].
+fn spin(what: &'static str, f: impl FnMut() -> bool) -> Result<(), ExperimentError> {
+    spin_seen(what, f, || None)
+}
+
+/// [`spin`], saying what `seen` reports when it fails.
+fn spin_seen(
+    what: &'static str,
+    f: impl FnMut() -> bool,
+    seen: impl FnOnce() -> Option<String>,
+) -> Result<(), ExperimentError> {
+    wait_until(RIG_PATIENCE, what, f, seen)
+}
+
+fn wait_until(
+    patience: Duration,
     what: &'static str,
     mut f: impl FnMut() -> bool,
+    seen: impl FnOnce() -> Option<String>,
 ) -> Result<(), ExperimentError> {
-    let end = Instant::now() + limit;
+    let start = Instant::now();
     while !f() {
-        if Instant::now() > end {
-            return Err(ExperimentError::Timeout(what));
+        let waited = start.elapsed();
+        if waited > patience {
+            return Err(ExperimentError::Timeout { what, seen: seen() });
         }
-        std::thread::yield_now();
+        if waited < SPIN_FIRST {
+            std::thread::yield_now();
+        } else {
+            std::thread::sleep(Duration::from_millis(1));
+        }
     }
     Ok(())
 }
@@ -342,5 +376,34 @@ mod error_tests {
         );
         let source = std::error::Error::source(&e).map(|s| s.is::<mocomp_ur::UrError>());
         assert_eq!(source, Some(true), "the cause is the source, not a string");
+    }
+
+    #[test]
+    fn a_wait_ends_when_its_condition_holds_and_a_hung_one_says_what_it_saw() {
+        let mut looks = 0;
+        let held = wait_until(
+            Duration::from_secs(60),
+            "a state",
+            || {
+                looks += 1;
+                looks > 3
+            },
+            || None,
+        );
+        assert!(held.is_ok());
+        assert_eq!(looks, 4);
+        let hung = wait_until(
+            Duration::from_millis(5),
+            "the tracker clients to connect",
+            || false,
+            || Some("the server accepted 1".into()),
+        );
+        let Err(e) = hung else {
+            panic!("a condition that never holds must time out");
+        };
+        assert_eq!(
+            e.to_string(),
+            "timed out waiting for the tracker clients to connect (the server accepted 1)"
+        );
     }
 }

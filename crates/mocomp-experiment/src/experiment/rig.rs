@@ -174,7 +174,7 @@ impl Rig {
         });
         if sent > 0 {
             let (h, c) = (&self.head_client, &self.coil_client);
-            spin(Duration::from_secs(5), "tracker messages", || {
+            spin("tracker messages", || {
                 h.counters().transforms >= before.0 + sent
                     && c.counters().transforms >= before.1 + sent
             })?;
@@ -200,7 +200,7 @@ impl Rig {
             .unwrap_or_else(std::sync::PoisonError::into_inner) = base1_from_head;
         self.sim1.step();
         let (r1, r2) = (&self.robot1, &self.robot2);
-        spin(Duration::from_secs(5), "the robots' states", || {
+        spin("the robots' states", || {
             r1.state_count() > n.0 && r2.state_count() > n.1
         })?;
         self.q_prev = self.q_now;
@@ -217,9 +217,7 @@ impl Rig {
     ) -> Result<(), ExperimentError> {
         let inputs = sim.stats().inputs;
         f().map_err(|e| io("commanding a robot", e))?;
-        spin(Duration::from_secs(5), "a command to arrive", || {
-            sim.stats().inputs > inputs
-        })
+        spin("a command to arrive", || sim.stats().inputs > inputs)
     }
 
     /// Moves one robot (U1 if `coil`) to `q` with movej while the other keeps still, ticking
@@ -272,7 +270,10 @@ impl Rig {
                 }
             }
             if self.clock.now_s() - start > 30.0 {
-                return Err(ExperimentError::Timeout("a calibration move"));
+                return Err(ExperimentError::Timeout {
+                    what: "a calibration move",
+                    seen: None,
+                });
             }
         }
     }
@@ -547,10 +548,29 @@ fn tracker_link(clock: &Arc<SteppedClock>) -> Result<(Server, Client, Client), E
     };
     let head_client = client(HEAD_DEVICE);
     let coil_client = client(COIL_DEVICE);
-    spin(
-        Duration::from_secs(5),
+    // A failure says how far each side got, so a hung link names its side.
+    let seen = || {
+        let side = |name: &str, c: &Client| {
+            let n = c.counters();
+            format!(
+                "{name} client: {} connections, {} failed, last error: {}",
+                n.connections,
+                n.connect_failures,
+                c.last_error().unwrap_or_else(|| "none".into())
+            )
+        };
+        Some(format!(
+            "the server accepted {} and holds {}; {}; {}",
+            server.counters().accepted,
+            server.client_count(),
+            side("head", &head_client),
+            side("coil", &coil_client)
+        ))
+    };
+    spin_seen(
         "the tracker clients to connect",
         || server.client_count() == 2,
+        seen,
     )?;
     Ok((server, head_client, coil_client))
 }
