@@ -262,6 +262,7 @@ fn spin_seen(
     wait_until(RIG_PATIENCE, what, f, seen)
 }
 
+/// The wait itself, its patience given, so a test can give a short one.
 fn wait_until(
     patience: Duration,
     what: &'static str,
